@@ -1,0 +1,203 @@
+//! `kiln render`: load a scene, render it tile by tile, write the EXR.
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use kiln_image::RgbBuffer;
+use kiln_render::{RenderSettings, Scene, TileStats, render_tile, split_into_tiles};
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// The pbrt-v4 scene file.
+    scene: PathBuf,
+    /// Output EXR (default: the Film's filename with an .exr extension, beside the current directory).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Samples per pixel (default: the scene's Sampler "pixelsamples").
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Resolution as WIDTHxHEIGHT (default: the scene's Film).
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<(u32, u32)>,
+    /// Tile size in pixels.
+    #[arg(long, default_value_t = 32)]
+    tile: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Seed of the sampler (default: the scene's Sampler "seed", or 0).
+    #[arg(long)]
+    seed: Option<u32>,
+    /// Also write an sRGB PNG preview.
+    #[arg(long)]
+    preview: Option<PathBuf>,
+    /// Exposure of the preview in stops.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    exposure: f32,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad width in '{s}'"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad height in '{s}'"))?;
+    if w == 0 || h == 0 || w > 65536 || h > 65536 {
+        return Err(format!("resolution '{s}' is out of range"));
+    }
+    Ok((w, h))
+}
+
+/// Applies command-line overrides to a loaded scene; the crop window keeps its fractions.
+pub fn apply_overrides(
+    desc: &mut kiln_scene::SceneDescription,
+    resolution: Option<(u32, u32)>,
+    spp: Option<u32>,
+    seed: Option<u32>,
+) -> Result<()> {
+    if let Some((w, h)) = resolution {
+        let f = &mut desc.film;
+        let [x0, x1, y0, y1] = f.pixel_bounds;
+        let sx = |v: u32| ((v as u64 * w as u64).div_ceil(f.xresolution as u64)) as u32;
+        let sy = |v: u32| ((v as u64 * h as u64).div_ceil(f.yresolution as u64)) as u32;
+        let bounds = [sx(x0), sx(x1).min(w), sy(y0), sy(y1).min(h)];
+        f.pixel_bounds = bounds;
+        f.xresolution = w;
+        f.yresolution = h;
+        if bounds[0] >= bounds[1] || bounds[2] >= bounds[3] {
+            bail!("the crop window covers no pixel at {w}x{h}");
+        }
+    }
+    if let Some(spp) = spp {
+        if spp == 0 || spp > kiln_render::sampler::MAX_SAMPLES_PER_PIXEL {
+            bail!(
+                "--spp must be between 1 and {}",
+                kiln_render::sampler::MAX_SAMPLES_PER_PIXEL
+            );
+        }
+        desc.sampler.pixel_samples = spp;
+    }
+    if let Some(seed) = seed {
+        desc.sampler.seed = seed;
+    }
+    Ok(())
+}
+
+pub fn run(args: RenderArgs) -> Result<()> {
+    if args.tile == 0 {
+        bail!("--tile must be at least 1");
+    }
+    let start = Instant::now();
+    let mut desc = kiln_scene::load_file(&args.scene)?;
+    for w in &desc.warnings {
+        eprintln!("{w}");
+    }
+    apply_overrides(&mut desc, args.resolution, args.spp, args.seed)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("cannot start the worker threads")?;
+    let scene = Scene::build(&desc)?;
+    let settings = RenderSettings::from_description(&desc);
+    let load_time = start.elapsed();
+    let film = &desc.film;
+    let [x0, x1, y0, y1] = film.pixel_bounds;
+    let tiles = split_into_tiles(film.pixel_bounds, args.tile);
+    let output = args.output.clone().unwrap_or_else(|| {
+        let mut p = PathBuf::from(&film.filename);
+        p.set_extension("exr");
+        p
+    });
+    eprintln!(
+        "kiln: {} ({} triangles, {} spheres, {} lights), {}x{} ({}x{} rendered), {} spp, {} tiles, {} threads",
+        args.scene.display(),
+        scene.geometry.triangle_count(),
+        scene.geometry.spheres.len(),
+        scene.lights.len(),
+        film.xresolution,
+        film.yresolution,
+        x1 - x0,
+        y1 - y0,
+        settings.samples_per_pixel,
+        tiles.len(),
+        pool.current_num_threads(),
+    );
+    let progress = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        let bar = ProgressBar::new(tiles.len() as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] [{wide_bar}] {pos}/{len} tiles ({eta} left)",
+            )
+            .expect("the template is valid")
+            .progress_chars("=> "),
+        );
+        bar
+    };
+    let render_start = Instant::now();
+    let results: Vec<_> = pool.install(|| {
+        tiles
+            .par_iter()
+            .map(|t| {
+                let r = render_tile(&scene, &settings, *t);
+                progress.inc(1);
+                r
+            })
+            .collect()
+    });
+    progress.finish_and_clear();
+    let render_time = render_start.elapsed();
+    let mut frame = RgbBuffer::new(film.xresolution, film.yresolution, x0, y0, x1 - x0, y1 - y0);
+    let mut stats = TileStats::default();
+    for r in &results {
+        stats.merge(&r.stats);
+        for row in 0..r.rect.height {
+            let src = (row * r.rect.width) as usize;
+            let dst = ((r.rect.y0 - y0 + row) * frame.width + (r.rect.x0 - x0)) as usize;
+            frame.pixels[dst..dst + r.rect.width as usize]
+                .copy_from_slice(&r.pixels[src..src + r.rect.width as usize]);
+        }
+    }
+    kiln_image::write_exr(&output, &frame)
+        .with_context(|| format!("cannot write {}", output.display()))?;
+    if let Some(preview) = &args.preview {
+        kiln_image::write_png(preview, &frame, args.exposure)
+            .with_context(|| format!("cannot write {}", preview.display()))?;
+    }
+    if stats.nonfinite > 0 {
+        eprintln!(
+            "warning: {} samples had NaN or infinite radiance and were counted as black; first ones (pixel x, y, sample):",
+            stats.nonfinite
+        );
+        for e in &stats.nonfinite_examples {
+            eprintln!("  {} {} {}", e.x, e.y, e.sample);
+        }
+    }
+    let secs = render_time.as_secs_f64().max(1e-9);
+    let mean = frame.mean();
+    eprintln!(
+        "kiln: wrote {} in {:.2} s (scene {:.2} s, render {:.2} s): {:.3} M samples/s, {:.3} M rays/s, mean RGB {:.5} {:.5} {:.5}",
+        output.display(),
+        start.elapsed().as_secs_f64(),
+        load_time.as_secs_f64(),
+        secs,
+        stats.samples as f64 / secs / 1e6,
+        stats.rays as f64 / secs / 1e6,
+        mean[0],
+        mean[1],
+        mean[2],
+    );
+    Ok(())
+}

@@ -1,0 +1,283 @@
+//! Image files for Kiln: float32 RGB EXR frames and tiles (with a data window
+//! inside a display window), EXR reading for environment maps and reference
+//! images, and sRGB PNG previews.
+//!
+//! ```
+//! let frame = kiln_image::RgbBuffer::new(4, 2, 0, 0, 4, 2);
+//! let bytes = kiln_image::encode_exr(&frame).unwrap();
+//! let back = kiln_image::decode_exr(&bytes).unwrap();
+//! assert_eq!(back.width, 4);
+//! ```
+
+use std::io::Cursor;
+use std::path::Path;
+
+/// Why an image could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("cannot read or write '{path}': {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("EXR: {0}")]
+    Exr(String),
+    #[error("PNG: {0}")]
+    Png(String),
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// A rectangle of RGB pixels placed inside a frame (display window).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbBuffer {
+    /// Size of the whole frame (the display window).
+    pub frame_width: u32,
+    pub frame_height: u32,
+    /// The data window: origin and size of the pixels held, inside the frame.
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+    /// Row-major, top row first, `width * height` entries.
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl RgbBuffer {
+    /// A black buffer of `width x height` at (x0, y0) in a `frame_width x frame_height` frame.
+    pub fn new(
+        frame_width: u32,
+        frame_height: u32,
+        x0: u32,
+        y0: u32,
+        width: u32,
+        height: u32,
+    ) -> RgbBuffer {
+        RgbBuffer {
+            frame_width,
+            frame_height,
+            x0,
+            y0,
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width as usize * height as usize],
+        }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// Mean of each channel over the data window.
+    pub fn mean(&self) -> [f64; 3] {
+        let mut sum = [0.0f64; 3];
+        for p in &self.pixels {
+            for c in 0..3 {
+                sum[c] += p[c] as f64;
+            }
+        }
+        let n = self.pixels.len().max(1) as f64;
+        sum.map(|s| s / n)
+    }
+}
+
+/// A plain RGB image, as read from a file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImageRgb {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+/// Encodes a buffer as an EXR: float32 R, G, B; display window = the frame, data window = the buffer.
+pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
+    use exr::prelude::{
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, IntegerBounds, Layer,
+        LayerAttributes, Vec2, WritableImage,
+    };
+    if buffer.pixels.len() != buffer.width as usize * buffer.height as usize
+        || buffer.width == 0
+        || buffer.height == 0
+    {
+        return Err(ImageError::Invalid(
+            "buffer size does not match its pixels".into(),
+        ));
+    }
+    let channel = |name: &str, c: usize| {
+        AnyChannel::new(
+            name,
+            FlatSamples::F32(buffer.pixels.iter().map(|p| p[c]).collect()),
+        )
+    };
+    let channels = AnyChannels::sort(smallvec_of(vec![
+        channel("B", 2),
+        channel("G", 1),
+        channel("R", 0),
+    ]));
+    let size = Vec2(buffer.width as usize, buffer.height as usize);
+    let attributes = LayerAttributes {
+        layer_position: Vec2(buffer.x0 as i32, buffer.y0 as i32),
+        ..Default::default()
+    };
+    let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, channels);
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window = IntegerBounds::new(
+        Vec2(0, 0),
+        Vec2(buffer.frame_width as usize, buffer.frame_height as usize),
+    );
+    let mut bytes = Vec::new();
+    image
+        .write()
+        .to_buffered(Cursor::new(&mut bytes))
+        .map_err(|e| ImageError::Exr(e.to_string()))?;
+    Ok(bytes)
+}
+
+fn smallvec_of(
+    v: Vec<exr::prelude::AnyChannel<exr::prelude::FlatSamples>>,
+) -> exr::prelude::SmallVec<[exr::prelude::AnyChannel<exr::prelude::FlatSamples>; 4]> {
+    v.into_iter().collect()
+}
+
+/// Decodes an EXR written by [`encode_exr`] (or any EXR with R, G, B channels in its first layer).
+pub fn decode_exr(bytes: &[u8]) -> Result<RgbBuffer, ImageError> {
+    use exr::prelude::{ReadChannels, ReadLayers};
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| ImageError::Exr(e.to_string()))?;
+    let layer = &image.layer_data;
+    let (w, h) = (layer.size.0, layer.size.1);
+    let mut pixels = vec![[0.0f32; 3]; w * h];
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        let channel = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|ch| ch.name.to_string() == *name)
+            .ok_or_else(|| ImageError::Exr(format!("no {name} channel")))?;
+        for (i, v) in channel.sample_data.values_as_f32().enumerate() {
+            if i < pixels.len() {
+                pixels[i][c] = v;
+            }
+        }
+    }
+    let display = image.attributes.display_window;
+    let pos = layer.attributes.layer_position;
+    Ok(RgbBuffer {
+        frame_width: display.size.0 as u32,
+        frame_height: display.size.1 as u32,
+        x0: (pos.0 - display.position.0).max(0) as u32,
+        y0: (pos.1 - display.position.1).max(0) as u32,
+        width: w as u32,
+        height: h as u32,
+        pixels,
+    })
+}
+
+/// Reads an EXR file's first layer as RGB (environment maps, reference renders).
+pub fn read_exr_rgb(path: &Path) -> Result<ImageRgb, ImageError> {
+    let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    let b = decode_exr(&bytes)?;
+    Ok(ImageRgb {
+        width: b.width,
+        height: b.height,
+        pixels: b.pixels,
+    })
+}
+
+/// Writes a buffer to an EXR file.
+pub fn write_exr(path: &Path, buffer: &RgbBuffer) -> Result<(), ImageError> {
+    let bytes = encode_exr(buffer)?;
+    std::fs::write(path, bytes).map_err(|source| ImageError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+fn srgb_encode(linear: f32) -> u8 {
+    let v = if linear.is_nan() {
+        0.0
+    } else {
+        linear.clamp(0.0, 1.0)
+    };
+    let s = if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// Encodes a PNG preview: linear values times 2^exposure, clamped, sRGB-encoded, 8 bits.
+pub fn encode_png(buffer: &RgbBuffer, exposure: f32) -> Result<Vec<u8>, ImageError> {
+    let gain = 2f32.powf(exposure);
+    let mut data = Vec::with_capacity(buffer.pixels.len() * 3);
+    for p in &buffer.pixels {
+        for c in p {
+            data.push(srgb_encode(c * gain));
+        }
+    }
+    let mut bytes = Vec::new();
+    {
+        let mut encoder = png::Encoder::new(&mut bytes, buffer.width, buffer.height);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder
+            .write_header()
+            .map_err(|e| ImageError::Png(e.to_string()))?;
+        writer
+            .write_image_data(&data)
+            .map_err(|e| ImageError::Png(e.to_string()))?;
+    }
+    Ok(bytes)
+}
+
+pub fn write_png(path: &Path, buffer: &RgbBuffer, exposure: f32) -> Result<(), ImageError> {
+    let bytes = encode_png(buffer, exposure)?;
+    std::fs::write(path, bytes).map_err(|source| ImageError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trips_pixels_and_windows() {
+        let mut b = RgbBuffer::new(10, 8, 3, 2, 4, 5);
+        for (i, p) in b.pixels.iter_mut().enumerate() {
+            *p = [i as f32, 0.5 * i as f32, -1.0 / (i as f32 + 1.0)];
+        }
+        let back = decode_exr(&encode_exr(&b).unwrap()).unwrap();
+        assert_eq!(back, b);
+    }
+
+    #[test]
+    fn corrupt_exr_is_an_error_not_a_panic() {
+        let b = RgbBuffer::new(4, 4, 0, 0, 4, 4);
+        let bytes = encode_exr(&b).unwrap();
+        assert!(decode_exr(&bytes[..bytes.len() / 2]).is_err());
+        assert!(decode_exr(b"not an exr").is_err());
+    }
+
+    #[test]
+    fn png_encodes_srgb() {
+        assert_eq!(srgb_encode(0.0), 0);
+        assert_eq!(srgb_encode(1.0), 255);
+        assert_eq!(srgb_encode(0.5), 188);
+        let b = RgbBuffer::new(2, 2, 0, 0, 2, 2);
+        let png = encode_png(&b, 0.0).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+    }
+}

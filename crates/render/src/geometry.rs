@@ -1,0 +1,439 @@
+//! Scene geometry in world space: triangle meshes and spheres, each in an obvhs
+//! compressed wide BVH (CWBVH), with the primitives laid out in BVH order as
+//! obvhs recommends, so a leaf's triangles are contiguous in memory.
+
+use crate::math::Ray;
+use glam::{Vec2, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::{Ray as BvhRay, RayHit};
+use obvhs::rt_triangle::RtTriangle;
+use obvhs::{Boundable, BvhBuildParams};
+use std::time::Duration;
+
+/// What a primitive is made of and whether it emits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SurfaceInfo {
+    pub material: u32,
+    /// Index of the first light of this shape (triangle i of a mesh is light `light + i`).
+    pub light: Option<u32>,
+}
+
+/// One mesh's attributes; its vertices live in the shared vertex arrays.
+#[derive(Debug, Clone)]
+pub struct MeshInfo {
+    pub surface: SurfaceInfo,
+    /// First triangle of this mesh in `Geometry::triangle_vertices`.
+    pub first_triangle: u32,
+    pub has_normals: bool,
+    pub has_uvs: bool,
+    /// Flip the geometric normal (ReverseOrientation xor a handedness-swapping transform).
+    pub flip: bool,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct Sphere {
+    pub center: Vec3A,
+    pub radius: f32,
+    pub surface: SurfaceInfo,
+    /// Normals point inwards (ReverseOrientation).
+    pub flip: bool,
+}
+
+impl Sphere {
+    /// The nearest t in (tmin, tmax), or infinity.
+    pub fn intersect(&self, origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32) -> f32 {
+        // Solve with the origin moved near the sphere for precision (as in Ray Tracing Gems, ch. 7).
+        let f = origin - self.center;
+        let b = -f.dot(dir);
+        let l = f + b * dir;
+        let disc = self.radius * self.radius - l.length_squared();
+        if disc < 0.0 {
+            return f32::INFINITY;
+        }
+        let c = f.length_squared() - self.radius * self.radius;
+        let q = b + b.signum() * disc.sqrt();
+        let (t0, t1) = if q == 0.0 {
+            (0.0, 0.0)
+        } else {
+            let a = c / q;
+            (a.min(q), a.max(q))
+        };
+        if t0 > tmin && t0 < tmax {
+            t0
+        } else if t1 > tmin && t1 < tmax {
+            t1
+        } else {
+            f32::INFINITY
+        }
+    }
+}
+
+impl Boundable for Sphere {
+    fn aabb(&self) -> Aabb {
+        Aabb::new(
+            self.center - Vec3A::splat(self.radius),
+            self.center + Vec3A::splat(self.radius),
+        )
+    }
+}
+
+/// A ray hit on a surface, with everything shading needs.
+#[derive(Debug, Clone, Copy)]
+pub struct SurfaceHit {
+    pub p: Vec3A,
+    pub t: f32,
+    /// Geometric normal, oriented as pbrt orients it (emission leaves on this side).
+    pub ng: Vec3A,
+    /// Shading normal, on the same side as `ng`.
+    pub ns: Vec3A,
+    /// dp/du, for anisotropic materials.
+    pub dpdu: Vec3A,
+    pub uv: Vec2,
+    pub surface: SurfaceInfo,
+    /// The light this point emits as, if any.
+    pub light: Option<u32>,
+}
+
+/// All the geometry of a scene, ready to trace.
+pub struct Geometry {
+    pub positions: Vec<Vec3A>,
+    pub normals: Vec<Vec3A>,
+    pub uvs: Vec<Vec2>,
+    pub meshes: Vec<MeshInfo>,
+    /// Vertex indices per triangle, in the order the scene declared them.
+    pub triangle_vertices: Vec<[u32; 3]>,
+    /// The mesh each triangle belongs to.
+    pub triangle_mesh: Vec<u32>,
+    triangle_bvh: Option<CwBvh>,
+    /// Triangles in BVH order, for traversal.
+    bvh_triangles: Vec<RtTriangle>,
+    /// For each BVH slot, the triangle's index in declaration order.
+    bvh_triangle_ids: Vec<u32>,
+    pub spheres: Vec<Sphere>,
+    sphere_bvh: Option<CwBvh>,
+    /// Time spent building BVHs.
+    pub build_time: Duration,
+}
+
+/// obvhs's CWBVH traversal misses everything when a direction component is -0.0
+/// (see shared/CRATES.md); adding +0.0 turns -0.0 into +0.0 and changes nothing else.
+fn bvh_ray(origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32) -> BvhRay {
+    BvhRay::new(origin, dir + Vec3A::ZERO, tmin, tmax)
+}
+
+impl Geometry {
+    pub fn new(
+        positions: Vec<Vec3A>,
+        normals: Vec<Vec3A>,
+        uvs: Vec<Vec2>,
+        meshes: Vec<MeshInfo>,
+        triangle_vertices: Vec<[u32; 3]>,
+        triangle_mesh: Vec<u32>,
+        spheres: Vec<Sphere>,
+    ) -> Geometry {
+        let mut build_time = Duration::ZERO;
+        let tris: Vec<RtTriangle> = triangle_vertices
+            .iter()
+            .map(|v| {
+                RtTriangle::new(
+                    positions[v[0] as usize],
+                    positions[v[1] as usize],
+                    positions[v[2] as usize],
+                )
+            })
+            .collect();
+        // Build on one thread: the BVH must be the same whatever the machine, so that
+        // ties between equally distant hits always resolve the same way.
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().ok();
+        let build = |f: &mut (dyn FnMut() + Send)| match &pool {
+            Some(p) => p.install(f),
+            None => f(),
+        };
+        let mut triangle_bvh = None;
+        let mut bvh_triangles = Vec::new();
+        let mut bvh_triangle_ids = Vec::new();
+        if !tris.is_empty() {
+            build(&mut || {
+                let bvh = obvhs::cwbvh::builder::build_cwbvh(
+                    &tris,
+                    BvhBuildParams::medium_build(),
+                    &mut build_time,
+                );
+                bvh_triangles = bvh
+                    .primitive_indices
+                    .iter()
+                    .map(|&i| tris[i as usize])
+                    .collect();
+                bvh_triangle_ids = bvh.primitive_indices.clone();
+                triangle_bvh = Some(bvh);
+            });
+        }
+        let mut sphere_bvh = None;
+        if !spheres.is_empty() {
+            build(&mut || {
+                sphere_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                    &spheres,
+                    BvhBuildParams::medium_build(),
+                    &mut build_time,
+                ));
+            });
+        }
+        Geometry {
+            positions,
+            normals,
+            uvs,
+            meshes,
+            triangle_vertices,
+            triangle_mesh,
+            triangle_bvh,
+            bvh_triangles,
+            bvh_triangle_ids,
+            spheres,
+            sphere_bvh,
+            build_time,
+        }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangle_vertices.len()
+    }
+
+    /// The closest hit along `ray` within (0, tmax).
+    pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<SurfaceHit> {
+        let bray = bvh_ray(ray.origin, ray.dir, 0.0, tmax);
+        let mut best_t = tmax;
+        let mut best: Option<(bool, u32)> = None;
+        if let Some(bvh) = &self.triangle_bvh {
+            let mut hit = RayHit::none();
+            if bvh.ray_traverse(bray, &mut hit, |r, id| self.bvh_triangles[id].intersect(r))
+                && hit.t < best_t
+            {
+                best_t = hit.t;
+                best = Some((true, self.bvh_triangle_ids[hit.primitive_id as usize]));
+            }
+        }
+        if let Some(bvh) = &self.sphere_bvh {
+            let mut hit = RayHit::none();
+            let sray = bvh_ray(ray.origin, ray.dir, 0.0, best_t);
+            if bvh.ray_traverse(sray, &mut hit, |r, id| {
+                let s = &self.spheres[bvh.primitive_indices[id] as usize];
+                s.intersect(r.origin, r.direction, r.tmin.max(1e-7), r.tmax)
+            }) && hit.t < best_t
+            {
+                best_t = hit.t;
+                best = Some((false, bvh.primitive_indices[hit.primitive_id as usize]));
+            }
+        }
+        let (is_triangle, id) = best?;
+        Some(if is_triangle {
+            self.triangle_hit(ray, best_t, id)
+        } else {
+            self.sphere_hit(ray, best_t, id)
+        })
+    }
+
+    /// True when nothing blocks the segment from `origin` along `dir` up to `tmax`.
+    pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, tmax: f32) -> bool {
+        let bray = bvh_ray(origin, dir, 0.0, tmax);
+        if let Some(bvh) = &self.triangle_bvh {
+            if !bvh.ray_traverse_miss(bray, |r, id| self.bvh_triangles[id].intersect(r)) {
+                return false;
+            }
+        }
+        if let Some(bvh) = &self.sphere_bvh {
+            if !bvh.ray_traverse_miss(bray, |r, id| {
+                let s = &self.spheres[bvh.primitive_indices[id] as usize];
+                s.intersect(r.origin, r.direction, 1e-7, r.tmax)
+            }) {
+                return false;
+            }
+        }
+        true
+    }
+
+    fn triangle_hit(&self, ray: &Ray, t: f32, tri: u32) -> SurfaceHit {
+        let [i0, i1, i2] = self.triangle_vertices[tri as usize];
+        let mesh = &self.meshes[self.triangle_mesh[tri as usize] as usize];
+        let (p0, p1, p2) = (
+            self.positions[i0 as usize],
+            self.positions[i1 as usize],
+            self.positions[i2 as usize],
+        );
+        let p = ray.at(t);
+        let b = barycentrics(p, p0, p1, p2);
+        let mut ng = (p0 - p2).cross(p1 - p2).normalize_or_zero();
+        if mesh.flip {
+            ng = -ng;
+        }
+        let (uv0, uv1, uv2) = if mesh.has_uvs {
+            (
+                self.uvs[i0 as usize],
+                self.uvs[i1 as usize],
+                self.uvs[i2 as usize],
+            )
+        } else {
+            (Vec2::ZERO, Vec2::X, Vec2::ONE)
+        };
+        let uv = uv0 * b[0] + uv1 * b[1] + uv2 * b[2];
+        let duv02 = uv0 - uv2;
+        let duv12 = uv1 - uv2;
+        let det = duv02.x * duv12.y - duv02.y * duv12.x;
+        let dpdu = if det.abs() > 1e-12 {
+            ((p0 - p2) * duv12.y - (p1 - p2) * duv02.y) / det
+        } else {
+            p1 - p0
+        };
+        let mut ns = ng;
+        if mesh.has_normals {
+            let n = self.normals[i0 as usize] * b[0]
+                + self.normals[i1 as usize] * b[1]
+                + self.normals[i2 as usize] * b[2];
+            if n.length_squared() > 0.0 {
+                ns = n.normalize();
+                // With per-vertex normals, pbrt orients the geometric normal by them.
+                if ng.dot(ns) < 0.0 {
+                    ng = -ng;
+                }
+            }
+        }
+        let local = tri - mesh.first_triangle;
+        SurfaceHit {
+            p,
+            t,
+            ng,
+            ns,
+            dpdu,
+            uv,
+            surface: mesh.surface,
+            light: mesh.surface.light.map(|l| l + local),
+        }
+    }
+
+    fn sphere_hit(&self, ray: &Ray, t: f32, id: u32) -> SurfaceHit {
+        let s = &self.spheres[id as usize];
+        let mut n = (ray.at(t) - s.center).normalize();
+        // Put the point back on the surface to limit self-intersection.
+        let p = s.center + n * s.radius;
+        let dpdu = Vec3A::new(-n.y, n.x, 0.0);
+        let uv = Vec2::new(
+            (n.y.atan2(n.x) / std::f32::consts::TAU).rem_euclid(1.0),
+            n.z.clamp(-1.0, 1.0).acos() / std::f32::consts::PI,
+        );
+        if s.flip {
+            n = -n;
+        }
+        SurfaceHit {
+            p,
+            t,
+            ng: n,
+            ns: n,
+            dpdu,
+            uv,
+            surface: s.surface,
+            light: s.surface.light,
+        }
+    }
+
+    /// Bounding box of everything.
+    pub fn bounds(&self) -> (Vec3A, Vec3A) {
+        let mut lo = Vec3A::splat(f32::INFINITY);
+        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+        for p in &self.positions {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        for s in &self.spheres {
+            lo = lo.min(s.center - Vec3A::splat(s.radius));
+            hi = hi.max(s.center + Vec3A::splat(s.radius));
+        }
+        if lo.x > hi.x {
+            (Vec3A::ZERO, Vec3A::ZERO)
+        } else {
+            (lo, hi)
+        }
+    }
+}
+
+/// Barycentric coordinates of `p` (assumed in the triangle's plane).
+pub fn barycentrics(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> [f32; 3] {
+    let v0 = b - a;
+    let v1 = c - a;
+    let v2 = p - a;
+    let d00 = v0.dot(v0);
+    let d01 = v0.dot(v1);
+    let d11 = v1.dot(v1);
+    let d20 = v2.dot(v0);
+    let d21 = v2.dot(v1);
+    let denom = d00 * d11 - d01 * d01;
+    if denom == 0.0 {
+        return [1.0, 0.0, 0.0];
+    }
+    let v = (d11 * d20 - d01 * d21) / denom;
+    let w = (d00 * d21 - d01 * d20) / denom;
+    [1.0 - v - w, v, w]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad_geometry() -> Geometry {
+        let positions = vec![
+            Vec3A::new(-1.0, -1.0, 0.0),
+            Vec3A::new(1.0, -1.0, 0.0),
+            Vec3A::new(1.0, 1.0, 0.0),
+            Vec3A::new(-1.0, 1.0, 0.0),
+        ];
+        let surface = SurfaceInfo {
+            material: 0,
+            light: None,
+        };
+        let meshes = vec![MeshInfo {
+            surface,
+            first_triangle: 0,
+            has_normals: false,
+            has_uvs: false,
+            flip: false,
+        }];
+        Geometry::new(
+            positions,
+            Vec::new(),
+            Vec::new(),
+            meshes,
+            vec![[0, 1, 2], [0, 2, 3]],
+            vec![0, 0],
+            vec![Sphere {
+                center: Vec3A::new(0.0, 0.0, 5.0),
+                radius: 1.0,
+                surface,
+                flip: false,
+            }],
+        )
+    }
+
+    /// Guards the obvhs CWBVH miss on -0.0 direction components (shared/CRATES.md).
+    #[test]
+    fn negative_zero_direction_still_hits() {
+        let g = quad_geometry();
+        let ray = Ray::new(Vec3A::new(0.2, 0.3, 2.0), Vec3A::new(-0.0, -0.0, -1.0));
+        let hit = g
+            .intersect(&ray, f32::INFINITY)
+            .expect("the quad is right below");
+        assert!((hit.t - 2.0).abs() < 1e-5);
+        assert!(!g.unoccluded(ray.origin, ray.dir, 10.0));
+    }
+
+    #[test]
+    fn closest_of_sphere_and_triangle_wins() {
+        let g = quad_geometry();
+        let ray = Ray::new(Vec3A::new(0.0, 0.0, 10.0), Vec3A::new(0.0, 0.0, -1.0));
+        let hit = g.intersect(&ray, f32::INFINITY).unwrap();
+        assert!((hit.t - 4.0).abs() < 1e-4, "{}", hit.t);
+        assert!((hit.ng - Vec3A::Z).length() < 1e-5);
+        let inside = Ray::new(Vec3A::new(0.0, 0.0, 5.0), Vec3A::new(0.0, 0.0, -1.0));
+        let hit = g.intersect(&inside, f32::INFINITY).unwrap();
+        assert!((hit.t - 1.0).abs() < 1e-4);
+        assert!(g.unoccluded(Vec3A::new(3.0, 3.0, 3.0), Vec3A::X, 100.0));
+    }
+}

@@ -1,0 +1,112 @@
+//! Rays, colours and orthonormal frames.
+
+use glam::Vec3A;
+
+/// Linear sRGB radiance or throughput.
+pub type Color = Vec3A;
+
+pub fn luminance(c: Color) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+pub fn rgb(c: [f32; 3]) -> Color {
+    Vec3A::from_array(c)
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct Ray {
+    pub origin: Vec3A,
+    /// Unit length.
+    pub dir: Vec3A,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3A, dir: Vec3A) -> Ray {
+        Ray { origin, dir }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3A {
+        self.origin + self.dir * t
+    }
+}
+
+/// An orthonormal basis with `z` along a normal.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame {
+    pub x: Vec3A,
+    pub y: Vec3A,
+    pub z: Vec3A,
+}
+
+impl Frame {
+    /// A frame around `n` (unit), with x along `tangent` projected onto the plane when that is usable.
+    pub fn new(n: Vec3A, tangent: Vec3A) -> Frame {
+        let t = tangent - n * n.dot(tangent);
+        let x = if t.length_squared() > 1e-12 {
+            t.normalize()
+        } else {
+            any_perpendicular(n)
+        };
+        Frame {
+            x,
+            y: n.cross(x),
+            z: n,
+        }
+    }
+
+    pub fn from_z(n: Vec3A) -> Frame {
+        let x = any_perpendicular(n);
+        Frame {
+            x,
+            y: n.cross(x),
+            z: n,
+        }
+    }
+
+    pub fn to_local(&self, v: Vec3A) -> Vec3A {
+        Vec3A::new(v.dot(self.x), v.dot(self.y), v.dot(self.z))
+    }
+
+    pub fn to_world(&self, v: Vec3A) -> Vec3A {
+        self.x * v.x + self.y * v.y + self.z * v.z
+    }
+}
+
+/// Duff et al.'s branchless orthonormal basis.
+fn any_perpendicular(n: Vec3A) -> Vec3A {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x)
+}
+
+/// Moves a point off a surface along its geometric normal, to the side `dir` leaves towards.
+pub fn offset_origin(p: Vec3A, ng: Vec3A, dir: Vec3A) -> Vec3A {
+    let eps = 2e-4 * (1.0 + p.abs().max_element());
+    if ng.dot(dir) >= 0.0 {
+        p + ng * eps
+    } else {
+        p - ng * eps
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_are_orthonormal() {
+        for n in [
+            Vec3A::Z,
+            -Vec3A::Z,
+            Vec3A::new(0.3, -0.4, 0.866).normalize(),
+            Vec3A::X,
+        ] {
+            let f = Frame::from_z(n);
+            assert!(f.x.dot(f.y).abs() < 1e-6 && f.x.dot(f.z).abs() < 1e-6);
+            assert!((f.x.length() - 1.0).abs() < 1e-5 && (f.y.length() - 1.0).abs() < 1e-5);
+            let v = Vec3A::new(0.1, 0.2, 0.3);
+            assert!((f.to_world(f.to_local(v)) - v).length() < 1e-6);
+        }
+    }
+}

@@ -1,0 +1,205 @@
+//! The tile function: the pure function from (scene, settings, tile) to pixels
+//! that `kiln render` and the farm's workers both call.
+
+use crate::integrator::Integrator;
+use crate::math::Color;
+use crate::sampler::PixelSampler;
+use crate::scene::Scene;
+use glam::Vec2;
+use rayon::prelude::*;
+
+/// A rectangle of pixels inside the frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TileRect {
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl TileRect {
+    pub fn pixel_count(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+}
+
+/// Cuts `[x0, x1) x [y0, y1)` into tiles of at most `size x size`, row by row.
+pub fn split_into_tiles(bounds: [u32; 4], size: u32) -> Vec<TileRect> {
+    let size = size.max(1);
+    let [x0, x1, y0, y1] = bounds;
+    let mut tiles = Vec::new();
+    let mut y = y0;
+    while y < y1 {
+        let h = size.min(y1 - y);
+        let mut x = x0;
+        while x < x1 {
+            let w = size.min(x1 - x);
+            tiles.push(TileRect {
+                x0: x,
+                y0: y,
+                width: w,
+                height: h,
+            });
+            x += w;
+        }
+        y += h;
+    }
+    tiles
+}
+
+/// Everything besides the scene that decides the pixels.
+#[derive(Debug, Clone)]
+pub struct RenderSettings {
+    pub samples_per_pixel: u32,
+    pub seed: u32,
+    pub integrator: Integrator,
+    /// Clamp each sample's radiance to this maximum component (0 disables it).
+    pub max_radiance: f32,
+}
+
+/// A sample whose radiance was NaN or infinite (and was counted as black).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NonFiniteSample {
+    pub x: u32,
+    pub y: u32,
+    pub sample: u32,
+}
+
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TileStats {
+    pub samples: u64,
+    pub rays: u64,
+    pub nonfinite: u64,
+    /// The first few non-finite samples, for replaying them.
+    pub nonfinite_examples: Vec<NonFiniteSample>,
+}
+
+impl TileStats {
+    pub const MAX_EXAMPLES: usize = 16;
+
+    pub fn merge(&mut self, other: &TileStats) {
+        self.samples += other.samples;
+        self.rays += other.rays;
+        self.nonfinite += other.nonfinite;
+        for e in &other.nonfinite_examples {
+            if self.nonfinite_examples.len() < Self::MAX_EXAMPLES {
+                self.nonfinite_examples.push(*e);
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct TileResult {
+    pub rect: TileRect,
+    /// Row-major, `rect.width * rect.height` linear RGB pixels.
+    pub pixels: Vec<[f32; 3]>,
+    pub stats: TileStats,
+}
+
+/// Renders one tile. The result depends only on the scene, the settings and the
+/// tile's pixels: not on the tile's size, its neighbours, or the thread count.
+pub fn render_tile(scene: &Scene, settings: &RenderSettings, rect: TileRect) -> TileResult {
+    let rows: Vec<(Vec<[f32; 3]>, TileStats)> = (rect.y0..rect.y0 + rect.height)
+        .into_par_iter()
+        .map(|y| {
+            let mut stats = TileStats::default();
+            let row = (rect.x0..rect.x0 + rect.width)
+                .map(|x| render_pixel(scene, settings, x, y, &mut stats))
+                .collect();
+            (row, stats)
+        })
+        .collect();
+    let mut pixels = Vec::with_capacity(rect.pixel_count() as usize);
+    let mut stats = TileStats::default();
+    for (row, s) in rows {
+        pixels.extend(row);
+        stats.merge(&s);
+    }
+    TileResult {
+        rect,
+        pixels,
+        stats,
+    }
+}
+
+/// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean.
+pub fn render_pixel(
+    scene: &Scene,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    stats: &mut TileStats,
+) -> [f32; 3] {
+    let mut sum = [0.0f64; 3];
+    let mut weight_sum = 0.0f64;
+    for s in 0..settings.samples_per_pixel {
+        let (l, w) = render_sample(scene, settings, x, y, s, stats);
+        for c in 0..3 {
+            sum[c] += (l[c] * w) as f64;
+        }
+        weight_sum += w as f64;
+    }
+    if weight_sum == 0.0 {
+        return [0.0; 3];
+    }
+    sum.map(|v| (v / weight_sum) as f32)
+}
+
+/// One camera sample: its radiance (zeroed if not finite) and filter weight.
+pub fn render_sample(
+    scene: &Scene,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    sample: u32,
+    stats: &mut TileStats,
+) -> (Color, f32) {
+    let mut sampler = PixelSampler::new(x, y, sample, settings.seed);
+    let (offset, weight) = scene.filter.sample(sampler.get_2d());
+    let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
+    let lens = sampler.get_2d();
+    let ray = scene.camera.generate_ray(film, lens);
+    let mut l = settings
+        .integrator
+        .li(scene, ray, &mut sampler, &mut stats.rays);
+    stats.samples += 1;
+    if !l.is_finite() {
+        stats.nonfinite += 1;
+        if stats.nonfinite_examples.len() < TileStats::MAX_EXAMPLES {
+            stats
+                .nonfinite_examples
+                .push(NonFiniteSample { x, y, sample });
+        }
+        l = Color::ZERO;
+    }
+    if settings.max_radiance > 0.0 {
+        let m = l.max_element();
+        if m > settings.max_radiance {
+            l *= settings.max_radiance / m;
+        }
+    }
+    (l, weight)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_cover_the_bounds_exactly_once() {
+        for size in [1, 16, 37, 64, 1000] {
+            let tiles = split_into_tiles([3, 103, 5, 60], size);
+            let mut covered = vec![0u8; 100 * 55];
+            for t in &tiles {
+                assert!(t.width <= size && t.height <= size);
+                for y in t.y0..t.y0 + t.height {
+                    for x in t.x0..t.x0 + t.width {
+                        covered[((y - 5) * 100 + (x - 3)) as usize] += 1;
+                    }
+                }
+            }
+            assert!(covered.iter().all(|&c| c == 1));
+        }
+    }
+}

@@ -1,0 +1,270 @@
+//! The plain scene description that the parser produces and the renderer consumes.
+//!
+//! Everything here is data: typed, validated, in world space where that is
+//! meaningful, with the file location it came from. Nothing here knows how it
+//! will be rendered.
+
+use crate::error::{Diagnostic, Loc};
+use glam::{DMat4, DVec3};
+use std::sync::Arc;
+
+/// Linear sRGB.
+pub type Rgb = [f32; 3];
+
+/// A whole scene: camera and film settings, materials, shapes and lights.
+#[derive(Debug, Clone)]
+pub struct SceneDescription {
+    pub camera: CameraDesc,
+    pub film: FilmDesc,
+    pub sampler: SamplerDesc,
+    pub filter: FilterDesc,
+    pub integrator: IntegratorDesc,
+    pub materials: Vec<MaterialDesc>,
+    pub shapes: Vec<ShapeDesc>,
+    pub lights: Vec<LightDesc>,
+    /// Named objects (ObjectBegin/End), referred to by [`InstanceDesc::object`].
+    pub objects: Vec<ObjectDesc>,
+    pub instances: Vec<InstanceDesc>,
+    /// Warnings found while loading (errors abort loading instead).
+    pub warnings: Vec<Diagnostic>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Projection {
+    /// `fov` is the full angle, in degrees, of the shorter image axis.
+    Perspective {
+        fov_degrees: f64,
+    },
+    Orthographic,
+}
+
+#[derive(Debug, Clone)]
+pub struct CameraDesc {
+    pub projection: Projection,
+    /// Camera space to world space (pbrt's convention: the camera looks down +z, +y up).
+    pub camera_to_world: DMat4,
+    pub lens_radius: f64,
+    pub focal_distance: f64,
+    /// [xmin, xmax, ymin, ymax] of the screen window; `None` means pbrt's default for the aspect ratio.
+    pub screen_window: Option<[f64; 4]>,
+    pub loc: Loc,
+}
+
+#[derive(Debug, Clone)]
+pub struct FilmDesc {
+    pub xresolution: u32,
+    pub yresolution: u32,
+    pub filename: String,
+    /// [x0, x1, y0, y1] in pixels, half-open: the region to render. The whole frame when not cropped.
+    pub pixel_bounds: [u32; 4],
+    pub loc: Loc,
+}
+
+#[derive(Debug, Clone)]
+pub struct SamplerDesc {
+    /// The sampler name in the file; Kiln always uses its own deterministic sampler.
+    pub name: String,
+    pub pixel_samples: u32,
+    pub seed: u32,
+    pub loc: Loc,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FilterKind {
+    Box,
+    Triangle,
+    Gaussian { sigma: f64 },
+}
+
+#[derive(Debug, Clone)]
+pub struct FilterDesc {
+    pub kind: FilterKind,
+    pub radius: [f64; 2],
+    pub loc: Loc,
+}
+
+/// Which estimator of direct lighting the path tracer uses. Only `Mis` is a
+/// production setting; the others exist to check that the estimators agree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LightStrategy {
+    Mis,
+    LightOnly,
+    BsdfOnly,
+}
+
+#[derive(Debug, Clone)]
+pub struct IntegratorDesc {
+    /// The name in the file ("path", "volpath", or one Kiln mapped onto those).
+    pub name: String,
+    pub max_depth: u32,
+    pub strategy: LightStrategy,
+    /// Clamp the radiance of each path sample to this value (0 disables it).
+    pub max_radiance: f32,
+    pub loc: Loc,
+}
+
+/// A texture reference or constant. Only constants are supported for now.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RgbValue {
+    Constant(Rgb),
+}
+
+/// Microfacet roughness along u and v, already remapped when the scene asked for it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Roughness {
+    pub u: f32,
+    pub v: f32,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum MaterialKind {
+    Diffuse {
+        reflectance: RgbValue,
+    },
+    Dielectric {
+        eta: f32,
+        roughness: Roughness,
+    },
+    ThinDielectric {
+        eta: f32,
+    },
+    Conductor {
+        eta: Rgb,
+        k: Rgb,
+        roughness: Roughness,
+    },
+    /// A conductor given by its reflectance at normal incidence instead of eta and k.
+    ConductorReflectance {
+        reflectance: Rgb,
+        roughness: Roughness,
+    },
+    CoatedDiffuse {
+        reflectance: RgbValue,
+        roughness: Roughness,
+        eta: f32,
+        thickness: f32,
+        albedo: Rgb,
+        g: f32,
+    },
+    /// Marks a boundary between media; rays pass through it unchanged.
+    Interface,
+}
+
+#[derive(Debug, Clone)]
+pub struct MaterialDesc {
+    pub kind: MaterialKind,
+    /// The name given by MakeNamedMaterial, if any.
+    pub name: Option<String>,
+    pub loc: Loc,
+}
+
+/// Index into [`SceneDescription::materials`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MaterialId(pub u32);
+
+/// Triangle mesh data in object space.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriangleMeshData {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub uvs: Option<Vec<[f32; 2]>>,
+    /// Three per triangle.
+    pub indices: Vec<u32>,
+}
+
+#[derive(Debug, Clone)]
+pub enum ShapeKind {
+    Mesh(Arc<TriangleMeshData>),
+    Sphere { radius: f64 },
+}
+
+/// Emission attached to a shape by AreaLightSource.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AreaLightDesc {
+    Diffuse {
+        /// Radiance, with `scale` already applied.
+        radiance: Rgb,
+        two_sided: bool,
+        loc: Loc,
+    },
+}
+
+#[derive(Debug, Clone)]
+pub struct ShapeDesc {
+    pub kind: ShapeKind,
+    pub object_to_world: DMat4,
+    /// ReverseOrientation was in effect when the shape was declared. (Whether the
+    /// transform swaps handedness is the renderer's to derive from `object_to_world`.)
+    pub reverse_orientation: bool,
+    pub material: MaterialId,
+    pub area_light: Option<AreaLightDesc>,
+    pub loc: Loc,
+}
+
+/// A linear-RGB image (an environment map): row-major, top row first.
+pub use kiln_image::ImageRgb;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EnvironmentLayout {
+    /// pbrt-v4's equal-area octahedral square.
+    EqualArea,
+    /// Latitude-longitude (equirectangular), +z up in light space.
+    LatLong,
+}
+
+#[derive(Debug, Clone)]
+pub enum LightKind {
+    Point {
+        position: DVec3,
+        intensity: Rgb,
+    },
+    Spot {
+        position: DVec3,
+        direction: DVec3,
+        intensity: Rgb,
+        cos_falloff_start: f64,
+        cos_falloff_end: f64,
+    },
+    /// Light arriving from one direction; `direction` points from the scene towards the light.
+    Distant {
+        direction: DVec3,
+        radiance: Rgb,
+    },
+    /// Constant radiance from every direction.
+    UniformInfinite {
+        radiance: Rgb,
+    },
+    /// Radiance from an environment map; `light_to_world` orients it.
+    ImageInfinite {
+        image: Arc<ImageRgb>,
+        layout: EnvironmentLayout,
+        scale: f32,
+        light_to_world: DMat4,
+    },
+    /// Constant radiance from the hemisphere around `up` only (seed 003's dome light).
+    Dome {
+        radiance: Rgb,
+        up: DVec3,
+    },
+}
+
+#[derive(Debug, Clone)]
+pub struct LightDesc {
+    pub kind: LightKind,
+    pub loc: Loc,
+}
+
+#[derive(Debug, Clone)]
+pub struct ObjectDesc {
+    pub name: String,
+    /// Shapes in the object's own space.
+    pub shapes: Vec<ShapeDesc>,
+    pub loc: Loc,
+}
+
+#[derive(Debug, Clone)]
+pub struct InstanceDesc {
+    pub object: usize,
+    pub instance_to_world: DMat4,
+    pub loc: Loc,
+}

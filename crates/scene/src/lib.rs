@@ -1,0 +1,36 @@
+//! Kiln's scene front end: reads pbrt-v4 scene files (and the PLY, OBJ and EXR
+//! files they refer to) into a plain, validated [`SceneDescription`].
+//!
+//! This crate knows nothing about rendering. Every error names the file and
+//! line it comes from; parameters Kiln does not understand are diagnostics,
+//! never silently ignored.
+//!
+//! ```
+//! use std::path::Path;
+//! let text = r#"
+//!     Film "rgb" "integer xresolution" [ 64 ] "integer yresolution" [ 32 ]
+//!     Camera "perspective" "float fov" [ 45 ]
+//!     WorldBegin
+//!     LightSource "point" "rgb I" [ 1 1 1 ]
+//!     Shape "sphere" "float radius" [ 2 ]
+//! "#;
+//! let scene = kiln_scene::load_str(text, Path::new("example.pbrt"), Path::new(".")).unwrap();
+//! assert_eq!(scene.film.xresolution, 64);
+//! assert_eq!(scene.shapes.len(), 1);
+//!
+//! let bad = kiln_scene::load_str("WorldBegin\nMaterial \"velvet\"", Path::new("bad.pbrt"), Path::new("."));
+//! assert!(bad.unwrap_err().to_string().starts_with("bad.pbrt:2:"));
+//! ```
+
+pub mod description;
+pub mod error;
+mod lexer;
+mod mesh_files;
+mod params;
+mod parser;
+pub mod ply;
+pub mod spectrum;
+
+pub use description::*;
+pub use error::{Diagnostic, Loc, SceneError, Severity};
+pub use parser::{load_file, load_str};

@@ -1,0 +1,396 @@
+//! Parameter lists (`"float radius" [ 1 ]`) and typed access to them.
+//!
+//! Every lookup marks a parameter used; after a directive has been turned into
+//! a scene entity, [`ParamSet::unused`] lists what nobody asked for, so that a
+//! misspelt or unsupported parameter becomes a diagnostic instead of a silent
+//! default (as pbrt-v4's `ReportUnused` does).
+
+use crate::error::{Loc, Result, SceneError};
+use crate::spectrum::{self, SpectrumUse};
+use std::cell::Cell;
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamValues {
+    Numbers(Vec<f64>),
+    Strings(Vec<String>),
+    Bools(Vec<bool>),
+}
+
+#[derive(Debug, Clone)]
+pub struct Param {
+    pub ty: String,
+    pub name: String,
+    pub values: ParamValues,
+    pub loc: Loc,
+    used: Cell<bool>,
+}
+
+impl Param {
+    pub fn new(ty: &str, name: &str, values: ParamValues, loc: Loc) -> Param {
+        Param {
+            ty: ty.to_string(),
+            name: name.to_string(),
+            values,
+            loc,
+            used: Cell::new(false),
+        }
+    }
+
+    fn numbers(&self) -> Result<&[f64]> {
+        match &self.values {
+            ParamValues::Numbers(v) => Ok(v),
+            _ => Err(SceneError::at(
+                &self.loc,
+                format!("parameter \"{} {}\" needs numbers", self.ty, self.name),
+            )),
+        }
+    }
+}
+
+/// The parameters of one directive.
+#[derive(Debug, Clone, Default)]
+pub struct ParamSet {
+    params: Vec<Param>,
+}
+
+/// The parameter types pbrt-v4 knows.
+pub const PARAM_TYPES: &[&str] = &[
+    "integer",
+    "float",
+    "point2",
+    "vector2",
+    "point3",
+    "vector3",
+    "normal3",
+    "normal",
+    "point",
+    "vector",
+    "color",
+    "rgb",
+    "spectrum",
+    "blackbody",
+    "bool",
+    "string",
+    "texture",
+];
+
+impl ParamSet {
+    pub fn push(&mut self, param: Param) -> Result<()> {
+        if self.params.iter().any(|p| p.name == param.name) {
+            return Err(SceneError::at(
+                &param.loc,
+                format!("parameter '{}' is given twice", param.name),
+            ));
+        }
+        self.params.push(param);
+        Ok(())
+    }
+
+    fn find(&self, name: &str, types: &[&str]) -> Result<Option<&Param>> {
+        let Some(p) = self.params.iter().find(|p| p.name == name) else {
+            return Ok(None);
+        };
+        if !types.contains(&p.ty.as_str()) {
+            return Err(SceneError::at(
+                &p.loc,
+                format!(
+                    "parameter '{name}' has type '{}' but Kiln expects {}",
+                    p.ty,
+                    types
+                        .iter()
+                        .map(|t| format!("'{t}'"))
+                        .collect::<Vec<_>>()
+                        .join(" or ")
+                ),
+            ));
+        }
+        p.used.set(true);
+        Ok(Some(p))
+    }
+
+    /// The location of a parameter, if present (for later diagnostics).
+    pub fn loc_of(&self, name: &str) -> Option<Loc> {
+        self.params
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| p.loc.clone())
+    }
+
+    fn one_number(&self, name: &str, types: &[&str]) -> Result<Option<f64>> {
+        match self.find(name, types)? {
+            None => Ok(None),
+            Some(p) => {
+                let v = p.numbers()?;
+                if v.len() != 1 {
+                    return Err(SceneError::at(
+                        &p.loc,
+                        format!("parameter '{name}' needs one value, got {}", v.len()),
+                    ));
+                }
+                Ok(Some(v[0]))
+            }
+        }
+    }
+
+    pub fn float(&self, name: &str, default: f64) -> Result<f64> {
+        Ok(self.one_number(name, &["float"])?.unwrap_or(default))
+    }
+
+    pub fn float_opt(&self, name: &str) -> Result<Option<f64>> {
+        self.one_number(name, &["float"])
+    }
+
+    pub fn int(&self, name: &str, default: i64) -> Result<i64> {
+        Ok(self
+            .one_number(name, &["integer"])?
+            .map(|v| v as i64)
+            .unwrap_or(default))
+    }
+
+    pub fn string(&self, name: &str) -> Result<Option<String>> {
+        match self.find(name, &["string"])? {
+            None => Ok(None),
+            Some(p) => match &p.values {
+                ParamValues::Strings(v) if v.len() == 1 => Ok(Some(v[0].clone())),
+                _ => Err(SceneError::at(
+                    &p.loc,
+                    format!("parameter '{name}' needs one string"),
+                )),
+            },
+        }
+    }
+
+    pub fn bool(&self, name: &str, default: bool) -> Result<bool> {
+        match self.find(name, &["bool"])? {
+            None => Ok(default),
+            Some(p) => match &p.values {
+                ParamValues::Bools(v) if v.len() == 1 => Ok(v[0]),
+                _ => Err(SceneError::at(
+                    &p.loc,
+                    format!("parameter '{name}' needs one bool (true or false)"),
+                )),
+            },
+        }
+    }
+
+    /// All numbers of a parameter, checking that their count is a multiple of `stride`.
+    pub fn numbers(&self, name: &str, types: &[&str], stride: usize) -> Result<Option<Vec<f64>>> {
+        match self.find(name, types)? {
+            None => Ok(None),
+            Some(p) => {
+                let v = p.numbers()?;
+                if v.len() % stride != 0 {
+                    return Err(SceneError::at(
+                        &p.loc,
+                        format!(
+                            "parameter '{name}' has {} values, not a multiple of {stride}",
+                            v.len()
+                        ),
+                    ));
+                }
+                Ok(Some(v.to_vec()))
+            }
+        }
+    }
+
+    pub fn floats(&self, name: &str) -> Result<Option<Vec<f64>>> {
+        self.numbers(name, &["float"], 1)
+    }
+
+    pub fn ints(&self, name: &str) -> Result<Option<Vec<i64>>> {
+        Ok(self
+            .numbers(name, &["integer"], 1)?
+            .map(|v| v.into_iter().map(|x| x as i64).collect()))
+    }
+
+    pub fn point3s(&self, name: &str) -> Result<Option<Vec<[f32; 3]>>> {
+        Ok(self
+            .numbers(
+                name,
+                &["point3", "point", "vector3", "vector", "normal3", "normal"],
+                3,
+            )?
+            .map(|v| {
+                v.chunks_exact(3)
+                    .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+                    .collect()
+            }))
+    }
+
+    pub fn point2s(&self, name: &str) -> Result<Option<Vec<[f32; 2]>>> {
+        Ok(self
+            .numbers(name, &["point2", "vector2", "float"], 2)?
+            .map(|v| {
+                v.chunks_exact(2)
+                    .map(|c| [c[0] as f32, c[1] as f32])
+                    .collect()
+            }))
+    }
+
+    /// One point or vector (`"point3 from" [0 0 0]`).
+    pub fn point3(&self, name: &str, default: [f64; 3]) -> Result<[f64; 3]> {
+        match self.numbers(
+            name,
+            &["point3", "point", "vector3", "vector", "normal3", "normal"],
+            3,
+        )? {
+            None => Ok(default),
+            Some(v) if v.len() == 3 => Ok([v[0], v[1], v[2]]),
+            Some(_) => Err(SceneError::at(
+                &self
+                    .loc_of(name)
+                    .unwrap_or_else(|| Loc::synthetic("params")),
+                format!("parameter '{name}' needs exactly one 3-component value"),
+            )),
+        }
+    }
+
+    /// A colour, from `rgb`, `spectrum` (named or sampled) or `blackbody`, converted to linear sRGB.
+    pub fn rgb(&self, name: &str, usage: SpectrumUse) -> Result<Option<[f32; 3]>> {
+        let Some(p) = self.find(
+            name,
+            &["rgb", "color", "spectrum", "blackbody", "float", "texture"],
+        )?
+        else {
+            return Ok(None);
+        };
+        let at = |msg: String| SceneError::at(&p.loc, msg);
+        match p.ty.as_str() {
+            "rgb" | "color" => {
+                let v = p.numbers()?;
+                if v.len() != 3 {
+                    return Err(at(format!("'rgb {name}' needs 3 values, got {}", v.len())));
+                }
+                if usage == SpectrumUse::Albedo && v.iter().any(|&x| x < 0.0) {
+                    return Err(at(format!("'rgb {name}' has a negative value")));
+                }
+                Ok(Some([v[0] as f32, v[1] as f32, v[2] as f32]))
+            }
+            // A single float where a spectrum is expected is a constant spectrum.
+            "float" => {
+                let v = p.numbers()?;
+                if v.len() != 1 {
+                    return Err(at(format!("'float {name}' needs one value")));
+                }
+                let x = v[0] as f32;
+                Ok(Some([x, x, x]))
+            }
+            "blackbody" => {
+                let v = p.numbers()?;
+                if v.len() != 1 {
+                    return Err(at(format!(
+                        "'blackbody {name}' needs one temperature in kelvin"
+                    )));
+                }
+                spectrum::blackbody_rgb(v[0] as f32)
+                    .map(Some)
+                    .map_err(|e| at(format!("'blackbody {name}': {e}")))
+            }
+            "spectrum" => match &p.values {
+                ParamValues::Strings(s) if s.len() == 1 => {
+                    match spectrum::named_spectrum_rgb(&s[0]) {
+                        Some(rgb) => Ok(Some(rgb)),
+                        None => Err(at(format!(
+                            "unknown named spectrum '{}' (Kiln knows: {}; spectrum files are not supported)",
+                            s[0],
+                            spectrum::named_spectrum_names().join(", ")
+                        ))),
+                    }
+                }
+                ParamValues::Numbers(v) => {
+                    if v.len() < 2 || v.len() % 2 != 0 {
+                        return Err(at(format!(
+                            "'spectrum {name}' needs (wavelength, value) pairs"
+                        )));
+                    }
+                    let pairs: Vec<(f32, f32)> = v
+                        .chunks_exact(2)
+                        .map(|c| (c[0] as f32, c[1] as f32))
+                        .collect();
+                    spectrum::sampled_to_rgb(&pairs, usage)
+                        .map(Some)
+                        .map_err(|e| at(format!("'spectrum {name}': {e}")))
+                }
+                _ => Err(at(format!(
+                    "'spectrum {name}' needs a name or wavelength-value pairs"
+                ))),
+            },
+            _ => Err(at(format!(
+                "textures are not supported yet ('texture {name}'); give a constant value instead"
+            ))),
+        }
+    }
+
+    /// Parameters that no lookup asked for.
+    pub fn unused(&self) -> impl Iterator<Item = &Param> {
+        self.params.iter().filter(|p| !p.used.get())
+    }
+
+    /// Marks a parameter as used without reading it (one Kiln deliberately ignores).
+    pub fn mark_used(&self, name: &str) {
+        if let Some(p) = self.params.iter().find(|p| p.name == name) {
+            p.used.set(true);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn set(params: Vec<Param>) -> ParamSet {
+        let mut s = ParamSet::default();
+        for p in params {
+            s.push(p).unwrap();
+        }
+        s
+    }
+
+    #[test]
+    fn lookups_mark_parameters_used() {
+        let loc = Loc::synthetic("t");
+        let s = set(vec![
+            Param::new(
+                "float",
+                "radius",
+                ParamValues::Numbers(vec![2.0]),
+                loc.clone(),
+            ),
+            Param::new("float", "raduis", ParamValues::Numbers(vec![3.0]), loc),
+        ]);
+        assert_eq!(s.float("radius", 1.0).unwrap(), 2.0);
+        let unused: Vec<_> = s.unused().map(|p| p.name.clone()).collect();
+        assert_eq!(unused, vec!["raduis"]);
+    }
+
+    #[test]
+    fn wrong_type_is_an_error() {
+        let s = set(vec![Param::new(
+            "integer",
+            "radius",
+            ParamValues::Numbers(vec![2.0]),
+            Loc::synthetic("t"),
+        )]);
+        assert!(s.float("radius", 1.0).is_err());
+    }
+
+    #[test]
+    fn rgb_and_blackbody_become_rgb() {
+        let loc = Loc::synthetic("t");
+        let s = set(vec![
+            Param::new(
+                "rgb",
+                "a",
+                ParamValues::Numbers(vec![0.1, 0.2, 0.3]),
+                loc.clone(),
+            ),
+            Param::new("blackbody", "b", ParamValues::Numbers(vec![2000.0]), loc),
+        ]);
+        assert_eq!(
+            s.rgb("a", SpectrumUse::Albedo).unwrap(),
+            Some([0.1, 0.2, 0.3])
+        );
+        let b = s.rgb("b", SpectrumUse::Illuminant).unwrap().unwrap();
+        assert!(b[0] > b[1] && b[1] > b[2], "{b:?}");
+    }
+}
