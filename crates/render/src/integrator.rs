@@ -186,14 +186,21 @@ fn sample_direct(
         return Color::ZERO;
     }
     let origin = offset_origin(hit.p, hit.ng, ls.wi);
-    let tmax = if ls.distance.is_finite() {
-        let target = offset_origin(hit.p + ls.wi * ls.distance, ls.n, -ls.wi);
-        (target - origin).length() * (1.0 - 1e-4)
-    } else {
-        f32::INFINITY
-    };
     *rays += 1;
-    if !scene.geometry.unoccluded(origin, ls.wi, tmax) {
+    let visible = if ls.distance.is_finite() {
+        // Aim at the light's point moved off its surface towards us, and stop short of it:
+        // following ls.wi for the full distance would graze the light's own surface.
+        let target = offset_origin(hit.p + ls.wi * ls.distance, ls.n, -ls.wi);
+        let d = target - origin;
+        let len = d.length();
+        len > 0.0
+            && scene
+                .geometry
+                .unoccluded(origin, d / len, len * (1.0 - 1e-4))
+    } else {
+        scene.geometry.unoccluded(origin, ls.wi, f32::INFINITY)
+    };
+    if !visible {
         return Color::ZERO;
     }
     let light_pdf = pmf * ls.pdf;

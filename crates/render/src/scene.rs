@@ -17,7 +17,7 @@ use kiln_scene::{
 /// Why a description cannot be turned into a renderable scene.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
-    #[error("{loc}: error: {message}")]
+    #[error("{loc}: {message}")]
     Unsupported {
         loc: kiln_scene::Loc,
         message: String,

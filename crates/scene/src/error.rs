@@ -77,7 +77,7 @@ pub enum SceneError {
         source: std::io::Error,
     },
     /// A syntax or semantic error at one place.
-    #[error("{loc}: error: {message}")]
+    #[error("{loc}: {message}")]
     At { loc: Loc, message: String },
     /// Several errors found in one pass; the first few are listed.
     #[error("{}", format_many(.0))]

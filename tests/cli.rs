@@ -1,0 +1,91 @@
+//! What `kiln render` writes and prints.
+
+use crate::util::{kiln, render, scene, write_scene};
+
+#[test]
+fn crop_window_sets_the_data_window_inside_the_display_window() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scene("furnace/scene.pbrt"))
+        .unwrap()
+        .replace(
+            "\"string filename\" [ \"furnace.exr\" ]",
+            "\"string filename\" [ \"furnace.exr\" ] \"float cropwindow\" [ 0.25 0.75 0.5 1 ]",
+        );
+    let path = write_scene(dir.path(), "crop.pbrt", &text);
+    let r = render(&path, dir.path(), "crop", &["--spp", "8"]);
+    let img = &r.image;
+    assert_eq!((img.frame_width, img.frame_height), (32, 32));
+    assert_eq!((img.x0, img.y0, img.width, img.height), (8, 16, 16, 16));
+    assert!((img.mean()[0] - 1.0).abs() < 0.02);
+    // The same crop at another resolution keeps its fractions.
+    let r = render(
+        &path,
+        dir.path(),
+        "crop64",
+        &["--spp", "1", "--resolution", "64x64"],
+    );
+    assert_eq!(
+        (r.image.x0, r.image.y0, r.image.width, r.image.height),
+        (16, 32, 32, 32)
+    );
+}
+
+#[test]
+fn preview_summary_and_defaults_from_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("preview.png");
+    let r = render(
+        &scene("furnace/scene.pbrt"),
+        dir.path(),
+        "out",
+        &["--preview", png.to_str().unwrap(), "--exposure", "-1"],
+    );
+    // The Film's resolution and the Sampler's pixelsamples are the defaults.
+    assert_eq!((r.image.width, r.image.height), (32, 32));
+    let stderr = String::from_utf8_lossy(&r.output.stderr);
+    assert!(stderr.contains("64 spp"), "{stderr}");
+    assert!(
+        stderr.contains("M samples/s") && stderr.contains("M rays/s"),
+        "{stderr}"
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+}
+
+#[test]
+fn fallback_integrator_and_unknown_harmless_parameters_are_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_scene(
+        dir.path(),
+        "warn.pbrt",
+        "Integrator \"bdpt\" \"integer maxdepth\" [ 3 ]\nFilm \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ] \"bool savefp16\" [ true ]\nWorldBegin\nLightSource \"infinite\" \"rgb L\" [ 1 1 1 ]\n",
+    );
+    let r = render(&path, dir.path(), "warn", &["--spp", "1"]);
+    let stderr = String::from_utf8_lossy(&r.output.stderr);
+    assert!(
+        stderr.contains("warn.pbrt:1: warning: Integrator 'bdpt'"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("warn.pbrt:2: warning:") && stderr.contains("savefp16"),
+        "{stderr}"
+    );
+    assert!(r.image.pixels.iter().all(|p| *p == [1.0, 1.0, 1.0]));
+}
+
+#[test]
+fn bad_flags_are_refused() {
+    let out = kiln()
+        .args(["render", "x.pbrt", "--resolution", "12by4"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("WIDTHxHEIGHT"));
+    let out = kiln()
+        .args(["render"])
+        .arg(scene("furnace/scene.pbrt"))
+        .args(["--tile", "0", "-q"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+}

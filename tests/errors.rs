@@ -1,0 +1,142 @@
+//! Bad scenes exit non-zero with a message that names the file and line.
+
+use crate::util::{kiln, write_scene};
+
+/// Renders `text` as scene.pbrt and returns kiln's stderr, asserting that it failed.
+fn failing(text: &str) -> (String, tempfile::TempDir) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_scene(dir.path(), "scene.pbrt", text);
+    let out = kiln()
+        .arg("render")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("out.exr"))
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "kiln accepted a bad scene:\n{text}");
+    assert_eq!(out.status.code(), Some(1));
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        !dir.path().join("out.exr").exists(),
+        "no image is written for a bad scene"
+    );
+    (stderr, dir)
+}
+
+fn assert_names(stderr: &str, file: &str, line: u32, words: &str) {
+    let at = format!("{file}:{line}:");
+    assert!(stderr.contains(&at), "expected '{at}' in:\n{stderr}");
+    assert!(stderr.contains(words), "expected '{words}' in:\n{stderr}");
+}
+
+#[test]
+fn unknown_material_type() {
+    let (err, _d) = failing("WorldBegin\n\nMaterial \"velvet\"\nShape \"sphere\"\n");
+    assert_names(
+        &err,
+        "scene.pbrt",
+        3,
+        "unknown or unsupported material type 'velvet'",
+    );
+}
+
+#[test]
+fn missing_ply_file() {
+    let (err, _d) =
+        failing("WorldBegin\nShape \"plymesh\" \"string filename\" \"models/nope.ply\"\n");
+    assert_names(&err, "scene.pbrt", 2, "nope.ply");
+}
+
+#[test]
+fn malformed_number() {
+    let (err, _d) = failing("WorldBegin\nShape \"sphere\"\n  \"float radius\" [ 1.2.3 ]\n");
+    assert_names(&err, "scene.pbrt", 3, "malformed number '1.2.3'");
+}
+
+#[test]
+fn unclosed_bracket() {
+    let (err, _d) =
+        failing("WorldBegin\nShape \"sphere\" \"float radius\" [ 1\nMaterial \"diffuse\"\n");
+    assert_names(&err, "scene.pbrt", 2, "unclosed '['");
+    let (err, _d) = failing("WorldBegin\nShape \"sphere\" \"float radius\" [ 1\n");
+    assert_names(&err, "scene.pbrt", 2, "unclosed '['");
+}
+
+#[test]
+fn misspelt_parameter() {
+    let (err, _d) = failing("WorldBegin\nShape \"sphere\" \"float raduis\" [ 1 ]\n");
+    assert_names(&err, "scene.pbrt", 2, "\"float raduis\"");
+}
+
+#[test]
+fn unknown_directive_and_unterminated_string() {
+    let (err, _d) = failing("WorldBegin\nShpe \"sphere\"\n");
+    assert_names(&err, "scene.pbrt", 2, "unknown directive 'Shpe'");
+    let (err, _d) = failing("WorldBegin\nShape \"sphere\n");
+    assert_names(&err, "scene.pbrt", 2, "unterminated string");
+}
+
+#[test]
+fn errors_in_included_files_name_that_file() {
+    let dir = tempfile::tempdir().unwrap();
+    write_scene(
+        dir.path(),
+        "inner.pbrt",
+        "\n\nShape \"sphere\" \"float radius\" [ \"oops\" ]\n",
+    );
+    let main = write_scene(
+        dir.path(),
+        "main.pbrt",
+        "WorldBegin\nInclude \"inner.pbrt\"\n",
+    );
+    let out = kiln()
+        .arg("render")
+        .arg(&main)
+        .arg("-q")
+        .arg("-o")
+        .arg(dir.path().join("o.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_names(&err, "inner.pbrt", 3, "needs numbers");
+}
+
+#[test]
+fn corrupt_ply_names_the_directive_and_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("bad.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n",
+    )
+    .unwrap();
+    let main = write_scene(
+        dir.path(),
+        "scene.pbrt",
+        "WorldBegin\n\nShape \"plymesh\" \"string filename\" \"bad.ply\"\n",
+    );
+    let out = kiln()
+        .arg("render")
+        .arg(&main)
+        .arg("-q")
+        .arg("-o")
+        .arg(dir.path().join("o.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_names(&err, "scene.pbrt", 3, "refers to vertex 7");
+}
+
+#[test]
+fn missing_scene_file() {
+    let out = kiln()
+        .args(["render", "/nonexistent/scene.pbrt", "-q"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("/nonexistent/scene.pbrt"), "{err}");
+}

@@ -1,0 +1,10 @@
+//! Kiln's integration tests: they run the `kiln` binary as a user would.
+
+mod util;
+
+mod analytic;
+mod cli;
+mod determinism;
+mod errors;
+mod estimators;
+mod reference;

@@ -1,0 +1,145 @@
+//! A small harness for the integration tests: run `kiln`, read what it wrote,
+//! find the shared reference scenes, and compare images statistically.
+
+use kiln_image::RgbBuffer;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository root.
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A path under the repository's scenes/.
+pub fn scene(rel: &str) -> PathBuf {
+    repo().join("scenes").join(rel)
+}
+
+/// A reference scene from ../shared, or `None` (with a plain message) when that folder
+/// is not beside the checkout, as on a user's fresh clone.
+pub fn reference_scene(name: &str) -> Option<PathBuf> {
+    let p = repo()
+        .join("../shared/reference-scenes")
+        .join(name)
+        .join("scene.pbrt");
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!(
+            "SKIPPED: {} is not present (../shared exists beside the checkout and in CI only)",
+            p.display()
+        );
+        None
+    }
+}
+
+pub fn kiln() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_kiln"))
+}
+
+pub struct Rendered {
+    pub image: RgbBuffer,
+    pub bytes: Vec<u8>,
+    pub output: Output,
+}
+
+/// Runs `kiln render SCENE ARGS -o DIR/NAME.exr` and reads the EXR back; panics with kiln's stderr on failure.
+pub fn render(scene: &Path, dir: &Path, name: &str, args: &[&str]) -> Rendered {
+    let out = dir.join(format!("{name}.exr"));
+    let output = kiln()
+        .arg("render")
+        .arg(scene)
+        .arg("-o")
+        .arg(&out)
+        .arg("--quiet")
+        .args(args)
+        .output()
+        .expect("kiln runs");
+    assert!(
+        output.status.success(),
+        "kiln render {} {args:?} failed:\n{}",
+        scene.display(),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let bytes = std::fs::read(&out).expect("kiln wrote its output");
+    let image = kiln_image::decode_exr(&bytes).expect("kiln wrote a readable EXR");
+    Rendered {
+        image,
+        bytes,
+        output,
+    }
+}
+
+/// Writes `text` as DIR/NAME and returns its path.
+pub fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Replaces a scene's Integrator directive (and its parameter lines) by `integrator`.
+pub fn with_integrator(text: &str, integrator: &str) -> String {
+    let mut out = String::new();
+    let mut skipping = false;
+    for line in text.lines() {
+        let t = line.trim_start();
+        if t.starts_with("Integrator") {
+            skipping = true;
+            out.push_str(integrator);
+            out.push('\n');
+            continue;
+        }
+        if skipping && t.starts_with('"') {
+            continue;
+        }
+        skipping = false;
+        out.push_str(line);
+        out.push('\n');
+    }
+    out
+}
+
+/// Mean and standard error of one channel over a block of pixels. Pixels are independent
+/// estimates (each has its own scrambled sample sequence), so the standard error of their
+/// mean is their standard deviation over sqrt(n).
+pub fn block_stats(img: &RgbBuffer, x0: u32, y0: u32, w: u32, h: u32, c: usize) -> (f64, f64) {
+    mean_and_error((y0..y0 + h).flat_map(|y| (x0..x0 + w).map(move |x| img.get(x, y)[c] as f64)))
+}
+
+fn mean_and_error(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut n, mut sum, mut sum2) = (0.0, 0.0, 0.0);
+    for v in values {
+        n += 1.0;
+        sum += v;
+        sum2 += v * v;
+    }
+    let mean = sum / n;
+    let var = (sum2 / n - mean * mean).max(0.0) * n / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
+/// Compares two independent renders of the same scene (different seeds) block by block
+/// (a `bx` by `by` grid) and channel by channel, and returns the largest |z| of the mean
+/// per-pixel difference. Differencing pixel by pixel removes the image's own structure,
+/// so what is left is noise, whose standard error the pixels themselves estimate.
+pub fn max_z_score(a: &RgbBuffer, b: &RgbBuffer, bx: u32, by: u32) -> f64 {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let (bw, bh) = (a.width / bx, a.height / by);
+    let mut worst: f64 = 0.0;
+    for j in 0..by {
+        for i in 0..bx {
+            for c in 0..3 {
+                let diffs = (j * bh..(j + 1) * bh)
+                    .flat_map(|y| (i * bw..(i + 1) * bw).map(move |x| (x, y)))
+                    .map(|(x, y)| a.get(x, y)[c] as f64 - b.get(x, y)[c] as f64);
+                let (mean, se) = mean_and_error(diffs);
+                if se > 0.0 {
+                    worst = worst.max(mean.abs() / se);
+                } else {
+                    assert_eq!(mean, 0.0, "noise-free blocks must match exactly");
+                }
+            }
+        }
+    }
+    worst
+}
