@@ -32,3 +32,77 @@ fn furnace_sphere_is_one_everywhere() {
 fn furnace_triangle_mesh_is_one_everywhere() {
     check_furnace("furnace/mesh.pbrt");
 }
+
+/// A white diffuse floor (albedo 0.5) under light of radiance 1 from the whole upper
+/// hemisphere reflects 0.5: checked for a constant sky, a dome, and constant environment
+/// maps in both layouts, with light sampling alone, BSDF sampling alone and MIS.
+#[test]
+fn floor_under_a_uniform_sky_reflects_half() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut equal_area = kiln_image::RgbBuffer::new(32, 32, 0, 0, 32, 32);
+    equal_area.pixels.iter_mut().for_each(|p| *p = [1.0; 3]);
+    kiln_image::write_exr(&dir.path().join("square.exr"), &equal_area).unwrap();
+    let mut lat_long = kiln_image::RgbBuffer::new(64, 32, 0, 0, 64, 32);
+    lat_long.pixels.iter_mut().for_each(|p| *p = [1.0; 3]);
+    kiln_image::write_exr(&dir.path().join("latlong.exr"), &lat_long).unwrap();
+    let lights = [
+        "LightSource \"infinite\" \"rgb L\" [ 1 1 1 ]",
+        "LightSource \"dome\" \"rgb L\" [ 1 1 1 ] \"vector3 up\" [ 0 1 0 ]",
+        "LightSource \"infinite\" \"string filename\" \"square.exr\"",
+        "AttributeBegin Rotate -90 1 0 0 LightSource \"infinite\" \"string filename\" \"latlong.exr\" AttributeEnd",
+    ];
+    for light in lights {
+        for strategy in ["light", "bsdf", "mis"] {
+            let text = format!(
+                "Integrator \"path\" \"integer maxdepth\" [ 1 ] \"string strategy\" \"{strategy}\"
+                Sampler \"zsobol\" \"integer pixelsamples\" [ 64 ]
+                Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]
+                LookAt 0 3 0.01  0 0 0  0 1 0
+                Camera \"perspective\" \"float fov\" [ 20 ]
+                WorldBegin
+                {light}
+                Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]
+                Shape \"bilinearmesh\" \"point3 P\" [ -10 0 -10  10 0 -10  -10 0 10  10 0 10 ]"
+            );
+            let path = crate::util::write_scene(dir.path(), "sky.pbrt", &text);
+            let r = render(&path, dir.path(), "sky", &[]);
+            for c in 0..3 {
+                let m = r.image.mean()[c];
+                assert!((m - 0.5).abs() < 0.003, "{light} with {strategy}: mean {m}");
+            }
+        }
+    }
+}
+
+/// Radiance that overflows to infinity is zeroed, counted and reported with its pixel and
+/// sample, and the image stays finite.
+#[test]
+fn non_finite_radiance_is_zeroed_and_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = crate::util::write_scene(
+        dir.path(),
+        "inf.pbrt",
+        "Film \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]
+        Camera \"perspective\" \"float fov\" [ 30 ]
+        WorldBegin
+        AttributeBegin
+        AreaLightSource \"diffuse\" \"rgb L\" [ 1e39 1e39 1e39 ]
+        Translate 0 0 5
+        ReverseOrientation
+        Shape \"sphere\" \"float radius\" [ 100 ]
+        AttributeEnd",
+    );
+    let r = render(&path, dir.path(), "inf", &["--spp", "2"]);
+    let stderr = String::from_utf8_lossy(&r.output.stderr);
+    assert!(
+        stderr.contains("32 samples had NaN or infinite radiance"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("\n  0 0 0\n"), "{stderr}");
+    assert!(
+        r.image
+            .pixels
+            .iter()
+            .all(|p| p.iter().all(|c| c.is_finite()))
+    );
+}

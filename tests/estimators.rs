@@ -5,7 +5,8 @@ use crate::util::{max_z_score, reference_scene, render, with_integrator, write_s
 use std::path::Path;
 
 /// Renders the scene's direct lighting with each strategy and compares them block by block.
-fn strategies_agree(path: &Path, args: &[&str], max_z: f64) {
+/// Variants are written to a temp dir, or beside `path` when `beside` (for scenes that refer to other files).
+fn strategies_agree(path: &Path, args: &[&str], max_z: f64, beside: bool) {
     let text = std::fs::read_to_string(path).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut images = Vec::new();
@@ -18,8 +19,12 @@ fn strategies_agree(path: &Path, args: &[&str], max_z: f64) {
         );
         // Different seeds keep the three estimates independent.
         let seed = (i + 1).to_string();
-        // The test scenes refer to no other file, so the variant can live in the temp dir.
-        let file = write_scene(dir.path(), &format!("{strategy}.pbrt"), &variant);
+        let variant_dir = if beside {
+            path.parent().unwrap()
+        } else {
+            dir.path()
+        };
+        let file = write_scene(variant_dir, &format!("{strategy}-variant.pbrt"), &variant);
         let r = render(
             &file,
             dir.path(),
@@ -59,6 +64,7 @@ fn light_and_bsdf_sampling_agree_on_the_mis_scene() {
         &crate::util::scene("mis/scene.pbrt"),
         &["--spp", "256", "--resolution", "128x72"],
         4.5,
+        false,
     );
 }
 
@@ -67,5 +73,47 @@ fn light_and_bsdf_sampling_agree_on_veach_mis() {
     let Some(path) = reference_scene("veach-mis") else {
         return;
     };
-    strategies_agree(&path, &["--spp", "256", "--resolution", "160x90"], 4.5);
+    strategies_agree(
+        &path,
+        &["--spp", "256", "--resolution", "160x90"],
+        4.5,
+        false,
+    );
+}
+
+/// Environment maps with a bright, small sun: importance sampling the map (its 2D
+/// distribution and the equal-area or lat-long mapping) must agree with BSDF sampling.
+#[test]
+fn light_and_bsdf_sampling_agree_under_environment_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, w, h) in [("square", 32u32, 32u32), ("latlong", 64, 32)] {
+        let mut map = kiln_image::RgbBuffer::new(w, h, 0, 0, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                // A soft gradient plus a hot 2x2 patch.
+                let hot = (x / 2 == 5 && y / 2 == 3) as u32 as f32 * 400.0;
+                map.pixels[(y * w + x) as usize] = [
+                    0.2 + x as f32 / w as f32 + hot,
+                    0.3 + hot,
+                    0.4 + y as f32 / h as f32,
+                ];
+            }
+        }
+        kiln_image::write_exr(&dir.path().join(format!("{name}.exr")), &map).unwrap();
+        let text = format!(
+            "Integrator \"path\" \"integer maxdepth\" [ 1 ]
+            Sampler \"zsobol\" \"integer pixelsamples\" [ 256 ]
+            Film \"rgb\" \"integer xresolution\" [ 48 ] \"integer yresolution\" [ 32 ]
+            LookAt 0 4 6  0 0 0  0 1 0
+            Camera \"perspective\" \"float fov\" [ 40 ]
+            WorldBegin
+            AttributeBegin Rotate -90 1 0 0 LightSource \"infinite\" \"string filename\" \"{name}.exr\" AttributeEnd
+            Material \"conductor\" \"float roughness\" [ 0.05 ] \"rgb reflectance\" [ 0.8 0.8 0.8 ]
+            Shape \"sphere\" \"float radius\" [ 1 ]
+            Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]
+            Shape \"bilinearmesh\" \"point3 P\" [ -10 -1 -10  10 -1 -10  -10 -1 10  10 -1 10 ]"
+        );
+        let path = write_scene(dir.path(), &format!("{name}.pbrt"), &text);
+        strategies_agree(&path, &[], 4.5, true);
+    }
 }

@@ -19,6 +19,8 @@ use kiln_scene::LightStrategy;
 pub struct PathSettings {
     /// pbrt's maxdepth: 1 is direct lighting only.
     pub max_depth: u32,
+    /// The first bounce after which Russian roulette may end a path.
+    pub rr_depth: u32,
     pub strategy: LightStrategy,
     /// Clamp each sample's radiance to this maximum component (0 disables it).
     pub max_radiance: f32,
@@ -145,8 +147,8 @@ fn path_li(
         ray = Ray::new(offset_origin(hit.p, hit.ng, wi), wi);
         // Russian roulette, on throughput with the radiance scaling of refraction undone.
         let rr = (beta * eta_scale).max_element();
-        if rr < 1.0 && depth > 1 {
-            let q = (1.0 - rr).max(0.0);
+        if rr < 1.0 && depth >= settings.rr_depth {
+            let q = (1.0 - rr).max(0.05);
             if sampler.get_1d() < q {
                 break;
             }

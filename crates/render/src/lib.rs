@@ -19,7 +19,7 @@
 //! let settings = RenderSettings {
 //!     samples_per_pixel: 4,
 //!     seed: 0,
-//!     integrator: Integrator::Path(PathSettings { max_depth: 5, strategy: desc.integrator.strategy, max_radiance: 0.0 }),
+//!     integrator: Integrator::Path(PathSettings { max_depth: 5, rr_depth: 5, strategy: desc.integrator.strategy, max_radiance: 0.0 }),
 //!     max_radiance: 0.0,
 //! };
 //! let tile = render_tile(&scene, &settings, TileRect { x0: 0, y0: 0, width: 8, height: 8 });
@@ -55,6 +55,7 @@ impl RenderSettings {
             seed: desc.sampler.seed,
             integrator: Integrator::Path(PathSettings {
                 max_depth: i.max_depth,
+                rr_depth: i.rr_depth,
                 strategy: i.strategy,
                 max_radiance: i.max_radiance,
             }),

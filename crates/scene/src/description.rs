@@ -97,6 +97,8 @@ pub struct IntegratorDesc {
     /// The name in the file ("path", "volpath", or one Kiln mapped onto those).
     pub name: String,
     pub max_depth: u32,
+    /// Russian roulette may end paths from this bounce on (Kiln's "integer rrdepth").
+    pub rr_depth: u32,
     pub strategy: LightStrategy,
     /// Clamp the radiance of each path sample to this value (0 disables it).
     pub max_radiance: f32,
