@@ -106,3 +106,37 @@ fn non_finite_radiance_is_zeroed_and_reported() {
             .all(|p| p.iter().all(|c| c.is_finite()))
     );
 }
+
+/// A diffuse floor of albedo 0.5 seen straight down through a tiny orthographic window:
+/// its radiance under each delta light is albedo / pi times the irradiance, known exactly.
+#[test]
+fn delta_lights_give_their_analytic_irradiance() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        // I / d^2 with I = 4, d = 2.
+        ("LightSource \"point\" \"point3 from\" [ 0 2 0 ] \"rgb I\" [ 4 4 4 ]", 1.0),
+        // Inside the cone the spot is a point light.
+        ("LightSource \"spot\" \"point3 from\" [ 0 2 0 ] \"point3 to\" [ 0 0 0 ] \"rgb I\" [ 4 4 4 ] \"float coneangle\" [ 30 ]", 1.0),
+        // Radiance 2 arriving head on.
+        ("LightSource \"distant\" \"point3 from\" [ 0 1 0 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 2 2 2 ]", 2.0),
+        // A distant light at 60 degrees delivers half.
+        ("LightSource \"distant\" \"point3 from\" [ 0 1 1.7320508 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 2 2 2 ]", 1.0),
+    ];
+    for (light, irradiance) in cases {
+        let text = format!(
+            "Sampler \"zsobol\" \"integer pixelsamples\" [ 4 ]
+            Film \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]
+            LookAt 0 1 0  0 0 0  0 0 1
+            Camera \"orthographic\" \"float screenwindow\" [ -0.001 0.001 -0.001 0.001 ]
+            WorldBegin
+            {light}
+            Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]
+            Shape \"bilinearmesh\" \"point3 P\" [ -10 0 -10  10 0 -10  -10 0 10  10 0 10 ]"
+        );
+        let path = crate::util::write_scene(dir.path(), "delta.pbrt", &text);
+        let r = render(&path, dir.path(), "delta", &[]);
+        let expected = 0.5 / std::f64::consts::PI * irradiance;
+        let m = r.image.mean()[1];
+        assert!((m - expected).abs() < 1e-3 * expected, "{light}: {m} vs {expected}");
+    }
+}

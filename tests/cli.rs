@@ -89,3 +89,33 @@ fn bad_flags_are_refused() {
         .unwrap();
     assert!(!out.status.success());
 }
+
+/// Kiln's "objmesh" shape reads OBJ files (through tobj): a quad floor from an OBJ file
+/// under a uniform sky reflects half the light, as the same floor written inline does.
+#[test]
+fn obj_meshes_load_and_shade_like_inline_meshes() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("floor.obj"),
+        "# a quad\nv -10 0 -10\nv 10 0 -10\nv 10 0 10\nv -10 0 10\nvn 0 1 0\nf 1//1 2//1 3//1 4//1\n",
+    )
+    .unwrap();
+    let path = write_scene(
+        dir.path(),
+        "obj.pbrt",
+        "Integrator \"path\" \"integer maxdepth\" [ 1 ]
+        Film \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]
+        LookAt 0 3 0.01  0 0 0  0 1 0
+        Camera \"perspective\" \"float fov\" [ 20 ]
+        WorldBegin
+        LightSource \"infinite\" \"rgb L\" [ 1 1 1 ]
+        Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]
+        Shape \"objmesh\" \"string filename\" \"floor.obj\"",
+    );
+    let r = render(&path, dir.path(), "obj", &["--spp", "64"]);
+    assert!((r.image.mean()[0] - 0.5).abs() < 0.003, "{:?}", r.image.mean());
+    std::fs::write(dir.path().join("floor.obj"), "v 0 0 0\nf 1 2 3\n").unwrap();
+    let out = kiln().arg("render").arg(&path).arg("-q").arg("-o").arg(dir.path().join("x.exr")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("obj.pbrt:8:"), "{}", String::from_utf8_lossy(&out.stderr));
+}
