@@ -114,13 +114,25 @@ fn delta_lights_give_their_analytic_irradiance() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
         // I / d^2 with I = 4, d = 2.
-        ("LightSource \"point\" \"point3 from\" [ 0 2 0 ] \"rgb I\" [ 4 4 4 ]", 1.0),
+        (
+            "LightSource \"point\" \"point3 from\" [ 0 2 0 ] \"rgb I\" [ 4 4 4 ]",
+            1.0,
+        ),
         // Inside the cone the spot is a point light.
-        ("LightSource \"spot\" \"point3 from\" [ 0 2 0 ] \"point3 to\" [ 0 0 0 ] \"rgb I\" [ 4 4 4 ] \"float coneangle\" [ 30 ]", 1.0),
+        (
+            "LightSource \"spot\" \"point3 from\" [ 0 2 0 ] \"point3 to\" [ 0 0 0 ] \"rgb I\" [ 4 4 4 ] \"float coneangle\" [ 30 ]",
+            1.0,
+        ),
         // Radiance 2 arriving head on.
-        ("LightSource \"distant\" \"point3 from\" [ 0 1 0 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 2 2 2 ]", 2.0),
+        (
+            "LightSource \"distant\" \"point3 from\" [ 0 1 0 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 2 2 2 ]",
+            2.0,
+        ),
         // A distant light at 60 degrees delivers half.
-        ("LightSource \"distant\" \"point3 from\" [ 0 1 1.7320508 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 2 2 2 ]", 1.0),
+        (
+            "LightSource \"distant\" \"point3 from\" [ 0 1 1.7320508 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 2 2 2 ]",
+            1.0,
+        ),
     ];
     for (light, irradiance) in cases {
         let text = format!(
@@ -137,6 +149,9 @@ fn delta_lights_give_their_analytic_irradiance() {
         let r = render(&path, dir.path(), "delta", &[]);
         let expected = 0.5 / std::f64::consts::PI * irradiance;
         let m = r.image.mean()[1];
-        assert!((m - expected).abs() < 1e-3 * expected, "{light}: {m} vs {expected}");
+        assert!(
+            (m - expected).abs() < 1e-3 * expected,
+            "{light}: {m} vs {expected}"
+        );
     }
 }

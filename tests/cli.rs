@@ -113,9 +113,54 @@ fn obj_meshes_load_and_shade_like_inline_meshes() {
         Shape \"objmesh\" \"string filename\" \"floor.obj\"",
     );
     let r = render(&path, dir.path(), "obj", &["--spp", "64"]);
-    assert!((r.image.mean()[0] - 0.5).abs() < 0.003, "{:?}", r.image.mean());
+    assert!(
+        (r.image.mean()[0] - 0.5).abs() < 0.003,
+        "{:?}",
+        r.image.mean()
+    );
     std::fs::write(dir.path().join("floor.obj"), "v 0 0 0\nf 1 2 3\n").unwrap();
-    let out = kiln().arg("render").arg(&path).arg("-q").arg("-o").arg(dir.path().join("x.exr")).output().unwrap();
+    let out = kiln()
+        .arg("render")
+        .arg(&path)
+        .arg("-q")
+        .arg("-o")
+        .arg(dir.path().join("x.exr"))
+        .output()
+        .unwrap();
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("obj.pbrt:8:"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("obj.pbrt:8:"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Every scene in scenes/ loads and renders, at a tiny size and one sample, with no warning.
+#[test]
+fn every_scene_in_the_repository_renders_without_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scenes = Vec::new();
+    let mut stack = vec![crate::util::repo().join("scenes")];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let p = entry.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|e| e == "pbrt") {
+                scenes.push(p);
+            }
+        }
+    }
+    scenes.sort();
+    assert!(scenes.len() >= 8, "found only {scenes:?}");
+    for (i, path) in scenes.iter().enumerate() {
+        let r = render(
+            path,
+            dir.path(),
+            &format!("smoke{i}"),
+            &["--spp", "1", "--resolution", "16x12"],
+        );
+        let stderr = String::from_utf8_lossy(&r.output.stderr);
+        assert!(!stderr.contains("warning"), "{}: {stderr}", path.display());
+    }
 }

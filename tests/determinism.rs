@@ -85,3 +85,18 @@ fn cornell_box_is_bit_identical_across_tiles_and_threads() {
     };
     assert_same_bytes_for_any_split(&path, &["--spp", "4", "--resolution", "72x72"]);
 }
+
+#[test]
+fn volume_lights_are_bit_identical_across_tiles_and_threads() {
+    // A glass VolumeLight sphere with a voxel grid (Le evaluated at hits and by light
+    // sampling); then a mesh VolumeLight, whose faces' powers are estimated in parallel
+    // when the scene is built.
+    assert_same_bytes_for_any_split(
+        &scene("volume-light/voxel-grid.pbrt"),
+        &["--spp", "4", "--resolution", "60x45"],
+    );
+    assert_same_bytes_for_any_split(
+        &scene("volume-light/blue-volume.pbrt"),
+        &["--spp", "4", "--resolution", "60x45"],
+    );
+}

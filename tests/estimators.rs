@@ -131,7 +131,10 @@ fn many_emitters_sampled_by_power_agree_with_bsdf_sampling() {
             // A wavy ceiling, brighter along x through the per-face scale below.
             let x = -3.0 + 6.0 * i as f64 / nx as f64;
             let z = -2.0 + 4.0 * j as f64 / nz as f64;
-            p.push_str(&format!("{x:.4} {:.4} {z:.4} ", 2.0 + 0.1 * (3.0 * x).sin()));
+            p.push_str(&format!(
+                "{x:.4} {:.4} {z:.4} ",
+                2.0 + 0.1 * (3.0 * x).sin()
+            ));
         }
     }
     for j in 0..nz {
@@ -145,8 +148,18 @@ fn many_emitters_sampled_by_power_agree_with_bsdf_sampling() {
         "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n{}\n{}",
         (nx + 1) * (nz + 1),
         nx * nz * 2,
-        p.split_whitespace().collect::<Vec<_>>().chunks(3).map(|c| c.join(" ")).collect::<Vec<_>>().join("\n"),
-        idx.split_whitespace().collect::<Vec<_>>().chunks(3).map(|c| format!("3 {}", c.join(" "))).collect::<Vec<_>>().join("\n"),
+        p.split_whitespace()
+            .collect::<Vec<_>>()
+            .chunks(3)
+            .map(|c| c.join(" "))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        idx.split_whitespace()
+            .collect::<Vec<_>>()
+            .chunks(3)
+            .map(|c| format!("3 {}", c.join(" ")))
+            .collect::<Vec<_>>()
+            .join("\n"),
     );
     std::fs::write(dir.path().join("ceiling.ply"), ply).unwrap();
     let text = "Integrator \"path\" \"integer maxdepth\" [ 1 ]

@@ -8,3 +8,4 @@ mod determinism;
 mod errors;
 mod estimators;
 mod reference;
+mod volume_light;

@@ -106,7 +106,7 @@ pub fn block_stats(img: &RgbBuffer, x0: u32, y0: u32, w: u32, h: u32, c: usize) 
     mean_and_error((y0..y0 + h).flat_map(|y| (x0..x0 + w).map(move |x| img.get(x, y)[c] as f64)))
 }
 
-fn mean_and_error(values: impl Iterator<Item = f64>) -> (f64, f64) {
+pub fn mean_and_error(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut n, mut sum, mut sum2) = (0.0, 0.0, 0.0);
     for v in values {
         n += 1.0;

@@ -56,7 +56,7 @@ fn reflect(wo: Vec3A, n: Vec3A) -> Vec3A {
 }
 
 /// Refracts `wi` through a surface with normal `n` and relative IOR `eta`; returns (wt, eta actually crossed).
-fn refract(wi: Vec3A, mut n: Vec3A, mut eta: f32) -> Option<(Vec3A, f32)> {
+pub fn refract(wi: Vec3A, mut n: Vec3A, mut eta: f32) -> Option<(Vec3A, f32)> {
     let mut cos_i = n.dot(wi);
     if cos_i < 0.0 {
         eta = 1.0 / eta;

@@ -17,6 +17,8 @@ pub struct SurfaceInfo {
     pub material: u32,
     /// Index of the first light of this shape (triangle i of a mesh is light `light + i`).
     pub light: Option<u32>,
+    /// The VolumeLight (index into `Scene::volumes`) whose surface this is.
+    pub volume: Option<u32>,
 }
 
 /// One mesh's attributes; its vertices live in the shared vertex arrays.
@@ -201,6 +203,21 @@ impl Geometry {
 
     /// The closest hit along `ray` within (0, tmax).
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<SurfaceHit> {
+        let (t, is_triangle, id) = self.closest(ray, tmax)?;
+        Some(if is_triangle {
+            self.triangle_hit(ray, t, id)
+        } else {
+            self.sphere_hit(ray, t, id)
+        })
+    }
+
+    /// The distance to the closest hit along `ray`, without the hit record.
+    pub fn hit_distance(&self, ray: &Ray, tmax: f32) -> Option<f32> {
+        self.closest(ray, tmax).map(|(t, _, _)| t)
+    }
+
+    /// Distance, kind (triangle or sphere) and index of the closest hit.
+    fn closest(&self, ray: &Ray, tmax: f32) -> Option<(f32, bool, u32)> {
         let bray = bvh_ray(ray.origin, ray.dir, 0.0, tmax);
         let mut best_t = tmax;
         let mut best: Option<(bool, u32)> = None;
@@ -226,11 +243,7 @@ impl Geometry {
             }
         }
         let (is_triangle, id) = best?;
-        Some(if is_triangle {
-            self.triangle_hit(ray, best_t, id)
-        } else {
-            self.sphere_hit(ray, best_t, id)
-        })
+        Some((best_t, is_triangle, id))
     }
 
     /// True when nothing blocks the segment from `origin` along `dir` up to `tmax`.
@@ -308,6 +321,36 @@ impl Geometry {
             surface: mesh.surface,
             light: mesh.surface.light.map(|l| l + local),
         }
+    }
+
+    /// Position, geometric and shading normal at barycentrics `b` of triangle `tri`,
+    /// oriented as a hit there would be.
+    pub fn surface_point(&self, tri: u32, b: [f32; 3]) -> (Vec3A, Vec3A, Vec3A) {
+        let [i0, i1, i2] = self.triangle_vertices[tri as usize];
+        let mesh = &self.meshes[self.triangle_mesh[tri as usize] as usize];
+        let (p0, p1, p2) = (
+            self.positions[i0 as usize],
+            self.positions[i1 as usize],
+            self.positions[i2 as usize],
+        );
+        let p = p0 * b[0] + p1 * b[1] + p2 * b[2];
+        let mut ng = (p0 - p2).cross(p1 - p2).normalize_or_zero();
+        if mesh.flip {
+            ng = -ng;
+        }
+        let mut ns = ng;
+        if mesh.has_normals {
+            let n = self.normals[i0 as usize] * b[0]
+                + self.normals[i1 as usize] * b[1]
+                + self.normals[i2 as usize] * b[2];
+            if n.length_squared() > 0.0 {
+                ns = n.normalize();
+                if ng.dot(ns) < 0.0 {
+                    ng = -ng;
+                }
+            }
+        }
+        (p, ng, ns)
     }
 
     fn sphere_hit(&self, ray: &Ray, t: f32, id: u32) -> SurfaceHit {
@@ -388,6 +431,7 @@ mod tests {
         let surface = SurfaceInfo {
             material: 0,
             light: None,
+            volume: None,
         };
         let meshes = vec![MeshInfo {
             surface,

@@ -77,9 +77,26 @@ fn path_li(
     let mut prev_p = ray.origin;
     let mut prev_pdf = 0.0f32;
     let mut pass_throughs = 0;
+    // The VolumeLight whose interior the path is in, and whether the current segment's
+    // emission is still to be counted (it is not on the first segment after entering:
+    // the entry hit already counted it as the light's surface emission).
+    let mut inside: Option<(u32, bool)> = None;
     loop {
         *rays += 1;
-        let Some(hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
+        let found = scene.geometry.intersect(&ray, f32::INFINITY);
+        if let Some((volume, count)) = inside {
+            let emitter = &scene.volumes[volume as usize];
+            let t = found.as_ref().map_or(0.0, |h| h.t);
+            if count {
+                l += beta * emitter.segment(ray.origin, ray.dir, t);
+            }
+            beta *= emitter.transmittance(t);
+            if found.is_none() {
+                // Only rounding lets a ray out of a closed shape without a hit.
+                inside = None;
+            }
+        }
+        let Some(hit) = found else {
             for &i in &scene.infinite_lights {
                 let light = &scene.lights[i as usize];
                 let le = light.infinite_le(ray.dir);
@@ -93,7 +110,21 @@ fn path_li(
             }
             break;
         };
-        if let Some(light_id) = hit.light {
+        if let (Some(volume), Some(light_id)) = (hit.surface.volume, hit.light) {
+            // A VolumeLight seen from outside emits what its interior sends through the surface.
+            if ray.dir.dot(hit.ng) < 0.0 {
+                let (le, traced) = scene.volume_le(volume, hit.p, hit.ng, hit.ns, -ray.dir);
+                *rays += traced;
+                if le != Color::ZERO {
+                    let light = &scene.lights[light_id as usize];
+                    let w = emission_weight(settings, first_or_specular, prev_pdf, || {
+                        scene.light_sampler.pmf(light_id as usize)
+                            * light.pdf(prev_p, ray.dir, hit.p, hit.ng)
+                    });
+                    l += beta * le * w;
+                }
+            }
+        } else if let Some(light_id) = hit.light {
             let light = &scene.lights[light_id as usize];
             let le = light.area_le(hit.ng, -ray.dir);
             if le != Color::ZERO {
@@ -145,6 +176,18 @@ fn path_li(
             eta_scale *= bs.eta * bs.eta;
         }
         ray = Ray::new(offset_origin(hit.p, hit.ng, wi), wi);
+        if let Some(volume) = hit.surface.volume {
+            inside = if wi.dot(hit.ng) < 0.0 {
+                // Entering (not counted again) or reflecting inside (counted).
+                let entering = inside.is_none();
+                Some((volume, !entering))
+            } else {
+                None
+            };
+        } else if let Some((volume, _)) = inside {
+            // Scattered off something inside the shape: the next segment emits too.
+            inside = Some((volume, true));
+        }
         // Russian roulette, on throughput with the radiance scaling of refraction undone.
         let rr = (beta * eta_scale).max_element();
         if rr < 1.0 && depth >= settings.rr_depth {
@@ -175,8 +218,9 @@ fn sample_direct(
     let Some((index, pmf)) = scene.light_sampler.sample(u_light) else {
         return Color::ZERO;
     };
-    let light = &scene.lights[index];
-    let Some(ls) = light.sample(hit.p, u) else {
+    let (sample, traced) = scene.sample_light(index, hit.p, u);
+    *rays += traced;
+    let Some(ls) = sample else {
         return Color::ZERO;
     };
     if ls.pdf <= 0.0 || ls.radiance == Color::ZERO {

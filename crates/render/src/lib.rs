@@ -38,6 +38,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod tile;
+pub mod volume;
 
 pub use integrator::{Integrator, PathSettings};
 pub use scene::{BuildError, Scene};

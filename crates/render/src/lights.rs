@@ -44,6 +44,23 @@ pub enum Light {
         two_sided: bool,
         inward: bool,
     },
+    /// One face of a VolumeLight mesh: sampled like a triangle light, its radiance comes
+    /// from the shape's interior (volume.rs). `power` is estimated when the scene is built.
+    VolumeTriangle {
+        p: [Vec3A; 3],
+        n: Vec3A,
+        area: f32,
+        tri: u32,
+        volume: u32,
+        power: f32,
+    },
+    /// A VolumeLight sphere, one light for the whole sphere.
+    VolumeSphere {
+        center: Vec3A,
+        radius: f32,
+        volume: u32,
+        power: f32,
+    },
     UniformInfinite {
         radiance: Color,
     },
@@ -252,6 +269,7 @@ impl Light {
                 4.0 * PI * disk * mean
             }
             Light::Dome { radiance, .. } => 2.0 * PI * disk * luminance(*radiance),
+            Light::VolumeTriangle { power, .. } | Light::VolumeSphere { power, .. } => *power,
         }
     }
 
@@ -347,28 +365,9 @@ impl Light {
                 delta: true,
             }),
             Light::Triangle { p: v, n, area, .. } => {
-                let b = uniform_triangle(u);
-                let q = v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
-                let d = q - p;
-                let dist2 = d.length_squared();
-                if dist2 == 0.0 {
-                    return None;
-                }
-                let dist = dist2.sqrt();
-                let wi = d / dist;
-                let cos_l = n.dot(-wi).abs();
-                if cos_l == 0.0 {
-                    return None;
-                }
-                let radiance = self.area_le(*n, -wi);
-                (radiance != Color::ZERO).then(|| LightSample {
-                    radiance,
-                    wi,
-                    pdf: dist2 / (cos_l * area),
-                    distance: dist,
-                    n: *n,
-                    delta: false,
-                })
+                let (point, _) = sample_triangle_point(v, *n, *area, p, u)?;
+                let radiance = self.area_le(*n, -point.wi);
+                (radiance != Color::ZERO).then_some(point.with_radiance(radiance))
             }
             Light::Sphere {
                 center,
@@ -376,50 +375,15 @@ impl Light {
                 inward,
                 ..
             } => {
-                let dc2 = (p - *center).length_squared();
-                let r2 = radius * radius;
-                let (q, pdf_solid) = if dc2 <= r2 * 1.0001 {
-                    // Inside (or on) the sphere: sample its area uniformly.
-                    let nq = uniform_sphere(u);
-                    let q = *center + nq * *radius;
-                    let d = q - p;
-                    let dist2 = d.length_squared();
-                    let cos = nq.dot(-d.normalize_or_zero()).abs();
-                    if cos == 0.0 || dist2 == 0.0 {
-                        return None;
-                    }
-                    (q, dist2 / (cos * 4.0 * PI * r2))
-                } else {
-                    // Outside: sample the cone of directions the sphere subtends.
-                    let dc = dc2.sqrt();
-                    let sin2_max = r2 / dc2;
-                    let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
-                    let one_minus_cos = sin2_max / (1.0 + cos_max);
-                    let frame = Frame::from_z((*center - p) / dc);
-                    let w = frame.to_world(uniform_cone(u, cos_max));
-                    // Where that direction meets the sphere (the tangent point if rounding misses it).
-                    let b = (*center - p).dot(w);
-                    let disc = (b * b - (dc2 - r2)).max(0.0);
-                    let t = b - disc.sqrt();
-                    (p + w * t, 1.0 / (2.0 * PI * one_minus_cos))
-                };
-                let d = q - p;
-                let dist = d.length();
-                let wi = d / dist;
-                let mut n = (q - *center).normalize();
+                let mut point = sample_sphere_point(*center, *radius, p, u)?;
                 if *inward {
-                    n = -n;
+                    point.n = -point.n;
                 }
-                let radiance = self.area_le(n, -wi);
-                (radiance != Color::ZERO).then_some(LightSample {
-                    radiance,
-                    wi,
-                    pdf: pdf_solid,
-                    distance: dist,
-                    n,
-                    delta: false,
-                })
+                let radiance = self.area_le(point.n, -point.wi);
+                (radiance != Color::ZERO).then_some(point.with_radiance(radiance))
             }
+            // A VolumeLight's radiance needs the scene: Scene::sample_light evaluates it.
+            Light::VolumeTriangle { .. } | Light::VolumeSphere { .. } => None,
             Light::UniformInfinite { radiance } => {
                 let wi = uniform_sphere(u);
                 Some(LightSample {
@@ -465,7 +429,7 @@ impl Light {
     pub fn pdf(&self, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
         match self {
             Light::Point { .. } | Light::Spot { .. } | Light::Distant { .. } => 0.0,
-            Light::Triangle { area, .. } => {
+            Light::Triangle { area, .. } | Light::VolumeTriangle { area, .. } => {
                 let dist2 = (q - p).length_squared();
                 let cos_l = n.dot(wi).abs();
                 if cos_l == 0.0 {
@@ -474,7 +438,7 @@ impl Light {
                     dist2 / (cos_l * area)
                 }
             }
-            Light::Sphere { center, radius, .. } => {
+            Light::Sphere { center, radius, .. } | Light::VolumeSphere { center, radius, .. } => {
                 let dc2 = (p - *center).length_squared();
                 let r2 = radius * radius;
                 if dc2 <= r2 * 1.0001 {
@@ -502,6 +466,88 @@ impl Light {
             }
         }
     }
+}
+
+impl LightSample {
+    fn with_radiance(mut self, radiance: Color) -> LightSample {
+        self.radiance = radiance;
+        self
+    }
+}
+
+/// A uniform point on a triangle seen from `p`: the sample (radiance unset) and its barycentrics.
+pub fn sample_triangle_point(
+    v: &[Vec3A; 3],
+    n: Vec3A,
+    area: f32,
+    p: Vec3A,
+    u: Vec2,
+) -> Option<(LightSample, [f32; 3])> {
+    let b = uniform_triangle(u);
+    let q = v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
+    let d = q - p;
+    let dist2 = d.length_squared();
+    if dist2 == 0.0 {
+        return None;
+    }
+    let dist = dist2.sqrt();
+    let wi = d / dist;
+    let cos_l = n.dot(-wi).abs();
+    if cos_l == 0.0 {
+        return None;
+    }
+    let sample = LightSample {
+        radiance: Color::ZERO,
+        wi,
+        pdf: dist2 / (cos_l * area),
+        distance: dist,
+        n,
+        delta: false,
+    };
+    Some((sample, b))
+}
+
+/// A point on a sphere seen from `p` (radiance unset, `n` outward): the visible cone
+/// uniformly in solid angle from outside, the area uniformly from inside.
+pub fn sample_sphere_point(center: Vec3A, radius: f32, p: Vec3A, u: Vec2) -> Option<LightSample> {
+    let dc2 = (p - center).length_squared();
+    let r2 = radius * radius;
+    let (q, pdf) = if dc2 <= r2 * 1.0001 {
+        let nq = uniform_sphere(u);
+        let q = center + nq * radius;
+        let d = q - p;
+        let dist2 = d.length_squared();
+        let cos = nq.dot(-d.normalize_or_zero()).abs();
+        if cos == 0.0 || dist2 == 0.0 {
+            return None;
+        }
+        (q, dist2 / (cos * 4.0 * PI * r2))
+    } else {
+        let dc = dc2.sqrt();
+        let sin2_max = r2 / dc2;
+        let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
+        let one_minus_cos = sin2_max / (1.0 + cos_max);
+        let frame = Frame::from_z((center - p) / dc);
+        let w = frame.to_world(uniform_cone(u, cos_max));
+        // Where that direction meets the sphere (the tangent point if rounding misses it).
+        let b = (center - p).dot(w);
+        let disc = (b * b - (dc2 - r2)).max(0.0);
+        let t = b - disc.sqrt();
+        (p + w * t, 1.0 / (2.0 * PI * one_minus_cos))
+    };
+    let d = q - p;
+    let dist = d.length();
+    if dist == 0.0 {
+        return None;
+    }
+    Some(LightSample {
+        radiance: Color::ZERO,
+        wi: d / dist,
+        pdf,
+        distance: dist,
+        n: (q - center).normalize(),
+        delta: false,
+    })
 }
 
 fn smoothstep(a: f32, b: f32, x: f32) -> f32 {

@@ -189,6 +189,34 @@ pub enum AreaLightDesc {
         two_sided: bool,
         loc: Loc,
     },
+    /// Seed 000's VolumeLight: the shape's interior emits, and the radiance leaving a
+    /// surface point integrates that emission along the refracted interior segment.
+    Volume(VolumeLightDesc),
+}
+
+/// `AreaLightSource "volume"`: emission inside a shape, seen through its surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumeLightDesc {
+    /// Emitted radiance per unit length inside the shape, `scale` applied.
+    pub le: Rgb,
+    /// Multipliers of `le` over the shape's object-space bounding box, trilinearly interpolated.
+    pub grid: Option<Arc<VoxelGrid>>,
+    /// Midpoint-rule steps along each interior segment (a uniform field needs only 1).
+    pub steps: u32,
+    /// Random interior segments per face for estimating each face's power.
+    pub power_samples: u32,
+    /// Absorption inside the shape, per unit length (emission-absorption); 0 by default.
+    pub sigma_a: Rgb,
+    pub loc: Loc,
+}
+
+/// A voxel grid of scalar values, x fastest: `values[(z * ny + y) * nx + x]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VoxelGrid {
+    pub nx: usize,
+    pub ny: usize,
+    pub nz: usize,
+    pub values: Vec<f32>,
 }
 
 #[derive(Debug, Clone)]

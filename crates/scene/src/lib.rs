@@ -25,7 +25,7 @@
 pub mod description;
 pub mod error;
 mod lexer;
-mod mesh_files;
+pub mod mesh_files;
 mod params;
 mod parser;
 pub mod ply;

@@ -1378,10 +1378,15 @@ impl Parser {
 
     fn area_light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_world(loc, "AreaLightSource")?;
+        if ty == "volume" {
+            return self.volume_light(params, loc);
+        }
         if ty != "diffuse" {
             return Err(SceneError::at(
                 loc,
-                format!("AreaLightSource '{ty}' is not supported (Kiln has 'diffuse')"),
+                format!(
+                    "AreaLightSource '{ty}' is not supported (Kiln has 'diffuse' and 'volume')"
+                ),
             ));
         }
         if params.loc_of("filename").is_some() || params.loc_of("power").is_some() {
@@ -1402,6 +1407,58 @@ impl Parser {
             two_sided,
             loc: loc.clone(),
         });
+        Ok(())
+    }
+
+    /// Kiln's `AreaLightSource "volume"` (seed 000's VolumeLight).
+    fn volume_light(&mut self, params: &ParamSet, loc: &Loc) -> Result<()> {
+        let scale = params.float("scale", 1.0)? as f32;
+        let le = params
+            .rgb("Le", SpectrumUse::Illuminant)?
+            .unwrap_or([1.0; 3])
+            .map(|c| c * scale);
+        let steps = params.int("steps", 32)?;
+        if !(1..=100_000).contains(&steps) {
+            return Err(SceneError::at(
+                loc,
+                format!("AreaLightSource 'volume': steps {steps} must be between 1 and 100000"),
+            ));
+        }
+        let power_samples = params.int("powersamples", 50)?;
+        if !(1..=1_000_000).contains(&power_samples) {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "AreaLightSource 'volume': powersamples {power_samples} must be between 1 and 1000000"
+                ),
+            ));
+        }
+        let sigma_a = params
+            .rgb("sigma_a", SpectrumUse::Unbounded)?
+            .unwrap_or([0.0; 3]);
+        if le.iter().chain(&sigma_a).any(|v| *v < 0.0) {
+            return Err(SceneError::at(
+                loc,
+                "AreaLightSource 'volume': Le and sigma_a must not be negative",
+            ));
+        }
+        let grid = match params.string("grid")? {
+            Some(name) => {
+                let path = self.resolve(&name);
+                let at = params.loc_of("grid").unwrap_or_else(|| loc.clone());
+                Some(Arc::new(mesh_files::read_voxel_grid(&path, &at)?))
+            }
+            None => None,
+        };
+        self.check_unused(params, "AreaLightSource 'volume'", &[])?;
+        self.gs.area_light = Some(AreaLightDesc::Volume(VolumeLightDesc {
+            le,
+            grid,
+            steps: steps as u32,
+            power_samples: power_samples as u32,
+            sigma_a,
+            loc: loc.clone(),
+        }));
         Ok(())
     }
 

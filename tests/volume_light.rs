@@ -1,0 +1,336 @@
+//! The VolumeLight (seed 000): analytic chords, estimator agreement, power estimates,
+//! voxel grids.
+
+use crate::util::{max_z_score, mean_and_error, render, with_integrator, write_scene};
+use kiln_render::Scene;
+use std::path::Path;
+
+/// A unit-Le VolumeLight seen through a tiny orthographic window at impact parameter `b`.
+fn chord_scene(shape_and_material: &str, b: f64) -> String {
+    format!(
+        "Sampler \"zsobol\" \"integer pixelsamples\" [ 1 ]
+        PixelFilter \"box\"
+        Film \"rgb\" \"integer xresolution\" [ 2 ] \"integer yresolution\" [ 2 ]
+        LookAt {b} 0 10  {b} 0 0  0 1 0
+        Camera \"orthographic\" \"float screenwindow\" [ -0.0001 0.0001 -0.0001 0.0001 ]
+        WorldBegin
+        AttributeBegin
+        AreaLightSource \"volume\" \"rgb Le\" [ 1 2 3 ] \"float scale\" [ 0.5 ]
+        {shape_and_material}
+        AttributeEnd"
+    )
+}
+
+/// Through an index-matched surface a ray sees Le times the chord: 2 Le sqrt(r^2 - b^2).
+#[test]
+fn index_matched_sphere_shows_le_times_the_chord() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = 1.5;
+    for material in [
+        "Material \"dielectric\" \"float eta\" [ 1 ]",
+        "Material \"interface\"",
+    ] {
+        for b in [0.0, 0.5, 1.0, 1.4, 1.49] {
+            let text = chord_scene(
+                &format!("{material}\nShape \"sphere\" \"float radius\" [ {r} ]"),
+                b,
+            );
+            let path = write_scene(dir.path(), "chord.pbrt", &text);
+            let img = render(&path, dir.path(), "chord", &[]).image;
+            let chord = 2.0 * (r * r - b * b).sqrt();
+            for (c, le) in [0.5, 1.0, 1.5].iter().enumerate() {
+                let expected = le * chord;
+                let got = img.mean()[c];
+                assert!(
+                    (got - expected).abs() <= 0.005 * expected,
+                    "{material}, b = {b}: {got} vs {expected}"
+                );
+            }
+        }
+    }
+    // A cube mesh seen face on: every ray's chord is the cube's side.
+    let cube = "Material \"interface\"
+        Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1  -1 -1 1  1 -1 1  1 1 1  -1 1 1 ]
+        \"integer indices\" [ 0 2 1 0 3 2  4 5 6 4 6 7  0 1 5 0 5 4  2 3 7 2 7 6  1 2 6 1 6 5  0 4 7 0 7 3 ]";
+    for b in [0.0, 0.7] {
+        let path = write_scene(dir.path(), "cube.pbrt", &chord_scene(cube, b));
+        let img = render(&path, dir.path(), "cube", &[]).image;
+        assert!(
+            (img.mean()[1] - 2.0).abs() < 0.01,
+            "cube at b = {b}: {}",
+            img.mean()[1]
+        );
+    }
+}
+
+/// Light sampling alone, BSDF sampling alone and MIS estimate the same floor illumination
+/// from a glass VolumeLight: the image means agree within three standard errors, and
+/// every block within 4.5 (24 comparisons per pair).
+fn glass_strategies_agree(path: &Path, args: &[&str]) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut images = Vec::new();
+    for (i, strategy) in ["light", "bsdf", "mis"].iter().enumerate() {
+        // Depth 4 takes paths into the glass, through internal reflections and out again.
+        let variant = with_integrator(
+            &text,
+            &format!(
+                "Integrator \"path\" \"integer maxdepth\" [ 4 ] \"string strategy\" \"{strategy}\""
+            ),
+        );
+        let file = write_scene(
+            path.parent().unwrap(),
+            &format!(".{strategy}-{}.pbrt", std::process::id()),
+            &variant,
+        );
+        let seed = (i + 11).to_string();
+        let r = render(
+            &file,
+            dir.path(),
+            strategy,
+            &[args, &["--seed", &seed]].concat(),
+        );
+        std::fs::remove_file(&file).ok();
+        images.push(r.image);
+    }
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        for c in 0..3 {
+            let diffs = images[a]
+                .pixels
+                .iter()
+                .zip(&images[b].pixels)
+                .map(|(x, y)| x[c] as f64 - y[c] as f64);
+            let (mean, se) = mean_and_error(diffs);
+            assert!(
+                mean.abs() < 3.0 * se,
+                "{}: strategies {a} and {b}, channel {c}: means differ by {mean} (standard error {se})",
+                path.display()
+            );
+        }
+        let z = max_z_score(&images[a], &images[b], 4, 2);
+        assert!(
+            z < 4.5,
+            "{}: strategies {a} and {b}: a block differs by {z:.2} standard errors",
+            path.display()
+        );
+    }
+}
+
+#[test]
+fn glass_volume_light_sphere_strategies_agree() {
+    glass_strategies_agree(
+        &crate::util::scene("volume-light/glass-sphere.pbrt"),
+        &["--spp", "128"],
+    );
+}
+
+/// The same with a triangle mesh, where every face is its own light chosen by estimated power.
+#[test]
+fn glass_volume_light_mesh_strategies_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(crate::util::scene("volume-light/glass-sphere.pbrt"))
+        .unwrap()
+        .replace(
+            "Shape \"sphere\" \"float radius\" [ 1 ]",
+            &format!("Shape \"trianglemesh\" {}", uv_sphere(1.0, 24, 48)),
+        );
+    let path = write_scene(dir.path(), "mesh.pbrt", &text);
+    glass_strategies_agree(&path, &["--spp", "128", "--resolution", "72x48"]);
+}
+
+/// A UV sphere as trianglemesh parameters (with smooth normals), `2 * rings * segments` faces
+/// less the degenerate ones at the poles.
+pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> String {
+    let mut p = Vec::new();
+    let mut n = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segments {
+            let phi = 2.0 * std::f64::consts::PI * j as f64 / segments as f64;
+            let v = [
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            ];
+            p.push(format!("{} {} {}", r * v[0], r * v[1], r * v[2]));
+            n.push(format!("{} {} {}", v[0], v[1], v[2]));
+        }
+    }
+    let mut idx = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let a = i * segments + j;
+            let b = i * segments + (j + 1) % segments;
+            let (c, d) = (a + segments, b + segments);
+            // Outward-facing winding (pbrt's normal is (p0 - p2) x (p1 - p2)).
+            if i != 0 {
+                idx.push(format!("{a} {b} {c}"));
+            }
+            if i != rings - 1 {
+                idx.push(format!("{b} {d} {c}"));
+            }
+        }
+    }
+    format!(
+        "\"point3 P\" [ {} ] \"normal N\" [ {} ] \"integer indices\" [ {} ]",
+        p.join(" "),
+        n.join(" "),
+        idx.join(" ")
+    )
+}
+
+/// Mesh volume by the divergence theorem.
+fn mesh_volume(positions: &[[f32; 3]], indices: &[u32]) -> f64 {
+    indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| positions[t[k] as usize].map(|v| v as f64));
+            (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]))
+                / 6.0
+        })
+        .sum::<f64>()
+        .abs()
+}
+
+/// The summed face powers of a uniformly emitting sphere mesh equal the emitted power,
+/// 4 pi Le V (per unit Le of luminance); per-face estimates hardly move with the seed.
+#[test]
+fn face_powers_sum_to_the_analytic_power() {
+    let text = format!(
+        "WorldBegin
+        AttributeBegin
+        AreaLightSource \"volume\" \"rgb Le\" [ 2 2 2 ]
+        Material \"dielectric\" \"float eta\" [ 1.5 ]
+        Shape \"trianglemesh\" {}
+        AttributeEnd",
+        uv_sphere(1.3, 24, 48)
+    );
+    let desc = kiln_scene::load_str(&text, Path::new("power.pbrt"), Path::new(".")).unwrap();
+    let kiln_scene::ShapeKind::Mesh(mesh) = &desc.shapes[0].kind else {
+        panic!()
+    };
+    let faces = mesh.indices.len() / 3;
+    assert!(faces >= 1000, "{faces} faces");
+    let scene = Scene::build(&desc).unwrap();
+    let analytic = 4.0 * std::f64::consts::PI * 2.0 * mesh_volume(&mesh.positions, &mesh.indices);
+    let a: Vec<f64> = scene
+        .volume_power_estimates(1)
+        .into_iter()
+        .flatten()
+        .map(|p| p as f64)
+        .collect();
+    let b: Vec<f64> = scene
+        .volume_power_estimates(2)
+        .into_iter()
+        .flatten()
+        .map(|p| p as f64)
+        .collect();
+    assert_eq!(a.len(), faces);
+    for est in [&a, &b] {
+        let total: f64 = est.iter().sum();
+        assert!(
+            (total - analytic).abs() < 0.03 * analytic,
+            "summed power {total} vs analytic {analytic}"
+        );
+    }
+    let mut rel: Vec<f64> = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs() / x.max(*y))
+        .collect();
+    rel.sort_by(f64::total_cmp);
+    assert!(
+        rel[rel.len() / 2] < 0.05,
+        "median per-face change across seeds: {}",
+        rel[rel.len() / 2]
+    );
+    // The scene's own estimates are what its light sampler uses.
+    let used: f64 = scene
+        .lights
+        .iter()
+        .map(|l| l.power(scene.radius) as f64)
+        .sum();
+    assert!((used - analytic).abs() < 0.03 * analytic);
+}
+
+/// A 3x3x3 grid with one hot voxel on the +x side renders its hot spot there: with this
+/// camera (pbrt's LookAt, left-handed) world +x is the image's left.
+#[test]
+fn hot_voxel_renders_where_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("# 3x3x3, x fastest\n3, 3, 3\n");
+    for z in 0..3 {
+        for y in 0..3 {
+            let row: Vec<&str> = (0..3)
+                .map(|x| if (x, y, z) == (2, 1, 1) { "20" } else { "1" })
+                .collect();
+            csv.push_str(&row.join(", "));
+            csv.push('\n');
+        }
+    }
+    std::fs::write(dir.path().join("hot.csv"), csv).unwrap();
+    let text = "Sampler \"zsobol\" \"integer pixelsamples\" [ 4 ]
+        Film \"rgb\" \"integer xresolution\" [ 30 ] \"integer yresolution\" [ 30 ]
+        LookAt 0 0 10  0 0 0  0 1 0
+        Camera \"orthographic\" \"float screenwindow\" [ -1 1 -1 1 ]
+        WorldBegin
+        AreaLightSource \"volume\" \"rgb Le\" [ 1 1 1 ] \"string grid\" \"hot.csv\" \"integer steps\" [ 64 ]
+        Material \"interface\"
+        Shape \"sphere\" \"float radius\" [ 1 ]";
+    let path = write_scene(dir.path(), "grid.pbrt", text);
+    let img = render(&path, dir.path(), "grid", &[]).image;
+    let third = |x0: u32, y0: u32| crate::util::block_stats(&img, x0, y0, 10, 10, 0).0;
+    let left = third(0, 10);
+    let right = third(20, 10);
+    let centre = third(10, 10);
+    assert!(left > 3.0 * right, "hot side {left}, cold side {right}");
+    assert!(
+        third(0, 0) < 0.5 * left && third(0, 20) < 0.5 * left,
+        "the hot spot is in the middle row"
+    );
+    assert!(
+        centre > right,
+        "the centre, nearer the hot voxel, outshines the cold side"
+    );
+}
+
+#[test]
+fn volume_light_errors_name_their_place() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("bad.csv"), "2,2,1\n1,1\n1\n").unwrap();
+    let cases = [
+        (
+            "WorldBegin\nAreaLightSource \"volume\" \"string grid\" \"bad.csv\"\nShape \"sphere\"\n",
+            "scene.pbrt:2:",
+            "bad.csv', line 3",
+        ),
+        (
+            "WorldBegin\nAreaLightSource \"volume\"\nMaterial \"diffuse\"\nShape \"sphere\"\n",
+            "scene.pbrt:4:",
+            "needs a smooth \"dielectric\"",
+        ),
+        (
+            "WorldBegin\nAreaLightSource \"volume\" \"integer steps\" [ 0 ]\n",
+            "scene.pbrt:2:",
+            "steps 0",
+        ),
+    ];
+    for (text, at, what) in cases {
+        let path = write_scene(dir.path(), "scene.pbrt", text);
+        let out = crate::util::kiln()
+            .arg("render")
+            .arg(&path)
+            .arg("-q")
+            .arg("-o")
+            .arg(dir.path().join("o.exr"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{text}");
+        assert!(
+            err.contains(at) && err.contains(what),
+            "expected {at} and {what} in {err}"
+        );
+    }
+}
