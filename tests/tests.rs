@@ -7,5 +7,6 @@ mod cli;
 mod determinism;
 mod errors;
 mod estimators;
+mod farm;
 mod reference;
 mod volume_light;

@@ -3,6 +3,7 @@
 //! This binary only parses flags, wires the crates together and maps errors to
 //! exit codes; the work lives in the library crates.
 
+mod farm;
 mod render;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +24,14 @@ struct Cli {
 enum Command {
     /// Render a pbrt-v4 scene to an EXR on this machine.
     Render(render::RenderArgs),
+    /// Render a scene through a farm on this machine: a coordinator and N worker processes.
+    Farm(farm::FarmArgs),
+    /// Run a coordinator: the HTTP API, the job store and the tile leases.
+    Coordinator(farm::CoordinatorArgs),
+    /// Run a worker that renders tiles for a coordinator.
+    Worker(farm::WorkerArgs),
+    /// Upload a scene to a coordinator and create a job.
+    Submit(farm::SubmitArgs),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +44,10 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render::run(args),
+        Command::Farm(args) => farm::farm(args),
+        Command::Coordinator(args) => farm::coordinator(args),
+        Command::Worker(args) => farm::worker(args),
+        Command::Submit(args) => farm::submit(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

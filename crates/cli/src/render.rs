@@ -41,7 +41,7 @@ pub struct RenderArgs {
     quiet: bool,
 }
 
-fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
@@ -59,41 +59,6 @@ fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-/// Applies command-line overrides to a loaded scene; the crop window keeps its fractions.
-pub fn apply_overrides(
-    desc: &mut kiln_scene::SceneDescription,
-    resolution: Option<(u32, u32)>,
-    spp: Option<u32>,
-    seed: Option<u32>,
-) -> Result<()> {
-    if let Some((w, h)) = resolution {
-        let f = &mut desc.film;
-        let [x0, x1, y0, y1] = f.pixel_bounds;
-        let sx = |v: u32| ((v as u64 * w as u64).div_ceil(f.xresolution as u64)) as u32;
-        let sy = |v: u32| ((v as u64 * h as u64).div_ceil(f.yresolution as u64)) as u32;
-        let bounds = [sx(x0), sx(x1).min(w), sy(y0), sy(y1).min(h)];
-        f.pixel_bounds = bounds;
-        f.xresolution = w;
-        f.yresolution = h;
-        if bounds[0] >= bounds[1] || bounds[2] >= bounds[3] {
-            bail!("the crop window covers no pixel at {w}x{h}");
-        }
-    }
-    if let Some(spp) = spp {
-        if spp == 0 || spp > kiln_render::sampler::MAX_SAMPLES_PER_PIXEL {
-            bail!(
-                "--spp must be between 1 and {}",
-                kiln_render::sampler::MAX_SAMPLES_PER_PIXEL
-            );
-        }
-        desc.sampler.pixel_samples = spp;
-    }
-    if let Some(seed) = seed {
-        desc.sampler.seed = seed;
-    }
-    Ok(())
-}
-
 pub fn run(args: RenderArgs) -> Result<()> {
     if args.tile == 0 {
         bail!("--tile must be at least 1");
@@ -103,7 +68,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     for w in &desc.warnings {
         eprintln!("{w}");
     }
-    apply_overrides(&mut desc, args.resolution, args.spp, args.seed)?;
+    desc.apply_overrides(&kiln_scene::Overrides {
+        resolution: args.resolution,
+        spp: args.spp,
+        seed: args.seed,
+    })
+    .map_err(anyhow::Error::msg)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()

@@ -25,6 +25,8 @@ pub struct SceneDescription {
     /// Named objects (ObjectBegin/End), referred to by [`InstanceDesc::object`].
     pub objects: Vec<ObjectDesc>,
     pub instances: Vec<InstanceDesc>,
+    /// Every file the scene read besides its main file (includes, meshes, maps, grids), in order.
+    pub files: Vec<std::path::PathBuf>,
     /// Warnings found while loading (errors abort loading instead).
     pub warnings: Vec<Diagnostic>,
 }
@@ -297,4 +299,46 @@ pub struct InstanceDesc {
     pub object: usize,
     pub instance_to_world: DMat4,
     pub loc: Loc,
+}
+
+/// Command-line and job overrides of a scene's own settings.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Overrides {
+    pub resolution: Option<(u32, u32)>,
+    pub spp: Option<u32>,
+    pub seed: Option<u32>,
+}
+
+impl SceneDescription {
+    /// Applies overrides; a crop window keeps its fractions of the frame.
+    pub fn apply_overrides(&mut self, o: &Overrides) -> Result<(), String> {
+        if let Some((w, h)) = o.resolution {
+            if w == 0 || h == 0 || w > 65536 || h > 65536 {
+                return Err(format!("resolution {w}x{h} is out of range"));
+            }
+            let f = &mut self.film;
+            let [x0, x1, y0, y1] = f.pixel_bounds;
+            let sx = |v: u32| (v as u64 * w as u64).div_ceil(f.xresolution as u64) as u32;
+            let sy = |v: u32| (v as u64 * h as u64).div_ceil(f.yresolution as u64) as u32;
+            let bounds = [sx(x0), sx(x1).min(w), sy(y0), sy(y1).min(h)];
+            if bounds[0] >= bounds[1] || bounds[2] >= bounds[3] {
+                return Err(format!("the crop window covers no pixel at {w}x{h}"));
+            }
+            f.pixel_bounds = bounds;
+            f.xresolution = w;
+            f.yresolution = h;
+        }
+        if let Some(spp) = o.spp {
+            if spp == 0 || spp > 65536 {
+                return Err(format!(
+                    "{spp} samples per pixel is out of range (1 to 65536)"
+                ));
+            }
+            self.sampler.pixel_samples = spp;
+        }
+        if let Some(seed) = o.seed {
+            self.sampler.seed = seed;
+        }
+        Ok(())
+    }
 }

@@ -73,6 +73,7 @@ struct Parser {
     object_names: HashMap<String, usize>,
     current_object: Option<ObjectDesc>,
     instances: Vec<InstanceDesc>,
+    files: Vec<PathBuf>,
 }
 
 /// Reads one directive's arguments from a token slice.
@@ -392,6 +393,7 @@ impl Parser {
             object_names: HashMap::new(),
             current_object: None,
             instances: Vec::new(),
+            files: Vec::new(),
         }
     }
 
@@ -435,6 +437,15 @@ impl Parser {
             }),
             _ => Err(SceneError::Many(errors)),
         }
+    }
+
+    /// Resolves a file the scene refers to, and records it (a farm bundle must carry it).
+    fn resolve_file(&mut self, name: &str) -> PathBuf {
+        let path = self.resolve(name);
+        if !self.files.contains(&path) {
+            self.files.push(path.clone());
+        }
+        path
     }
 
     fn resolve(&self, name: &str) -> PathBuf {
@@ -778,7 +789,7 @@ impl Parser {
                         "Include nested more than 32 deep (a cycle?)",
                     ));
                 }
-                let path = self.resolve(&name);
+                let path = self.resolve_file(&name);
                 let text = std::fs::read_to_string(&path).map_err(|source| SceneError::Io {
                     loc: loc.clone(),
                     path: path.clone(),
@@ -1318,7 +1329,7 @@ impl Parser {
                             "LightSource 'infinite': give either \"L\" or \"filename\", not both",
                         ));
                     }
-                    let path = self.resolve(&name);
+                    let path = self.resolve_file(&name);
                     let image = mesh_files::read_environment(&path, loc)?;
                     let layout = if image.width == image.height {
                         EnvironmentLayout::EqualArea
@@ -1444,7 +1455,7 @@ impl Parser {
         }
         let grid = match params.string("grid")? {
             Some(name) => {
-                let path = self.resolve(&name);
+                let path = self.resolve_file(&name);
                 let at = params.loc_of("grid").unwrap_or_else(|| loc.clone());
                 Some(Arc::new(mesh_files::read_voxel_grid(&path, &at)?))
             }
@@ -1487,7 +1498,7 @@ impl Parser {
                 let name = params.string("filename")?.ok_or_else(|| {
                     SceneError::at(loc, format!("{ty}: \"string filename\" is required"))
                 })?;
-                let path = self.resolve(&name);
+                let path = self.resolve_file(&name);
                 let mesh = if ty == "plymesh" {
                     if params.loc_of("displacement").is_some() {
                         return Err(SceneError::at(
@@ -1593,6 +1604,7 @@ impl Parser {
             lights: self.lights,
             objects: self.objects,
             instances: self.instances,
+            files: self.files,
             warnings: self.warnings,
         })
     }

@@ -1,0 +1,373 @@
+//! `kiln coordinator`, `kiln worker`, `kiln submit` and `kiln farm`.
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use kiln_farm::api::{JobSpec, JobState};
+use kiln_farm::client::Client;
+use kiln_farm::coordinator::{self, Config, Coordinator};
+use kiln_farm::worker::{self, WorkerConfig};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")
+}
+
+/// Resolves when the process gets SIGTERM or ctrl-c.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! { _ = ctrl_c => {}, _ = term => {} }
+}
+
+#[derive(clap::Args)]
+pub struct CoordinatorArgs {
+    /// Address to listen on (port 0 picks a free one; the chosen address is printed).
+    #[arg(long, default_value = "127.0.0.1:7878")]
+    listen: String,
+    /// Where jobs, scene bundles and finished tiles are kept; a restart resumes from it.
+    #[arg(long)]
+    data_dir: PathBuf,
+    /// Require `Authorization: Bearer TOKEN` on every request but /healthz.
+    #[arg(long, env = "KILN_TOKEN")]
+    token: Option<String>,
+    /// Seconds a lease lasts without a heartbeat.
+    #[arg(long, default_value_t = 20.0)]
+    lease_ttl: f64,
+}
+
+pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
+    let rt = runtime()?;
+    rt.block_on(async {
+        let mut config = Config::new(args.data_dir.clone());
+        config.token = args.token;
+        config.lease_ttl = Duration::from_secs_f64(args.lease_ttl.max(0.05));
+        let c = Coordinator::open(config).map_err(anyhow::Error::msg)?;
+        let listener = tokio::net::TcpListener::bind(&args.listen)
+            .await
+            .with_context(|| format!("cannot listen on {}", args.listen))?;
+        let addr = listener.local_addr()?;
+        println!(
+            "kiln coordinator: listening on http://{addr} (data in {})",
+            args.data_dir.display()
+        );
+        use std::io::Write;
+        std::io::stdout().flush().ok();
+        coordinator::serve(listener, c, shutdown_signal()).await?;
+        Ok(())
+    })
+}
+
+#[derive(clap::Args)]
+pub struct WorkerArgs {
+    /// The coordinator's URL, e.g. http://127.0.0.1:7878
+    #[arg(long)]
+    coordinator: String,
+    /// Render threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    #[arg(long, env = "KILN_TOKEN")]
+    token: Option<String>,
+    /// A name for this worker in the coordinator's records (default: host-pid).
+    #[arg(long)]
+    name: Option<String>,
+    /// Where scene bundles are cached (default: the system temp dir).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Exit after the coordinator has been unreachable for this many seconds.
+    #[arg(long, default_value_t = 600.0)]
+    give_up_after: f64,
+}
+
+pub fn worker(args: WorkerArgs) -> Result<()> {
+    let rt = runtime()?;
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let name = args.name.unwrap_or_else(|| {
+        let host = std::fs::read_to_string("/etc/hostname").unwrap_or_else(|_| "worker".into());
+        format!("{}-{}", host.trim(), std::process::id())
+    });
+    let cache_dir = args
+        .cache_dir
+        .unwrap_or_else(|| std::env::temp_dir().join("kiln-bundles"));
+    std::fs::create_dir_all(&cache_dir)
+        .with_context(|| format!("cannot create {}", cache_dir.display()))?;
+    let config = WorkerConfig {
+        coordinator: args.coordinator,
+        token: args.token,
+        threads,
+        name: name.clone(),
+        cache_dir,
+        poll: Duration::from_millis(100),
+        give_up_after: Duration::from_secs_f64(args.give_up_after.max(0.0)),
+    };
+    rt.block_on(async move {
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        tokio::spawn(async move {
+            shutdown_signal().await;
+            // Finish the tile in hand, then leave.
+            flag.store(true, Ordering::SeqCst);
+        });
+        eprintln!("kiln worker {name}: {threads} threads");
+        let n = worker::run(config, stop)
+            .await
+            .map_err(anyhow::Error::msg)?;
+        eprintln!("kiln worker {name}: stopped after {n} tiles");
+        Ok(())
+    })
+}
+
+#[derive(clap::Args, Clone)]
+pub struct JobArgs {
+    /// Samples per pixel (default: the scene's).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Resolution as WIDTHxHEIGHT (default: the scene's).
+    #[arg(long, value_parser = crate::render::parse_resolution)]
+    resolution: Option<(u32, u32)>,
+    /// Tile size in pixels.
+    #[arg(long, default_value_t = 32)]
+    tile: u32,
+    /// Sampler seed (default: the scene's).
+    #[arg(long)]
+    seed: Option<u32>,
+}
+
+#[derive(clap::Args)]
+pub struct SubmitArgs {
+    /// The pbrt-v4 scene file; it and every file it refers to are uploaded.
+    scene: PathBuf,
+    #[arg(long)]
+    coordinator: String,
+    #[command(flatten)]
+    job: JobArgs,
+    #[arg(long, env = "KILN_TOKEN")]
+    token: Option<String>,
+    /// Wait for the render, showing progress, and download the result.
+    #[arg(long)]
+    wait: bool,
+    /// Where --wait writes the merged EXR.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// Packs, uploads and creates the job; returns its id.
+async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> Result<u64> {
+    let bundle = kiln_farm::bundle::pack(scene)?;
+    let spec = JobSpec {
+        scene: bundle.digest.clone(),
+        spp: job.spp,
+        resolution: job.resolution,
+        tile: job.tile,
+        seed: job.seed,
+    };
+    // The same scene and settings submitted twice (a retry) make one job.
+    let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);
+    let digest = client.upload_scene(bundle.bytes).await?;
+    if digest != spec.scene {
+        bail!(
+            "the coordinator computed digest {digest} for the bundle, not {}",
+            spec.scene
+        );
+    }
+    Ok(client
+        .create_job(&spec, Some(&kiln_farm::bundle::digest_of(key.as_bytes())))
+        .await?)
+}
+
+/// Follows a job to its end with a progress bar; writes the result to `output`.
+async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: bool) -> Result<()> {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(1000)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] [{wide_bar}] {percent}% {msg}")
+            .expect("the template is valid")
+            .progress_chars("=> "),
+    );
+    loop {
+        let s = client.status(id).await?;
+        bar.set_position((s.progress * 1000.0) as u64);
+        let eta = s
+            .eta_seconds
+            .map(|e| format!(", {e:.0} s left"))
+            .unwrap_or_default();
+        bar.set_message(format!(
+            "{}/{} tiles, {:.2} M samples/s{eta}",
+            s.tiles_done,
+            s.tiles_total,
+            s.samples_per_second / 1e6
+        ));
+        match s.state {
+            JobState::Running => tokio::time::sleep(Duration::from_millis(200)).await,
+            JobState::Done => break,
+            JobState::Failed => bail!("job {id} failed: {}", s.error.unwrap_or_default()),
+            JobState::Cancelled => bail!("job {id} was cancelled"),
+        }
+    }
+    bar.finish_and_clear();
+    let bytes = client.result(id).await?;
+    std::fs::write(output, bytes).with_context(|| format!("cannot write {}", output.display()))?;
+    Ok(())
+}
+
+pub fn submit(args: SubmitArgs) -> Result<()> {
+    let rt = runtime()?;
+    rt.block_on(async {
+        let client = Client::new(&args.coordinator, args.token.clone());
+        let id = submit_job(&client, &args.scene, &args.job).await?;
+        println!("kiln submit: job {id}");
+        if args.wait {
+            let out = args
+                .output
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(format!("job-{id}.exr")));
+            wait_for(&client, id, &out, args.quiet).await?;
+            eprintln!("kiln submit: wrote {}", out.display());
+        }
+        Ok(())
+    })
+}
+
+#[derive(clap::Args)]
+pub struct FarmArgs {
+    /// The pbrt-v4 scene file.
+    scene: PathBuf,
+    /// Local worker processes.
+    #[arg(long, default_value_t = 2)]
+    workers: usize,
+    /// Render threads per worker (default: the cores divided among the workers).
+    #[arg(long)]
+    threads_per_worker: Option<usize>,
+    #[command(flatten)]
+    job: JobArgs,
+    /// Output EXR (default: the Film's filename).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Also write an sRGB PNG preview.
+    #[arg(long)]
+    preview: Option<PathBuf>,
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+pub fn farm(args: FarmArgs) -> Result<()> {
+    if args.workers == 0 {
+        bail!("--workers must be at least 1");
+    }
+    let desc = kiln_scene::load_file(&args.scene)?;
+    let output = args.output.clone().unwrap_or_else(|| {
+        let mut p = PathBuf::from(&desc.film.filename);
+        p.set_extension("exr");
+        p
+    });
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = args
+        .threads_per_worker
+        .unwrap_or((cores / args.workers).max(1));
+    let data = std::env::temp_dir().join(format!("kiln-farm-{}", std::process::id()));
+    let rt = runtime()?;
+    let start = std::time::Instant::now();
+    let result = rt.block_on(async {
+        let c = Coordinator::open(Config::new(data.clone())).map_err(anyhow::Error::msg)?;
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+        let url = format!("http://{}", listener.local_addr()?);
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let server = tokio::spawn(coordinator::serve(listener, c, async {
+            let _ = stop_rx.await;
+        }));
+        let exe = std::env::current_exe()?;
+        let mut children = Vec::new();
+        for i in 0..args.workers {
+            let child = std::process::Command::new(&exe)
+                .args([
+                    "worker",
+                    "--coordinator",
+                    &url,
+                    "--threads",
+                    &threads.to_string(),
+                    "--name",
+                    &format!("local-{i}"),
+                ])
+                // Local workers outlive a killed `kiln farm` by seconds, not minutes.
+                .args(["--give-up-after", "5"])
+                .arg("--cache-dir")
+                .arg(data.join("worker-cache"))
+                .stdin(std::process::Stdio::null())
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .context("cannot start a worker process")?;
+            children.push(child);
+        }
+        if !args.quiet {
+            eprintln!(
+                "kiln farm: coordinator at {url}, {} workers x {threads} threads",
+                args.workers
+            );
+        }
+        let client = Client::new(&url, None);
+        let outcome = async {
+            let id = submit_job(&client, &args.scene, &args.job).await?;
+            wait_for(&client, id, &output, args.quiet).await
+        }
+        .await;
+        for child in &mut children {
+            terminate(child);
+        }
+        for mut child in children {
+            let _ = child.wait();
+        }
+        let _ = stop_tx.send(());
+        let _ = server.await;
+        outcome
+    });
+    let _ = std::fs::remove_dir_all(&data);
+    result?;
+    if let Some(preview) = &args.preview {
+        let frame = kiln_image::decode_exr(&std::fs::read(&output)?)?;
+        kiln_image::write_png(preview, &frame, 0.0)?;
+    }
+    eprintln!(
+        "kiln farm: wrote {} in {:.2} s",
+        output.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Asks a worker process to finish its tile and stop: SIGTERM through `kill` where there
+/// is one, else a plain kill.
+fn terminate(child: &mut std::process::Child) {
+    let asked = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !asked {
+        let _ = child.kill();
+    }
+}

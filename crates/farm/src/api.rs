@@ -1,0 +1,108 @@
+//! The JSON types of the HTTP API (under /v1), shared by the coordinator and its clients.
+
+use serde::{Deserialize, Serialize};
+
+/// What to render: a scene bundle and the settings that override the scene's own.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct JobSpec {
+    /// Digest of an uploaded scene bundle.
+    pub scene: String,
+    #[serde(default)]
+    pub spp: Option<u32>,
+    #[serde(default)]
+    pub resolution: Option<(u32, u32)>,
+    #[serde(default = "default_tile")]
+    pub tile: u32,
+    #[serde(default)]
+    pub seed: Option<u32>,
+}
+
+fn default_tile() -> u32 {
+    32
+}
+
+impl JobSpec {
+    pub fn overrides(&self) -> kiln_scene::Overrides {
+        kiln_scene::Overrides {
+            resolution: self.resolution,
+            spp: self.spp,
+            seed: self.seed,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JobState {
+    Running,
+    Done,
+    Failed,
+    Cancelled,
+}
+
+/// A job's progress, as GET /v1/jobs/{id} and its events report it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobStatus {
+    pub id: u64,
+    pub state: JobState,
+    pub width: u32,
+    pub height: u32,
+    pub tiles_total: u32,
+    pub tiles_done: u32,
+    pub samples_total: u64,
+    pub samples_done: u64,
+    /// Fraction done, 0 to 1.
+    pub progress: f64,
+    /// Samples per second since the job started (or the coordinator restarted).
+    pub samples_per_second: f64,
+    pub eta_seconds: Option<f64>,
+    /// Tile attempts that failed (worker errors, corrupt uploads).
+    pub failures: u32,
+    pub error: Option<String>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Rect {
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// A tile lent to a worker until `deadline_ms` (renewed by heartbeats).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Lease {
+    pub lease: u64,
+    pub job: u64,
+    pub spec: JobSpec,
+    pub tile_index: u32,
+    pub tile: Rect,
+    /// Milliseconds the lease lasts without a heartbeat.
+    pub ttl_ms: u64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct LeaseRequest {
+    pub worker: String,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Failure {
+    pub reason: String,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SceneUploaded {
+    pub digest: String,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct JobCreated {
+    pub id: u64,
+}
+
+/// Every 4xx and 5xx response body.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ApiError {
+    pub error: String,
+}

@@ -1,0 +1,178 @@
+//! Scene bundles: a scene file and every file it refers to, in one content-addressed blob.
+//!
+//! Layout: the magic `KILNBDL1`, a u32 entry count, then per entry a u16 path length, the
+//! UTF-8 relative path, a u64 data length and the data (little endian). The first entry is
+//! the scene file. The digest is the SHA-256 of the whole blob, in hex.
+
+use sha2::{Digest, Sha256};
+use std::path::{Component, Path, PathBuf};
+
+const MAGIC: &[u8; 8] = b"KILNBDL1";
+
+#[derive(Debug, thiserror::Error)]
+pub enum BundleError {
+    #[error("{0}")]
+    Scene(#[from] kiln_scene::SceneError),
+    #[error("cannot read '{path}': {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(
+        "'{0}' is outside the scene's directory; a bundle holds only files beside or below the scene"
+    )]
+    Outside(PathBuf),
+    #[error("corrupt bundle: {0}")]
+    Corrupt(String),
+}
+
+/// A bundle in memory: its bytes and digest.
+#[derive(Debug, Clone)]
+pub struct Bundle {
+    pub bytes: Vec<u8>,
+    pub digest: String,
+}
+
+pub fn digest_of(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Parses the scene (so a bad one fails here, with its file and line) and packs it with
+/// every file it read.
+pub fn pack(scene: &Path) -> Result<Bundle, BundleError> {
+    let desc = kiln_scene::load_file(scene)?;
+    let base = scene.parent().unwrap_or(Path::new("")).to_path_buf();
+    let mut entries: Vec<(String, PathBuf)> = Vec::new();
+    let name = scene
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene.pbrt".into());
+    entries.push((name, scene.to_path_buf()));
+    for f in &desc.files {
+        let rel = f
+            .strip_prefix(&base)
+            .map_err(|_| BundleError::Outside(f.clone()))?;
+        let rel = rel.to_string_lossy().replace('\\', "/");
+        if !entries.iter().any(|(r, _)| *r == rel) {
+            entries.push((rel, f.clone()));
+        }
+    }
+    let mut bytes = Vec::new();
+    bytes.extend_from_slice(MAGIC);
+    bytes.extend_from_slice(&(entries.len() as u32).to_le_bytes());
+    for (rel, path) in &entries {
+        let data = std::fs::read(path).map_err(|source| BundleError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        bytes.extend_from_slice(&(rel.len() as u16).to_le_bytes());
+        bytes.extend_from_slice(rel.as_bytes());
+        bytes.extend_from_slice(&(data.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(&data);
+    }
+    let digest = digest_of(&bytes);
+    Ok(Bundle { bytes, digest })
+}
+
+/// A relative path that stays inside the bundle (no root, no `..`).
+fn safe_relative(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(rel);
+    if rel.is_empty() || p.components().any(|c| !matches!(c, Component::Normal(_))) {
+        return None;
+    }
+    Some(p.to_path_buf())
+}
+
+/// The entries of a bundle: (relative path, data). Checks the structure, never panics.
+pub fn entries(bytes: &[u8]) -> Result<Vec<(PathBuf, &[u8])>, BundleError> {
+    let corrupt = |m: &str| BundleError::Corrupt(m.to_string());
+    if bytes.len() < 12 || &bytes[..8] != MAGIC {
+        return Err(corrupt("it does not start with KILNBDL1"));
+    }
+    let count = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
+    let mut pos = 12;
+    let mut out = Vec::new();
+    let take = |pos: &mut usize, n: usize| -> Result<&[u8], BundleError> {
+        let end = pos
+            .checked_add(n)
+            .filter(|&e| e <= bytes.len())
+            .ok_or_else(|| corrupt("it is truncated"))?;
+        let s = &bytes[*pos..end];
+        *pos = end;
+        Ok(s)
+    };
+    for _ in 0..count {
+        let n = u16::from_le_bytes(take(&mut pos, 2)?.try_into().unwrap()) as usize;
+        let rel =
+            std::str::from_utf8(take(&mut pos, n)?).map_err(|_| corrupt("a path is not UTF-8"))?;
+        let path = safe_relative(rel)
+            .ok_or_else(|| BundleError::Corrupt(format!("path '{rel}' escapes the bundle")))?;
+        let len = u64::from_le_bytes(take(&mut pos, 8)?.try_into().unwrap()) as usize;
+        out.push((path, take(&mut pos, len)?));
+    }
+    if pos != bytes.len() {
+        return Err(corrupt("it has bytes after its last entry"));
+    }
+    if out.is_empty() {
+        return Err(corrupt("it has no scene file"));
+    }
+    Ok(out)
+}
+
+/// Unpacks a bundle into `dir` (created) and returns the path of its scene file.
+pub fn unpack(bytes: &[u8], dir: &Path) -> Result<PathBuf, BundleError> {
+    let entries = entries(bytes)?;
+    let io = |path: &Path, source| BundleError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    for (rel, data) in &entries {
+        let path = dir.join(rel);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
+        }
+        std::fs::write(&path, data).map_err(|e| io(&path, e))?;
+    }
+    Ok(dir.join(&entries[0].0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bundles_round_trip_and_reject_escapes_and_truncation() {
+        let dir = std::env::temp_dir().join(format!("kiln-bundle-test-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("models")).unwrap();
+        std::fs::write(dir.join("models/inc.pbrt"), "Shape \"sphere\"\n").unwrap();
+        std::fs::write(
+            dir.join("scene.pbrt"),
+            "WorldBegin\nInclude \"models/inc.pbrt\"\n",
+        )
+        .unwrap();
+        let b = pack(&dir.join("scene.pbrt")).unwrap();
+        assert_eq!(b.digest, digest_of(&b.bytes));
+        let e = entries(&b.bytes).unwrap();
+        assert_eq!(e.len(), 2);
+        assert_eq!(e[1].0, PathBuf::from("models/inc.pbrt"));
+        let out = dir.join("out");
+        let scene = unpack(&b.bytes, &out).unwrap();
+        assert!(kiln_scene::load_file(&scene).is_ok());
+        for cut in [0, 5, 13, b.bytes.len() - 1] {
+            assert!(entries(&b.bytes[..cut]).is_err());
+        }
+        // A path with .. is refused.
+        let mut evil = Vec::new();
+        evil.extend_from_slice(MAGIC);
+        evil.extend_from_slice(&1u32.to_le_bytes());
+        evil.extend_from_slice(&5u16.to_le_bytes());
+        evil.extend_from_slice(b"../x1");
+        evil.extend_from_slice(&0u64.to_le_bytes());
+        assert!(matches!(entries(&evil), Err(BundleError::Corrupt(m)) if m.contains("escapes")));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

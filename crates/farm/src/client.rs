@@ -1,0 +1,141 @@
+//! HTTP calls to a coordinator, for `kiln submit`, `kiln farm` and workers.
+
+use crate::api::*;
+use reqwest::{Method, RequestBuilder, StatusCode};
+
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    #[error("cannot reach the coordinator: {0}")]
+    Http(#[from] reqwest::Error),
+    #[error("the coordinator answered {status}: {message}")]
+    Api { status: StatusCode, message: String },
+}
+
+impl ClientError {
+    pub fn status(&self) -> Option<StatusCode> {
+        match self {
+            ClientError::Api { status, .. } => Some(*status),
+            ClientError::Http(_) => None,
+        }
+    }
+}
+
+pub type Result<T> = std::result::Result<T, ClientError>;
+
+#[derive(Clone)]
+pub struct Client {
+    http: reqwest::Client,
+    base: String,
+    token: Option<String>,
+}
+
+impl Client {
+    pub fn new(base: &str, token: Option<String>) -> Client {
+        Client {
+            http: reqwest::Client::new(),
+            base: base.trim_end_matches('/').to_string(),
+            token,
+        }
+    }
+
+    fn req(&self, method: Method, path: &str) -> RequestBuilder {
+        let r = self.http.request(method, format!("{}{path}", self.base));
+        match &self.token {
+            Some(t) => r.bearer_auth(t),
+            None => r,
+        }
+    }
+
+    /// Sends and turns non-2xx answers into `ClientError::Api` with the server's message.
+    async fn send(&self, r: RequestBuilder) -> Result<reqwest::Response> {
+        let resp = r.send().await?;
+        let status = resp.status();
+        if status.is_success() {
+            return Ok(resp);
+        }
+        let text = resp.text().await.unwrap_or_default();
+        let message = serde_json::from_str::<ApiError>(&text)
+            .map(|e| e.error)
+            .unwrap_or(text);
+        Err(ClientError::Api { status, message })
+    }
+
+    pub async fn upload_scene(&self, bytes: Vec<u8>) -> Result<String> {
+        let r = self
+            .send(self.req(Method::POST, "/v1/scenes").body(bytes))
+            .await?;
+        Ok(r.json::<SceneUploaded>().await?.digest)
+    }
+
+    pub async fn download_scene(&self, digest: &str) -> Result<Vec<u8>> {
+        Ok(self
+            .send(self.req(Method::GET, &format!("/v1/scenes/{digest}")))
+            .await?
+            .bytes()
+            .await?
+            .to_vec())
+    }
+
+    pub async fn create_job(&self, spec: &JobSpec, idempotency_key: Option<&str>) -> Result<u64> {
+        let mut r = self.req(Method::POST, "/v1/jobs").json(spec);
+        if let Some(k) = idempotency_key {
+            r = r.header("Idempotency-Key", k);
+        }
+        Ok(self.send(r).await?.json::<JobCreated>().await?.id)
+    }
+
+    pub async fn status(&self, job: u64) -> Result<JobStatus> {
+        Ok(self
+            .send(self.req(Method::GET, &format!("/v1/jobs/{job}")))
+            .await?
+            .json()
+            .await?)
+    }
+
+    pub async fn result(&self, job: u64) -> Result<Vec<u8>> {
+        Ok(self
+            .send(self.req(Method::GET, &format!("/v1/jobs/{job}/result.exr")))
+            .await?
+            .bytes()
+            .await?
+            .to_vec())
+    }
+
+    pub async fn lease(&self, worker: &str) -> Result<Option<Lease>> {
+        let r = self
+            .send(self.req(Method::POST, "/v1/leases").json(&LeaseRequest {
+                worker: worker.into(),
+            }))
+            .await?;
+        if r.status() == StatusCode::NO_CONTENT {
+            return Ok(None);
+        }
+        Ok(Some(r.json().await?))
+    }
+
+    pub async fn heartbeat(&self, lease: u64) -> Result<()> {
+        self.send(self.req(Method::POST, &format!("/v1/leases/{lease}/heartbeat")))
+            .await
+            .map(|_| ())
+    }
+
+    pub async fn upload_tile(&self, lease: u64, exr: Vec<u8>) -> Result<()> {
+        self.send(
+            self.req(Method::PUT, &format!("/v1/leases/{lease}/tile"))
+                .body(exr),
+        )
+        .await
+        .map(|_| ())
+    }
+
+    pub async fn fail(&self, lease: u64, reason: &str) -> Result<()> {
+        self.send(
+            self.req(Method::POST, &format!("/v1/leases/{lease}/fail"))
+                .json(&Failure {
+                    reason: reason.into(),
+                }),
+        )
+        .await
+        .map(|_| ())
+    }
+}

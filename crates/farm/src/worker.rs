@@ -1,0 +1,219 @@
+//! A worker: leases tiles, renders them with `kiln_render::render_tile`, returns EXRs.
+
+use crate::api::{JobSpec, Lease};
+use crate::bundle;
+use crate::client::{Client, ClientError};
+use kiln_image::RgbBuffer;
+use kiln_render::{RenderSettings, Scene, TileRect, render_tile};
+use reqwest::StatusCode;
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+#[derive(Debug, Clone)]
+pub struct WorkerConfig {
+    pub coordinator: String,
+    pub token: Option<String>,
+    pub threads: usize,
+    pub name: String,
+    /// Where bundles are unpacked (one folder per digest).
+    pub cache_dir: PathBuf,
+    pub poll: Duration,
+    /// Stop after the coordinator has been unreachable this long (a farm that is gone).
+    pub give_up_after: Duration,
+}
+
+/// A loaded scene, ready to render tiles of one job spec.
+struct Loaded {
+    scene: Scene,
+    settings: RenderSettings,
+    frame: (u32, u32),
+}
+
+/// Runs until `stop` is set (after finishing the tile in hand) or the coordinator sets
+/// this worker aside. Returns the number of tiles rendered.
+pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, String> {
+    let client = Client::new(&config.coordinator, config.token.clone());
+    let pool = Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(config.threads)
+            .build()
+            .map_err(|e| format!("cannot start {} threads: {e}", config.threads))?,
+    );
+    let mut scenes: HashMap<String, Arc<Loaded>> = HashMap::new();
+    let mut rendered = 0u64;
+    let mut unreachable_since: Option<std::time::Instant> = None;
+    while !stop.load(Ordering::SeqCst) {
+        let answer = client.lease(&config.name).await;
+        if matches!(answer, Err(ClientError::Http(_))) {
+            let since = *unreachable_since.get_or_insert_with(std::time::Instant::now);
+            if since.elapsed() > config.give_up_after {
+                return Err(format!(
+                    "the coordinator at {} has been unreachable for {:?}",
+                    config.coordinator, config.give_up_after
+                ));
+            }
+        } else {
+            unreachable_since = None;
+        }
+        let lease = match answer {
+            Ok(Some(l)) => l,
+            Ok(None) => {
+                tokio::time::sleep(config.poll).await;
+                continue;
+            }
+            Err(e)
+                if e.status() == Some(StatusCode::FORBIDDEN)
+                    || e.status() == Some(StatusCode::UNAUTHORIZED) =>
+            {
+                return Err(e.to_string());
+            }
+            Err(e) => {
+                // The coordinator may be restarting: keep trying.
+                tracing::warn!("{e}");
+                tokio::time::sleep(Duration::from_millis(500)).await;
+                continue;
+            }
+        };
+        let key = serde_json::to_string(&lease.spec).unwrap_or_default();
+        let loaded = match scenes.get(&key) {
+            Some(l) => Ok(l.clone()),
+            None => load(&client, &config, &lease.spec).await.map(Arc::new),
+        };
+        let loaded = match loaded {
+            Ok(l) => {
+                if scenes.len() >= 4 {
+                    scenes.clear();
+                }
+                scenes.insert(key, l.clone());
+                l
+            }
+            Err(e) => {
+                let _ = client.fail(lease.lease, &e).await;
+                continue;
+            }
+        };
+        match render_and_upload(&client, &pool, &loaded, &lease).await {
+            Ok(()) => {
+                rendered += 1;
+                eprintln!(
+                    "kiln worker {}: rendered job {} tile {}",
+                    config.name, lease.job, lease.tile_index
+                );
+            }
+            Err(e) => tracing::warn!("job {} tile {}: {e}", lease.job, lease.tile_index),
+        }
+    }
+    Ok(rendered)
+}
+
+async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<Loaded, String> {
+    let dir = config.cache_dir.join(&spec.scene);
+    let marker = dir.join(".kiln-scene");
+    let scene_path = match std::fs::read_to_string(&marker) {
+        Ok(rel) => dir.join(rel.trim()),
+        Err(_) => {
+            let bytes = client
+                .download_scene(&spec.scene)
+                .await
+                .map_err(|e| e.to_string())?;
+            let digest = bundle::digest_of(&bytes);
+            if digest != spec.scene {
+                return Err(format!(
+                    "the scene bundle's digest is {digest}, not {}",
+                    spec.scene
+                ));
+            }
+            let tmp = config
+                .cache_dir
+                .join(format!(".{}.{}", spec.scene, std::process::id()));
+            let path = bundle::unpack(&bytes, &tmp).map_err(|e| e.to_string())?;
+            let rel = path
+                .strip_prefix(&tmp)
+                .map_err(|e| e.to_string())?
+                .to_path_buf();
+            std::fs::write(tmp.join(".kiln-scene"), rel.to_string_lossy().as_bytes())
+                .map_err(|e| e.to_string())?;
+            if std::fs::rename(&tmp, &dir).is_err() {
+                // Another worker on this machine unpacked it first.
+                let _ = std::fs::remove_dir_all(&tmp);
+            }
+            dir.join(rel)
+        }
+    };
+    let overrides = spec.overrides();
+    tokio::task::spawn_blocking(move || {
+        let mut desc = kiln_scene::load_file(&scene_path).map_err(|e| e.to_string())?;
+        desc.apply_overrides(&overrides)?;
+        let scene = Scene::build(&desc).map_err(|e| e.to_string())?;
+        let settings = RenderSettings::from_description(&desc);
+        Ok(Loaded {
+            scene,
+            settings,
+            frame: (desc.film.xresolution, desc.film.yresolution),
+        })
+    })
+    .await
+    .map_err(|e| e.to_string())?
+}
+
+async fn render_and_upload(
+    client: &Client,
+    pool: &Arc<rayon::ThreadPool>,
+    loaded: &Arc<Loaded>,
+    lease: &Lease,
+) -> Result<(), ClientError> {
+    // Heartbeats keep the lease while the tile renders.
+    let beat = {
+        let client = client.clone();
+        let id = lease.lease;
+        let every = Duration::from_millis((lease.ttl_ms / 3).max(10));
+        tokio::spawn(async move {
+            loop {
+                tokio::time::sleep(every).await;
+                if client.heartbeat(id).await.is_err() {
+                    break;
+                }
+            }
+        })
+    };
+    let t = lease.tile;
+    let rect = TileRect {
+        x0: t.x0,
+        y0: t.y0,
+        width: t.width,
+        height: t.height,
+    };
+    let (pool, loaded2) = (pool.clone(), loaded.clone());
+    let exr = tokio::task::spawn_blocking(move || {
+        let result = pool.install(|| render_tile(&loaded2.scene, &loaded2.settings, rect));
+        let mut buffer = RgbBuffer::new(
+            loaded2.frame.0,
+            loaded2.frame.1,
+            rect.x0,
+            rect.y0,
+            rect.width,
+            rect.height,
+        );
+        buffer.pixels = result.pixels;
+        kiln_image::encode_exr(&buffer)
+    })
+    .await;
+    beat.abort();
+    let exr = match exr {
+        Ok(Ok(bytes)) => bytes,
+        Ok(Err(e)) => {
+            let _ = client.fail(lease.lease, &e.to_string()).await;
+            return Ok(());
+        }
+        Err(e) => {
+            let _ = client
+                .fail(lease.lease, &format!("the render panicked: {e}"))
+                .await;
+            return Ok(());
+        }
+    };
+    client.upload_tile(lease.lease, exr).await
+}

@@ -1,0 +1,498 @@
+//! The render farm: merged images bit-identical to `kiln render`, surviving dead workers
+//! and a dead coordinator, rejecting bad uploads, tokens and scenes.
+
+use crate::util::{kiln, render, scene};
+use kiln_farm::api::{JobSpec, JobState};
+use kiln_farm::client::Client;
+use kiln_farm::coordinator::{self, Config, Coordinator};
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Stdio};
+use std::time::{Duration, Instant};
+
+fn farm(scene_path: &Path, dir: &Path, name: &str, args: &[&str]) -> Vec<u8> {
+    let out = dir.join(format!("{name}.exr"));
+    let o = kiln()
+        .arg("farm")
+        .arg(scene_path)
+        .arg("-o")
+        .arg(&out)
+        .arg("-q")
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "kiln farm {args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    std::fs::read(&out).unwrap()
+}
+
+#[test]
+fn farm_images_are_bit_identical_to_kiln_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene("materials/scene.pbrt");
+    for tile in ["16", "37", "64"] {
+        let direct = render(
+            &path,
+            dir.path(),
+            &format!("direct{tile}"),
+            &["--spp", "4", "--tile", tile],
+        )
+        .bytes;
+        for workers in ["1", "3"] {
+            let merged = farm(
+                &path,
+                dir.path(),
+                &format!("farm{tile}-{workers}"),
+                &[
+                    "--spp",
+                    "4",
+                    "--tile",
+                    tile,
+                    "--workers",
+                    workers,
+                    "--threads-per-worker",
+                    "1",
+                ],
+            );
+            assert_eq!(merged, direct, "tile {tile}, {workers} workers");
+        }
+    }
+}
+
+/// A child process that is killed when dropped, so a failing test leaves none behind.
+struct Guard(Child);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+impl std::ops::Deref for Guard {
+    type Target = Child;
+    fn deref(&self) -> &Child {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Guard {
+    fn deref_mut(&mut self) -> &mut Child {
+        &mut self.0
+    }
+}
+
+/// A coordinator process on a chosen port, and how to reach it.
+struct CoordinatorProcess {
+    child: Guard,
+    url: String,
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn start_coordinator(data: &Path, port: u16) -> CoordinatorProcess {
+    let mut child = kiln()
+        .args([
+            "coordinator",
+            "--listen",
+            &format!("127.0.0.1:{port}"),
+            "--lease-ttl",
+            "1",
+        ])
+        .arg("--data-dir")
+        .arg(data)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.contains("listening on"), "{line}");
+    CoordinatorProcess {
+        child: Guard(child),
+        url: format!("http://127.0.0.1:{port}"),
+    }
+}
+
+fn start_worker(url: &str, name: &str, cache: &Path, log: &Path) -> Guard {
+    Guard(
+        kiln()
+            .args([
+                "worker",
+                "--coordinator",
+                url,
+                "--threads",
+                "1",
+                "--name",
+                name,
+            ])
+            .arg("--cache-dir")
+            .arg(cache)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(log).unwrap())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+fn rendered_lines(log: &Path) -> usize {
+    std::fs::read_to_string(log)
+        .unwrap_or_default()
+        .lines()
+        .filter(|l| l.contains("rendered job"))
+        .count()
+}
+
+fn submit(url: &str, scene_path: &Path, args: &[&str]) -> u64 {
+    let o = kiln()
+        .arg("submit")
+        .arg(scene_path)
+        .args(["--coordinator", url])
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout)
+        .trim()
+        .rsplit(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+fn wait_done(
+    rt: &tokio::runtime::Runtime,
+    client: &Client,
+    id: u64,
+    limit: Duration,
+) -> kiln_farm::api::JobStatus {
+    let start = Instant::now();
+    loop {
+        if let Ok(s) = rt.block_on(client.status(id)) {
+            if s.state != JobState::Running {
+                return s;
+            }
+        }
+        assert!(
+            start.elapsed() < limit,
+            "job {id} did not finish in {limit:?}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+const SLOW_JOB: &[&str] = &["--spp", "64", "--resolution", "192x108", "--tile", "16"];
+
+#[test]
+fn a_killed_worker_loses_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene("mis/scene.pbrt");
+    let direct = render(&path, dir.path(), "direct", &SLOW_JOB[..4]);
+    let port = free_port();
+    let mut coord = start_coordinator(&dir.path().join("data"), port);
+    let (log_a, log_b) = (dir.path().join("a.log"), dir.path().join("b.log"));
+    let mut a = start_worker(&coord.url, "a", &dir.path().join("cache"), &log_a);
+    let id = submit(&coord.url, &path, SLOW_JOB);
+    // Once worker a has rendered a tile, kill it mid-job; b arrives later and finishes.
+    let start = Instant::now();
+    while rendered_lines(&log_a) < 2 {
+        assert!(start.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    a.kill().unwrap();
+    a.wait().unwrap();
+    let mut b = start_worker(&coord.url, "b", &dir.path().join("cache"), &log_b);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let client = Client::new(&coord.url, None);
+    let status = wait_done(&rt, &client, id, Duration::from_secs(120));
+    assert_eq!(status.state, JobState::Done, "{status:?}");
+    let merged = rt.block_on(client.result(id)).unwrap();
+    assert_eq!(
+        kiln_image::decode_exr(&merged).unwrap().pixels,
+        direct.image.pixels
+    );
+    assert_eq!(merged, direct.bytes);
+    b.kill().ok();
+    coord.child.kill().ok();
+}
+
+#[test]
+fn a_killed_coordinator_resumes_without_rendering_finished_tiles_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene("mis/scene.pbrt");
+    let direct = render(&path, dir.path(), "direct", &SLOW_JOB[..4]);
+    let data = dir.path().join("data");
+    let port = free_port();
+    let mut coord = start_coordinator(&data, port);
+    let log = dir.path().join("w.log");
+    let mut w = start_worker(&coord.url, "w", &dir.path().join("cache"), &log);
+    let id = submit(&coord.url, &path, SLOW_JOB);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let client = Client::new(&coord.url, None);
+    let start = Instant::now();
+    let before = loop {
+        let s = rt.block_on(client.status(id)).unwrap();
+        if s.tiles_done >= 10 {
+            break s;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    coord.child.kill().unwrap();
+    coord.child.wait().unwrap();
+    let rendered_before = rendered_lines(&log);
+    let mut coord = start_coordinator(&data, port);
+    let resumed = rt.block_on(client.status(id)).unwrap();
+    assert!(
+        resumed.tiles_done >= before.tiles_done,
+        "{} tiles were done, {} after the restart",
+        before.tiles_done,
+        resumed.tiles_done
+    );
+    let status = wait_done(&rt, &client, id, Duration::from_secs(120));
+    assert_eq!(status.state, JobState::Done, "{status:?}");
+    assert_eq!(rt.block_on(client.result(id)).unwrap(), direct.bytes);
+    // Every tile kept before the restart stayed kept: only the rest (plus the tile the
+    // worker held at the kill) were rendered afterwards.
+    let rendered_after = rendered_lines(&log) - rendered_before;
+    let left = (status.tiles_total - resumed.tiles_done) as usize;
+    assert!(
+        rendered_after <= left + 1,
+        "{rendered_after} tiles rendered after the restart, {left} were left"
+    );
+    w.kill().ok();
+    coord.child.kill().ok();
+}
+
+/// An in-process coordinator on a free port, for API tests.
+fn in_process(rt: &tokio::runtime::Runtime, data: &Path, token: Option<&str>) -> String {
+    let mut config = Config::new(data.to_path_buf());
+    config.token = token.map(String::from);
+    let c = Coordinator::open(config).unwrap();
+    let listener = rt
+        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+        .unwrap();
+    let url = format!("http://{}", listener.local_addr().unwrap());
+    rt.spawn(coordinator::serve(listener, c, std::future::pending()));
+    url
+}
+
+#[test]
+fn corrupt_uploads_are_rejected_and_the_tile_is_issued_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), None);
+    let client = Client::new(&url, None);
+    let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = JobSpec {
+        scene: digest,
+        spp: Some(1),
+        resolution: None,
+        tile: 16,
+        seed: None,
+    };
+    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    let lease = rt.block_on(client.lease("t")).unwrap().unwrap();
+    let err = rt
+        .block_on(client.upload_tile(lease.lease, b"garbage".to_vec()))
+        .unwrap_err();
+    assert_eq!(
+        err.status(),
+        Some(reqwest::StatusCode::BAD_REQUEST),
+        "{err}"
+    );
+    let again = rt.block_on(client.lease("t")).unwrap().unwrap();
+    assert_eq!(
+        again.tile_index, lease.tile_index,
+        "the rejected tile is issued again"
+    );
+    // A truncated EXR, and one with the wrong window, are rejected too.
+    let mut tile = kiln_image::RgbBuffer::new(32, 32, again.tile.x0, again.tile.y0, 16, 16);
+    tile.pixels.iter_mut().for_each(|p| *p = [1.0; 3]);
+    let good = kiln_image::encode_exr(&tile).unwrap();
+    let err = rt
+        .block_on(client.upload_tile(again.lease, good[..good.len() / 2].to_vec()))
+        .unwrap_err();
+    assert_eq!(err.status(), Some(reqwest::StatusCode::BAD_REQUEST));
+    let third = rt.block_on(client.lease("t")).unwrap().unwrap();
+    assert_eq!(third.tile_index, lease.tile_index);
+    let mut wrong = tile.clone();
+    wrong.x0 += 1;
+    let err = rt
+        .block_on(client.upload_tile(third.lease, kiln_image::encode_exr(&wrong).unwrap()))
+        .unwrap_err();
+    assert_eq!(err.status(), Some(reqwest::StatusCode::BAD_REQUEST));
+    // Three failed attempts fail the job, with the reason.
+    let s = rt.block_on(client.status(id)).unwrap();
+    assert_eq!(s.state, JobState::Failed);
+    assert!(s.error.unwrap().contains("failed 3 times"));
+}
+
+#[test]
+fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), Some("s3cret"));
+    let http = reqwest::Client::new();
+    let get = |path: &str, token: Option<&str>| {
+        let mut r = http.get(format!("{url}{path}"));
+        if let Some(t) = token {
+            r = r.bearer_auth(t);
+        }
+        rt.block_on(r.send()).unwrap().status()
+    };
+    assert_eq!(get("/healthz", None), 200);
+    assert_eq!(get("/v1/jobs", None), 401);
+    assert_eq!(get("/v1/jobs", Some("wrong")), 401);
+    assert_eq!(get("/v1/jobs", Some("s3cret")), 200);
+    assert_eq!(get("/v1/jobs/99", Some("s3cret")), 404);
+    assert_eq!(get("/metrics", Some("s3cret")), 200);
+    assert_eq!(get("/v1/openapi.json", Some("s3cret")), 200);
+    let client = Client::new(&url, Some("s3cret".into()));
+    // A corrupt bundle, a malformed job, and a scene that does not parse.
+    let err = rt
+        .block_on(client.upload_scene(b"KILNBDL1 nope".to_vec()))
+        .unwrap_err();
+    assert_eq!(err.status(), Some(reqwest::StatusCode::BAD_REQUEST));
+    let r = rt
+        .block_on(
+            http.post(format!("{url}/v1/jobs"))
+                .bearer_auth("s3cret")
+                .body("{\"scene\": 3}")
+                .send(),
+        )
+        .unwrap();
+    assert_eq!(r.status(), 400);
+    assert!(rt.block_on(r.text()).unwrap().contains("\"error\""));
+    let bad = dir.path().join("bad");
+    std::fs::create_dir_all(&bad).unwrap();
+    std::fs::write(bad.join("scene.pbrt"), "WorldBegin\nShape \"sphere\"\n").unwrap();
+    let mut bundle = kiln_farm::bundle::pack(&bad.join("scene.pbrt"))
+        .unwrap()
+        .bytes;
+    // Corrupt the scene text inside a well-formed bundle: the coordinator's parser names it.
+    let at = bundle.windows(6).position(|w| w == b"sphere").unwrap();
+    bundle[at..at + 6].copy_from_slice(b"sphore");
+    let digest = rt.block_on(client.upload_scene(bundle)).unwrap();
+    let err = rt
+        .block_on(client.create_job(
+            &JobSpec {
+                scene: digest,
+                spp: None,
+                resolution: None,
+                tile: 8,
+                seed: None,
+            },
+            None,
+        ))
+        .unwrap_err();
+    assert_eq!(
+        err.status(),
+        Some(reqwest::StatusCode::UNPROCESSABLE_ENTITY)
+    );
+    assert!(
+        err.to_string().contains("scene.pbrt:2") && err.to_string().contains("sphore"),
+        "{err}"
+    );
+    // kiln submit checks the scene before uploading, with the parser's file and line.
+    let o = kiln()
+        .args(["submit"])
+        .arg(bad.join("scene.pbrt"))
+        .args(["--coordinator", &url, "--token", "s3cret"])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    std::fs::write(
+        bad.join("scene.pbrt"),
+        "WorldBegin\nShape \"sphere\" \"float radius\" [ 1\n",
+    )
+    .unwrap();
+    let o = kiln()
+        .args(["submit"])
+        .arg(bad.join("scene.pbrt"))
+        .args(["--coordinator", &url, "--token", "s3cret"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("scene.pbrt:2"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    // A retried submit with the same Idempotency-Key makes one job.
+    let good = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
+    let digest = rt.block_on(client.upload_scene(good.bytes)).unwrap();
+    let spec = JobSpec {
+        scene: digest,
+        spp: Some(1),
+        resolution: None,
+        tile: 8,
+        seed: None,
+    };
+    let a = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
+    let b = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
+    assert_eq!(a, b);
+}
+
+#[test]
+fn progress_events_never_go_backwards_and_end_at_100_percent() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), None);
+    let client = Client::new(&url, None);
+    let bundle = kiln_farm::bundle::pack(&scene("mis/scene.pbrt")).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = JobSpec {
+        scene: digest,
+        spp: Some(8),
+        resolution: Some((96, 54)),
+        tile: 16,
+        seed: None,
+    };
+    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    let mut events = rt
+        .block_on(reqwest::get(format!("{url}/v1/jobs/{id}/events")))
+        .unwrap();
+    let mut worker = start_worker(
+        &url,
+        "sse",
+        &dir.path().join("cache"),
+        &dir.path().join("w.log"),
+    );
+    let mut text = String::new();
+    let start = Instant::now();
+    while let Some(chunk) = rt.block_on(events.chunk()).unwrap() {
+        text.push_str(&String::from_utf8_lossy(&chunk));
+        assert!(start.elapsed() < Duration::from_secs(60));
+    }
+    worker.kill().ok();
+    let statuses: Vec<kiln_farm::api::JobStatus> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("data:"))
+        .map(|d| serde_json::from_str(d.trim()).unwrap())
+        .collect();
+    assert!(statuses.len() >= 2, "{text}");
+    for pair in statuses.windows(2) {
+        assert!(pair[1].progress >= pair[0].progress && pair[1].tiles_done >= pair[0].tiles_done);
+    }
+    let last = statuses.last().unwrap();
+    assert_eq!(
+        (last.state, last.progress, last.tiles_done),
+        (JobState::Done, 1.0, last.tiles_total)
+    );
+}
