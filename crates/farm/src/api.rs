@@ -59,6 +59,9 @@ pub struct JobStatus {
     /// Tile attempts that failed (worker errors, corrupt uploads).
     pub failures: u32,
     pub error: Option<String>,
+    /// Seconds spent writing the merged EXR when the last tile arrived.
+    #[serde(default)]
+    pub merge_seconds: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -64,6 +64,9 @@ struct Job {
     error: Option<String>,
     tiles: Vec<TileRect>,
     tile_state: Vec<TileState>,
+    /// Tiles to lend next, in order; a tile may appear here after it stopped being
+    /// pending (leases check), so lending never scans the whole job.
+    queue: std::collections::VecDeque<usize>,
     attempts: Vec<u32>,
     failures: u32,
     done: u32,
@@ -71,6 +74,7 @@ struct Job {
     spp: u32,
     started: Instant,
     samples_at_start: u64,
+    merge_seconds: Option<f64>,
 }
 
 impl Job {
@@ -106,6 +110,7 @@ impl Job {
                 .then(|| (samples_total - samples_done) as f64 / rate),
             failures: self.failures,
             error: self.error.clone(),
+            merge_seconds: self.merge_seconds,
         }
     }
 }
@@ -190,9 +195,9 @@ impl Coordinator {
             .map_err(|e| format!("cannot open the job store: {e}"))?;
         db.execute_batch(
             "PRAGMA journal_mode = WAL;
-             PRAGMA synchronous = FULL;
+             PRAGMA synchronous = NORMAL;
              CREATE TABLE IF NOT EXISTS jobs (id INTEGER PRIMARY KEY, spec TEXT NOT NULL, state TEXT NOT NULL, error TEXT, idempotency_key TEXT UNIQUE);
-             CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, PRIMARY KEY (job, idx));",
+             CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx));",
         )
         .map_err(|e| format!("cannot set up the job store: {e}"))?;
         let (events, _) = broadcast::channel(1024);
@@ -222,12 +227,16 @@ impl Coordinator {
         self.config.data_dir.join("scenes").join(digest)
     }
 
-    fn tile_path(&self, job: u64, idx: usize) -> PathBuf {
-        self.config
-            .data_dir
-            .join("jobs")
-            .join(job.to_string())
-            .join(format!("tile-{idx}.exr"))
+    /// The EXR kept for a finished tile.
+    fn kept_tile(inner: &Inner, job: u64, idx: usize) -> Option<Vec<u8>> {
+        inner
+            .db
+            .query_row(
+                "SELECT exr FROM tiles WHERE job = ?1 AND idx = ?2",
+                params![job as i64, idx as i64],
+                |r| r.get(0),
+            )
+            .ok()
     }
 
     fn result_path(&self, job: u64) -> PathBuf {
@@ -271,6 +280,7 @@ impl Coordinator {
             error: None,
             tiles,
             tile_state: vec![TileState::Pending; n],
+            queue: (0..n).collect(),
             attempts: vec![0; n],
             failures: 0,
             done: 0,
@@ -278,6 +288,7 @@ impl Coordinator {
             spp,
             started: Instant::now(),
             samples_at_start: 0,
+            merge_seconds: None,
         })
     }
 
@@ -308,26 +319,24 @@ impl Coordinator {
                 }
             };
             job.error = error;
-            let done: Vec<usize> = {
+            let done: Vec<(usize, Vec<u8>)> = {
                 let inner = self.lock();
                 let mut stmt = inner
                     .db
-                    .prepare("SELECT idx FROM tiles WHERE job = ?1")
+                    .prepare("SELECT idx, exr FROM tiles WHERE job = ?1")
                     .map_err(|e| e.to_string())?;
-                stmt.query_map([id as i64], |r| r.get::<_, i64>(0))
-                    .map_err(|e| e.to_string())?
-                    .filter_map(|r| r.ok())
-                    .map(|i| i as usize)
-                    .collect()
+                stmt.query_map([id as i64], |r| {
+                    Ok((r.get::<_, i64>(0)? as usize, r.get::<_, Vec<u8>>(1)?))
+                })
+                .map_err(|e| e.to_string())?
+                .filter_map(|r| r.ok())
+                .collect()
             };
-            for idx in done {
+            for (idx, bytes) in done {
                 if idx >= job.tiles.len() {
                     continue;
                 }
-                // A tile file that went missing or bad is rendered again.
-                let Ok(bytes) = std::fs::read(self.tile_path(id, idx)) else {
-                    continue;
-                };
+                // A tile that cannot be read back is rendered again.
                 let Ok(tile) = kiln_image::decode_exr(&bytes) else {
                     continue;
                 };
@@ -346,13 +355,17 @@ impl Coordinator {
 
     /// Writes the merged frame and marks the job done.
     fn finish(&self, job: &mut Job) {
+        let start = Instant::now();
         let result = kiln_image::encode_exr(&job.frame)
             .map_err(|e| e.to_string())
             .and_then(|bytes| {
                 write_atomically(&self.result_path(job.id), &bytes).map_err(|e| e.to_string())
             });
         match result {
-            Ok(()) => job.state = JobState::Done,
+            Ok(()) => {
+                job.state = JobState::Done;
+                job.merge_seconds = Some(start.elapsed().as_secs_f64());
+            }
             Err(e) => {
                 job.state = JobState::Failed;
                 job.error = Some(format!("cannot write the result: {e}"));
@@ -389,6 +402,8 @@ impl Coordinator {
                 if let Some(job) = inner.jobs.get_mut(&l.job) {
                     if job.tile_state[l.tile] == TileState::Leased(id) {
                         job.tile_state[l.tile] = TileState::Pending;
+                        // Lost tiles go first: a job finishes sooner without stragglers.
+                        job.queue.push_front(l.tile);
                     }
                 }
             }
@@ -725,9 +740,14 @@ async fn lease(
         .values_mut()
         .filter(|j| j.state == JobState::Running)
     {
-        let Some(tile) = job.tile_state.iter().position(|s| *s == TileState::Pending) else {
-            continue;
-        };
+        let mut next = None;
+        while let Some(t) = job.queue.pop_front() {
+            if job.tile_state[t] == TileState::Pending {
+                next = Some(t);
+                break;
+            }
+        }
+        let Some(tile) = next else { continue };
         let id = inner.next_lease;
         inner.next_lease += 1;
         job.tile_state[tile] = TileState::Leased(id);
@@ -807,7 +827,7 @@ async fn upload_tile(
                 )
             }
             // A stale lease: accepted only if identical to the tile already kept.
-            None => return stale_upload(&c, &inner, id, &body),
+            None => return stale_upload(&inner, id, &body),
         }
     };
     let decoded = kiln_image::decode_exr(&body);
@@ -839,18 +859,12 @@ async fn upload_tile(
             ));
         }
     };
-    let path = c.tile_path(job_id, tile_idx);
-    let body2 = body.clone();
-    tokio::task::spawn_blocking(move || write_atomically(&path, &body2))
-        .await
-        .map_err(internal)?
-        .map_err(internal)?;
     {
         let mut inner = c.lock();
         let inner = &mut *inner;
         let Some(lease) = inner.leases.remove(&id) else {
-            // Expired while we wrote: the tile file is the same bytes either way.
-            return Ok(StatusCode::OK.into_response());
+            // Expired while we checked it: judge it as a stale upload.
+            return stale_upload(inner, id, &body);
         };
         inner.metrics.tiles_accepted += 1;
         if let Some(w) = inner.workers.get_mut(&lease.worker) {
@@ -859,8 +873,8 @@ async fn upload_tile(
         inner
             .db
             .execute(
-                "INSERT OR IGNORE INTO tiles (job, idx) VALUES (?1, ?2)",
-                params![job_id as i64, tile_idx as i64],
+                "INSERT OR IGNORE INTO tiles (job, idx, exr) VALUES (?1, ?2, ?3)",
+                params![job_id as i64, tile_idx as i64, &body[..]],
             )
             .map_err(internal)?;
         let job = inner.jobs.get_mut(&job_id).expect("leased jobs exist");
@@ -879,12 +893,7 @@ async fn upload_tile(
     Ok(StatusCode::OK.into_response())
 }
 
-fn stale_upload(
-    c: &Coordinator,
-    inner: &Inner,
-    id: u64,
-    body: &[u8],
-) -> Result<Response, AppError> {
+fn stale_upload(inner: &Inner, id: u64, body: &[u8]) -> Result<Response, AppError> {
     // Which tile was it? The upload carries its own windows.
     let Ok(t) = kiln_image::decode_exr(body) else {
         return Err(AppError::new(
@@ -902,7 +911,7 @@ fn stale_upload(
             .position(|r| (r.x0, r.y0, r.width, r.height) == (t.x0, t.y0, t.width, t.height))
         {
             if job.tile_state[idx] == TileState::Done
-                && std::fs::read(c.tile_path(job.id, idx)).is_ok_and(|kept| kept == body)
+                && Coordinator::kept_tile(inner, job.id, idx).is_some_and(|kept| kept == body)
             {
                 return Ok(StatusCode::OK.into_response());
             }
@@ -927,6 +936,7 @@ fn release_failed(inner: &mut Inner, lease: u64, reason: &str) {
     job.failures += 1;
     job.attempts[l.tile] += 1;
     job.tile_state[l.tile] = TileState::Pending;
+    job.queue.push_front(l.tile);
     if job.attempts[l.tile] >= MAX_TILE_ATTEMPTS && job.state == JobState::Running {
         job.state = JobState::Failed;
         let t = job.tiles[l.tile];

@@ -90,6 +90,9 @@ pub struct ImageRgb {
     pub pixels: Vec<[f32; 3]>,
 }
 
+/// Images smaller than this are encoded and decoded on the calling thread.
+const PARALLEL_PIXELS: usize = 1 << 18;
+
 /// Encodes a buffer as an EXR: float32 R, G, B; display window = the frame, data window = the buffer.
 pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
     use exr::prelude::{
@@ -127,8 +130,15 @@ pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
         Vec2(buffer.frame_width as usize, buffer.frame_height as usize),
     );
     let mut bytes = Vec::new();
-    image
-        .write()
+    // exr's parallel writer starts a thread pool per image: worth it for whole frames,
+    // ruinous for the small tiles a farm coordinator receives by the thousand.
+    let writer = image.write();
+    let writer = if buffer.pixels.len() < PARALLEL_PIXELS {
+        writer.non_parallel()
+    } else {
+        writer
+    };
+    writer
         .to_buffered(Cursor::new(&mut bytes))
         .map_err(|e| ImageError::Exr(e.to_string()))?;
     Ok(bytes)
@@ -143,12 +153,19 @@ fn smallvec_of(
 /// Decodes an EXR written by [`encode_exr`] (or any EXR with R, G, B channels in its first layer).
 pub fn decode_exr(bytes: &[u8]) -> Result<RgbBuffer, ImageError> {
     use exr::prelude::{ReadChannels, ReadLayers};
-    let image = exr::prelude::read()
+    let reader = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
-        .all_attributes()
+        .all_attributes();
+    // Small files (a farm's tiles) decode on the calling thread; see PARALLEL_PIXELS.
+    let reader = if bytes.len() < PARALLEL_PIXELS * 4 {
+        reader.non_parallel()
+    } else {
+        reader
+    };
+    let image = reader
         .from_buffered(Cursor::new(bytes))
         .map_err(|e| ImageError::Exr(e.to_string()))?;
     let layer = &image.layer_data;
