@@ -434,6 +434,26 @@ fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // Malformed worker requests and ids get JSON errors too.
+    for (method, path, body, status) in [
+        ("POST", "/v1/leases", "not json", 400),
+        ("GET", "/v1/jobs/abc", "", 400),
+        ("POST", "/v1/leases/xyz/heartbeat", "", 400),
+        ("GET", "/v1/nothing", "", 404),
+    ] {
+        let m = reqwest::Method::from_bytes(method.as_bytes()).unwrap();
+        let r = rt
+            .block_on(
+                http.request(m, format!("{url}{path}"))
+                    .bearer_auth("s3cret")
+                    .body(body)
+                    .send(),
+            )
+            .unwrap();
+        assert_eq!(r.status(), status, "{method} {path}");
+        let text = rt.block_on(r.text()).unwrap();
+        assert!(text.starts_with("{\"error\":"), "{method} {path}: {text}");
+    }
     // A retried submit with the same Idempotency-Key makes one job.
     let good = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
     let digest = rt.block_on(client.upload_scene(good.bytes)).unwrap();

@@ -457,6 +457,7 @@ pub fn app(c: Coordinator) -> Router {
     Router::new()
         .route("/healthz", get(|| async { "ok\n" }))
         .merge(api)
+        .fallback(|| async { AppError::new(StatusCode::NOT_FOUND, "no such route") })
         .with_state(c)
 }
 
@@ -597,21 +598,35 @@ async fn list_jobs(State(c): State<Coordinator>) -> Json<Vec<JobStatus>> {
     Json(c.lock().jobs.values().map(Job::status).collect())
 }
 
+/// Ids in paths, parsed here so a bad one gets a JSON error like every other.
+fn parse_id(text: &str) -> Result<u64, AppError> {
+    text.parse()
+        .map_err(|_| AppError::new(StatusCode::BAD_REQUEST, format!("'{text}' is not an id")))
+}
+
+/// JSON bodies, parsed here so malformed ones get a JSON error that says what is wrong.
+fn parse_json<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, AppError> {
+    serde_json::from_slice(body)
+        .map_err(|e| AppError::new(StatusCode::BAD_REQUEST, format!("bad request body: {e}")))
+}
+
 fn not_found(id: u64) -> AppError {
     AppError::new(StatusCode::NOT_FOUND, format!("no job {id}"))
 }
 
 async fn get_job(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
+    UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobStatus>, AppError> {
+    let id = parse_id(&id)?;
     c.status(id).map(Json).ok_or_else(|| not_found(id))
 }
 
 async fn job_events(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
+    UrlPath(id): UrlPath<String>,
 ) -> Result<Response, AppError> {
+    let id = parse_id(&id)?;
     let first = c.status(id).ok_or_else(|| not_found(id))?;
     let mut rx = c.events.subscribe();
     let stream = async_stream(move |tx: tokio::sync::mpsc::Sender<Event>| async move {
@@ -667,8 +682,9 @@ where
 
 async fn job_result(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
+    UrlPath(id): UrlPath<String>,
 ) -> Result<Response, AppError> {
+    let id = parse_id(&id)?;
     let status = c.status(id).ok_or_else(|| not_found(id))?;
     if status.state != JobState::Done {
         return Err(AppError::new(
@@ -682,8 +698,9 @@ async fn job_result(
 
 async fn job_preview(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
+    UrlPath(id): UrlPath<String>,
 ) -> Result<Response, AppError> {
+    let id = parse_id(&id)?;
     let frame = c
         .lock()
         .jobs
@@ -699,8 +716,9 @@ async fn job_preview(
 
 async fn cancel_job(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
+    UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobStatus>, AppError> {
+    let id = parse_id(&id)?;
     let status = {
         let mut inner = c.lock();
         let inner = &mut *inner;
@@ -715,10 +733,8 @@ async fn cancel_job(
     Ok(Json(status))
 }
 
-async fn lease(
-    State(c): State<Coordinator>,
-    Json(req): Json<LeaseRequest>,
-) -> Result<Response, AppError> {
+async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, AppError> {
+    let req: LeaseRequest = parse_json(&body)?;
     let mut inner = c.lock();
     let inner = &mut *inner;
     if inner
@@ -782,8 +798,9 @@ async fn lease(
 
 async fn heartbeat(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
+    UrlPath(id): UrlPath<String>,
 ) -> Result<StatusCode, AppError> {
+    let id = parse_id(&id)?;
     let ttl = c.config.lease_ttl;
     let mut inner = c.lock();
     let Some(l) = inner.leases.get_mut(&id) else {
@@ -811,9 +828,10 @@ async fn heartbeat(
 
 async fn upload_tile(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
+    UrlPath(id): UrlPath<String>,
     body: Bytes,
 ) -> Result<Response, AppError> {
+    let id = parse_id(&id)?;
     let (job_id, tile_idx, rect, frame_size) = {
         let inner = c.lock();
         match inner.leases.get(&id) {
@@ -951,9 +969,11 @@ fn release_failed(inner: &mut Inner, lease: u64, reason: &str) {
 
 async fn fail_lease(
     State(c): State<Coordinator>,
-    UrlPath(id): UrlPath<u64>,
-    Json(f): Json<Failure>,
+    UrlPath(id): UrlPath<String>,
+    body: Bytes,
 ) -> Result<StatusCode, AppError> {
+    let id = parse_id(&id)?;
+    let f: Failure = parse_json(&body)?;
     let job = {
         let mut inner = c.lock();
         let job = inner.leases.get(&id).map(|l| l.job).ok_or_else(|| {
