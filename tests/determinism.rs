@@ -100,3 +100,11 @@ fn volume_lights_are_bit_identical_across_tiles_and_threads() {
         &["--spp", "4", "--resolution", "60x45"],
     );
 }
+
+#[test]
+fn media_are_bit_identical_across_tiles_and_threads() {
+    assert_same_bytes_for_any_split(
+        &scene("media/fog.pbrt"),
+        &["--spp", "4", "--resolution", "60x40"],
+    );
+}

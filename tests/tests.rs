@@ -8,5 +8,6 @@ mod determinism;
 mod errors;
 mod estimators;
 mod farm;
+mod media;
 mod reference;
 mod volume_light;

@@ -19,6 +19,22 @@ pub struct SurfaceInfo {
     pub light: Option<u32>,
     /// The VolumeLight (index into `Scene::volumes`) whose surface this is.
     pub volume: Option<u32>,
+    /// The media [inside, outside] when the surface separates two ([`NO_MEDIUM`] is vacuum).
+    pub media: Option<[u32; 2]>,
+}
+
+/// Vacuum, in [`SurfaceInfo::media`].
+pub const NO_MEDIUM: u32 = u32::MAX;
+
+impl SurfaceInfo {
+    /// The medium a ray leaving in direction `dir` enters, if this surface is a medium
+    /// boundary (`ng` is its geometric normal, pointing outside).
+    pub fn medium_towards(&self, dir: Vec3A, ng: Vec3A) -> Option<Option<u32>> {
+        self.media.map(|[inside, outside]| {
+            let m = if dir.dot(ng) > 0.0 { outside } else { inside };
+            (m != NO_MEDIUM).then_some(m)
+        })
+    }
 }
 
 /// One mesh's attributes; its vertices live in the shared vertex arrays.
@@ -432,6 +448,7 @@ mod tests {
             material: 0,
             light: None,
             volume: None,
+            media: None,
         };
         let meshes = vec![MeshInfo {
             surface,

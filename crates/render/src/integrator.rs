@@ -5,9 +5,9 @@
 //! path tracer becomes another variant, and a per-job pre-pass (a photon map)
 //! becomes data the variant owns, built once before any tile renders.
 
-use crate::bsdf::Bsdf;
 use crate::geometry::SurfaceHit;
 use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::media::Medium;
 use crate::sampler::PixelSampler;
 use crate::sampling::power_heuristic;
 use crate::scene::Scene;
@@ -81,9 +81,79 @@ fn path_li(
     // emission is still to be counted (it is not on the first segment after entering:
     // the entry hit already counted it as the light's surface emission).
     let mut inside: Option<(u32, bool)> = None;
+    // The participating medium the ray travels in, and how many medium segments so far
+    // (each gets its own tracking numbers).
+    let mut medium = scene.camera_medium;
+    let mut segments = 0u32;
     loop {
         *rays += 1;
         let found = scene.geometry.intersect(&ray, f32::INFINITY);
+        if let Some(m) = medium {
+            let med = &scene.media[m as usize];
+            let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
+            // The medium's own emission along the segment, in closed form; tracking below
+            // then estimates only what is scattered into the ray and what lies beyond.
+            l += beta * med.segment_emission(t_max);
+            // Each bounce's tracking numbers are seeded from its unused eighth dimension.
+            let seed_dim = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * depth + 7;
+            segments += 1;
+            let mut rng =
+                TrackingRng(((sampler.value(seed_dim).to_bits() as u64) << 32) | segments as u64);
+            match track(med, t_max, &mut rng, &mut beta) {
+                MediumEvent::Crossed => {}
+                MediumEvent::Absorbed => break,
+                MediumEvent::Scattered(t) => {
+                    if depth == settings.max_depth {
+                        break;
+                    }
+                    depth += 1;
+                    let p = ray.at(t);
+                    let phase = med.phase();
+                    let wo = -ray.dir;
+                    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (depth - 1);
+                    sampler.set_dimension(base);
+                    if settings.strategy != LightStrategy::BsdfOnly
+                        && !scene.light_sampler.is_empty()
+                    {
+                        let v = Vertex {
+                            p,
+                            ng: None,
+                            surface: None,
+                            medium,
+                        };
+                        l += beta
+                            * sample_direct(
+                                scene,
+                                settings,
+                                &v,
+                                |wi| Color::splat(phase.p(wo, wi)),
+                                |wi| phase.p(wo, wi),
+                                sampler,
+                                rays,
+                            );
+                    }
+                    sampler.set_dimension(base + 4);
+                    let (wi, pdf) = phase.sample(wo, sampler.get_2d());
+                    // HG is sampled exactly: the phase value over its pdf is 1.
+                    first_or_specular = false;
+                    prev_pdf = pdf;
+                    prev_p = p;
+                    ray = Ray::new(p, wi);
+                    if let Some((volume, _)) = inside {
+                        inside = Some((volume, true));
+                    }
+                    let rr = (beta * eta_scale).max_element();
+                    if rr < 1.0 && depth >= settings.rr_depth {
+                        let q = (1.0 - rr).max(0.05);
+                        if sampler.get_1d() < q {
+                            break;
+                        }
+                        beta /= 1.0 - q;
+                    }
+                    continue;
+                }
+            }
+        }
         if let Some((volume, count)) = inside {
             let emitter = &scene.volumes[volume as usize];
             let t = found.as_ref().map_or(0.0, |h| h.t);
@@ -141,6 +211,9 @@ fn path_li(
             if pass_throughs > 256 {
                 break;
             }
+            if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
+                medium = next;
+            }
             ray = Ray::new(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
             continue;
         };
@@ -156,7 +229,15 @@ fn path_li(
             && settings.strategy != LightStrategy::BsdfOnly
             && !scene.light_sampler.is_empty()
         {
-            l += beta * sample_direct(scene, settings, bsdf, &hit, &frame, wo, sampler, rays);
+            let v = Vertex {
+                p: hit.p,
+                ng: Some(hit.ng),
+                surface: Some(&hit),
+                medium,
+            };
+            let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
+            let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
+            l += beta * sample_direct(scene, settings, &v, f, pdf, sampler, rays);
         }
         sampler.set_dimension(base + 3);
         let uc = sampler.get_1d();
@@ -176,6 +257,9 @@ fn path_li(
             eta_scale *= bs.eta * bs.eta;
         }
         ray = Ray::new(offset_origin(hit.p, hit.ng, wi), wi);
+        if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
+            medium = next;
+        }
         if let Some(volume) = hit.surface.volume {
             inside = if wi.dot(hit.ng) < 0.0 {
                 // Entering (not counted again) or reflecting inside (counted).
@@ -201,15 +285,32 @@ fn path_li(
     l
 }
 
-/// One light sample for next-event estimation from `hit`.
-#[allow(clippy::too_many_arguments)]
+/// Where next-event estimation starts: a point, the normal to offset shadow rays along
+/// (none inside a medium), and the medium a shadow ray leaving in `dir` starts in.
+struct Vertex<'a> {
+    p: Vec3A,
+    ng: Option<Vec3A>,
+    surface: Option<&'a SurfaceHit>,
+    medium: Option<u32>,
+}
+
+impl Vertex<'_> {
+    fn medium_towards(&self, dir: Vec3A) -> Option<u32> {
+        match self.surface {
+            Some(h) => h.surface.medium_towards(dir, h.ng).unwrap_or(self.medium),
+            None => self.medium,
+        }
+    }
+}
+
+/// One light sample for next-event estimation from `v`; `f` is the scattering function
+/// (times the cosine at surfaces) and `pdf` the density of sampling `wi` by it.
 fn sample_direct(
     scene: &Scene,
     settings: &PathSettings,
-    bsdf: &Bsdf,
-    hit: &SurfaceHit,
-    frame: &Frame,
-    wo: Vec3A,
+    v: &Vertex,
+    f: impl Fn(Vec3A) -> Color,
+    pdf: impl Fn(Vec3A) -> f32,
     sampler: &mut PixelSampler,
     rays: &mut u64,
 ) -> Color {
@@ -218,7 +319,7 @@ fn sample_direct(
     let Some((index, pmf)) = scene.light_sampler.sample(u_light) else {
         return Color::ZERO;
     };
-    let (sample, traced) = scene.sample_light(index, hit.p, u);
+    let (sample, traced) = scene.sample_light(index, v.p, u);
     *rays += traced;
     let Some(ls) = sample else {
         return Color::ZERO;
@@ -226,36 +327,109 @@ fn sample_direct(
     if ls.pdf <= 0.0 || ls.radiance == Color::ZERO {
         return Color::ZERO;
     }
-    let wi_local = frame.to_local(ls.wi);
-    let f = bsdf.f(wo, wi_local) * ls.wi.dot(hit.ns).abs();
+    let f = f(ls.wi);
     if f == Color::ZERO {
         return Color::ZERO;
     }
-    let origin = offset_origin(hit.p, hit.ng, ls.wi);
-    *rays += 1;
-    let visible = if ls.distance.is_finite() {
+    let origin = v.ng.map_or(v.p, |ng| offset_origin(v.p, ng, ls.wi));
+    let medium = v.medium_towards(ls.wi);
+    let tr = if ls.distance.is_finite() {
         // Aim at the light's point moved off its surface towards us, and stop short of it:
         // following ls.wi for the full distance would graze the light's own surface.
-        let target = offset_origin(hit.p + ls.wi * ls.distance, ls.n, -ls.wi);
+        let target = if ls.n == Vec3A::ZERO {
+            v.p + ls.wi * ls.distance
+        } else {
+            offset_origin(v.p + ls.wi * ls.distance, ls.n, -ls.wi)
+        };
         let d = target - origin;
         let len = d.length();
-        len > 0.0
-            && scene
-                .geometry
-                .unoccluded(origin, d / len, len * (1.0 - 1e-4))
+        if len > 0.0 {
+            scene.transmittance(origin, d / len, len * (1.0 - 1e-4), medium, rays)
+        } else {
+            Color::ZERO
+        }
     } else {
-        scene.geometry.unoccluded(origin, ls.wi, f32::INFINITY)
+        scene.transmittance(origin, ls.wi, f32::INFINITY, medium, rays)
     };
-    if !visible {
+    if tr == Color::ZERO {
         return Color::ZERO;
     }
     let light_pdf = pmf * ls.pdf;
     if ls.delta {
-        return f * ls.radiance / light_pdf;
+        return f * tr * ls.radiance / light_pdf;
     }
     let w = match settings.strategy {
-        LightStrategy::Mis => power_heuristic(light_pdf, bsdf.pdf(wo, wi_local)),
+        LightStrategy::Mis => power_heuristic(light_pdf, pdf(ls.wi)),
         _ => 1.0,
     };
-    f * ls.radiance * (w / light_pdf)
+    f * tr * ls.radiance * (w / light_pdf)
+}
+
+/// What free-flight sampling through a medium segment found.
+enum MediumEvent {
+    /// The segment was crossed: the ray reaches its surface (or escapes).
+    Crossed,
+    /// Absorbed: the path ends.
+    Absorbed,
+    /// Scattered at this distance along the ray.
+    Scattered(f32),
+}
+
+/// A small deterministic generator for the unbounded number of random numbers that
+/// delta tracking may need, seeded from the path's sampler (so still a pure function of
+/// pixel, sample and dimension).
+struct TrackingRng(u64);
+
+impl TrackingRng {
+    fn next(&mut self) -> f32 {
+        // SplitMix64.
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        (z >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// Free-flight sampling in a homogeneous medium: a colour channel is chosen uniformly and
+/// the distance sampled by its extinction; the weights divide by the density averaged over
+/// channels (the one-sample balance heuristic, as pbrt-v3's homogeneous medium does), so
+/// they stay bounded even when the channels' extinctions differ.
+fn track(medium: &Medium, t_max: f32, rng: &mut TrackingRng, beta: &mut Color) -> MediumEvent {
+    let sigma_t = medium.sigma_t();
+    if sigma_t.max_element() <= 0.0 {
+        return MediumEvent::Crossed;
+    }
+    let Medium::Homogeneous { sigma_s, .. } = medium;
+    let channel = ((rng.next() * 3.0) as usize).min(2);
+    let st = sigma_t[channel];
+    let t = if st > 0.0 {
+        -(1.0 - rng.next()).ln() / st
+    } else {
+        f32::INFINITY
+    };
+    if t < t_max {
+        let tr = (-sigma_t * t).exp();
+        let density = (sigma_t * tr).element_sum() / 3.0;
+        if density <= 0.0 {
+            return MediumEvent::Absorbed;
+        }
+        *beta *= *sigma_s * tr / density;
+        if *beta == Color::ZERO {
+            return MediumEvent::Absorbed;
+        }
+        MediumEvent::Scattered(t)
+    } else {
+        if !t_max.is_finite() {
+            return MediumEvent::Absorbed;
+        }
+        let tr = (-sigma_t * t_max).exp();
+        let p_cross = tr.element_sum() / 3.0;
+        if p_cross <= 0.0 {
+            return MediumEvent::Absorbed;
+        }
+        *beta *= tr / p_cross;
+        MediumEvent::Crossed
+    }
 }

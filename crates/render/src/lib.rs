@@ -34,6 +34,7 @@ pub mod integrator;
 pub mod lights;
 pub mod materials;
 pub mod math;
+pub mod media;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;

@@ -9,6 +9,7 @@ use crate::lights::{EnvironmentMap, Light};
 use crate::lights::{LightSample, sample_sphere_point, sample_triangle_point};
 use crate::materials::Material;
 use crate::math::{Color, Frame, Ray, luminance, rgb};
+use crate::media::Medium;
 use crate::sampler::PixelSampler;
 use crate::sampling::AliasTable;
 use crate::sampling::cosine_hemisphere;
@@ -49,6 +50,9 @@ pub struct Scene {
     pub radius: f32,
     /// The interiors of VolumeLights, referred to by `SurfaceInfo::volume`.
     pub volumes: Vec<VolumeEmitter>,
+    /// Participating media, referred to by `SurfaceInfo::media`.
+    pub media: Vec<Medium>,
+    pub camera_medium: Option<u32>,
 }
 
 struct Builder {
@@ -158,7 +162,7 @@ impl Builder {
         let is_interface = self.interface_materials[material as usize];
         // Without media (not supported yet) an interface surface has no effect at all,
         // unless it emits.
-        if is_interface && shape.area_light.is_none() {
+        if is_interface && shape.area_light.is_none() && shape.media.is_none() {
             return Ok(());
         }
         let swaps_handedness = to_world.determinant() < 0.0;
@@ -166,10 +170,14 @@ impl Builder {
             Some(AreaLightDesc::Volume(v)) => self.add_volume(shape, v, to_world)?,
             _ => (material, None),
         };
+        let media = shape.media.map(|m| {
+            [m.inside, m.outside].map(|x| x.map_or(crate::geometry::NO_MEDIUM, |id| id.0))
+        });
         let surface = |light| SurfaceInfo {
             material,
             light,
             volume,
+            media,
         };
         match &shape.kind {
             ShapeKind::Mesh(mesh) => {
@@ -446,6 +454,24 @@ impl Scene {
             resolution: (film.xresolution, film.yresolution),
             radius,
             volumes: b.volumes,
+            media: desc
+                .media
+                .iter()
+                .map(|m| match &m.kind {
+                    kiln_scene::MediumKind::Homogeneous {
+                        sigma_a,
+                        sigma_s,
+                        le,
+                        g,
+                    } => Medium::Homogeneous {
+                        sigma_a: rgb(*sigma_a),
+                        sigma_s: rgb(*sigma_s),
+                        le: rgb(*le),
+                        g: *g,
+                    },
+                })
+                .collect(),
+            camera_medium: desc.camera_medium.map(|m| m.0),
         };
         scene.estimate_volume_powers();
         let powers: Vec<f64> = scene
@@ -455,6 +481,51 @@ impl Scene {
             .collect();
         scene.light_sampler = AliasTable::new(&powers);
         Ok(scene)
+    }
+
+    /// Transmittance from `origin` along `dir` over `tmax`, starting in `medium`, through
+    /// media and the interface surfaces that bound them; zero if any other surface blocks it.
+    pub fn transmittance(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        mut medium: Option<u32>,
+        rays: &mut u64,
+    ) -> Color {
+        if self.media.is_empty() {
+            *rays += 1;
+            return if self.geometry.unoccluded(origin, dir, tmax) {
+                Color::ONE
+            } else {
+                Color::ZERO
+            };
+        }
+        let mut tr = Color::ONE;
+        let mut o = origin;
+        let mut remaining = tmax;
+        for _ in 0..64 {
+            *rays += 1;
+            let hit = self.geometry.intersect(&Ray::new(o, dir), remaining);
+            let seg = hit.as_ref().map_or(remaining, |h| h.t);
+            if let Some(m) = medium {
+                tr *= self.media[m as usize].transmittance(seg);
+                if tr == Color::ZERO {
+                    return tr;
+                }
+            }
+            let Some(h) = hit else { return tr };
+            if self.materials[h.surface.material as usize].bsdf().is_some() {
+                return Color::ZERO;
+            }
+            // An interface: cross it into the medium on its other side.
+            if let Some(next) = h.surface.medium_towards(dir, h.ng) {
+                medium = next;
+            }
+            o = crate::math::offset_origin(h.p, h.ng, dir);
+            remaining -= h.t;
+        }
+        Color::ZERO
     }
 
     /// Radiance leaving VolumeLight `volume` at surface point `p` (normals `ng`, `ns`,

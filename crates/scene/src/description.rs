@@ -20,6 +20,9 @@ pub struct SceneDescription {
     pub filter: FilterDesc,
     pub integrator: IntegratorDesc,
     pub materials: Vec<MaterialDesc>,
+    pub media: Vec<MediumDesc>,
+    /// The medium the camera sits in (the outside medium current at the Camera directive).
+    pub camera_medium: Option<MediumId>,
     pub shapes: Vec<ShapeDesc>,
     pub lights: Vec<LightDesc>,
     /// Named objects (ObjectBegin/End), referred to by [`InstanceDesc::object`].
@@ -230,6 +233,37 @@ pub struct ShapeDesc {
     pub reverse_orientation: bool,
     pub material: MaterialId,
     pub area_light: Option<AreaLightDesc>,
+    /// The media inside and outside the shape, when they differ (a medium boundary).
+    pub media: Option<MediumInterfaceDesc>,
+    pub loc: Loc,
+}
+
+/// Index into [`SceneDescription::media`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MediumId(pub u32);
+
+/// The media on the two sides of a surface; `None` is vacuum. Outside is the side its normal points to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MediumInterfaceDesc {
+    pub inside: Option<MediumId>,
+    pub outside: Option<MediumId>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum MediumKind {
+    /// Constant coefficients (per unit length, `scale` applied) and emission (`Lescale` applied).
+    Homogeneous {
+        sigma_a: Rgb,
+        sigma_s: Rgb,
+        le: Rgb,
+        g: f32,
+    },
+}
+
+#[derive(Debug, Clone)]
+pub struct MediumDesc {
+    pub name: String,
+    pub kind: MediumKind,
     pub loc: Loc,
 }
 

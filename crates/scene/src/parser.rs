@@ -51,6 +51,8 @@ struct GraphicsState {
     reverse_orientation: bool,
     material: MaterialId,
     area_light: Option<AreaLightDesc>,
+    /// Names of the current inside and outside media ("" is vacuum), with where they were set.
+    media: (String, String),
 }
 
 struct Parser {
@@ -74,6 +76,9 @@ struct Parser {
     current_object: Option<ObjectDesc>,
     instances: Vec<InstanceDesc>,
     files: Vec<PathBuf>,
+    media: Vec<MediumDesc>,
+    named_media: HashMap<String, MediumId>,
+    camera_medium: Option<MediumId>,
 }
 
 /// Reads one directive's arguments from a token slice.
@@ -376,6 +381,7 @@ impl Parser {
                 reverse_orientation: false,
                 material: MaterialId(0),
                 area_light: None,
+                media: (String::new(), String::new()),
             },
             stack: Vec::new(),
             named_coordinate_systems: HashMap::new(),
@@ -394,6 +400,9 @@ impl Parser {
             current_object: None,
             instances: Vec::new(),
             files: Vec::new(),
+            media: Vec::new(),
+            named_media: HashMap::new(),
+            camera_medium: None,
         }
     }
 
@@ -663,13 +672,29 @@ impl Parser {
                 loc,
                 "WorldEnd is pbrt-v3 syntax; pbrt-v4 ends the world at the end of the file",
             ),
-            "MakeNamedMedium" | "MediumInterface" => {
-                return Err(SceneError::at(
-                    loc,
-                    format!(
-                        "{directive}: participating media are not supported yet; the image would be wrong without them"
-                    ),
-                ));
+            "MakeNamedMedium" => {
+                let name = c.string(directive, "medium name")?;
+                let params = c.params()?;
+                self.medium(name, &params, loc)?;
+            }
+            "MediumInterface" => {
+                let inside = c.string(directive, "inside medium name")?;
+                // One name means the same medium on both sides.
+                let outside = match c.peek().map(|t| &t.kind) {
+                    Some(TokenKind::Str(_)) => c.string(directive, "outside medium name")?,
+                    _ => inside.clone(),
+                };
+                for name in [&inside, &outside] {
+                    if !name.is_empty() && !self.named_media.contains_key(name) {
+                        return Err(SceneError::at(
+                            loc,
+                            format!(
+                                "MediumInterface: no medium named '{name}' (MakeNamedMedium defines one)"
+                            ),
+                        ));
+                    }
+                }
+                self.gs.media = (inside, outside);
             }
             "Material" => {
                 let ty = c.string(directive, "material type")?;
@@ -832,8 +857,89 @@ impl Parser {
         Ok(())
     }
 
+    fn medium_id(&self, name: &str) -> Option<MediumId> {
+        (!name.is_empty()).then(|| self.named_media[name])
+    }
+
+    fn medium(&mut self, name: String, params: &ParamSet, loc: &Loc) -> Result<()> {
+        let ty = params.string("type")?.ok_or_else(|| {
+            SceneError::at(
+                loc,
+                format!("MakeNamedMedium '{name}' has no \"string type\""),
+            )
+        })?;
+        if self.named_media.contains_key(&name) {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}' is defined twice"),
+            ));
+        }
+        let kind = match ty.as_str() {
+            "homogeneous" => {
+                let scale = params.float("scale", 1.0)? as f32;
+                let sigma_a = params
+                    .rgb("sigma_a", SpectrumUse::Unbounded)?
+                    .unwrap_or([1.0; 3])
+                    .map(|v| v * scale);
+                let sigma_s = params
+                    .rgb("sigma_s", SpectrumUse::Unbounded)?
+                    .unwrap_or([1.0; 3])
+                    .map(|v| v * scale);
+                let le_scale = params.float("Lescale", 1.0)? as f32;
+                let le = params
+                    .rgb("Le", SpectrumUse::Illuminant)?
+                    .unwrap_or([0.0; 3])
+                    .map(|v| v * le_scale);
+                let g = params.float("g", 0.0)? as f32;
+                if !(-1.0..=1.0).contains(&g) || g.abs() >= 1.0 {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("medium '{name}': g = {g} must be strictly between -1 and 1"),
+                    ));
+                }
+                if sigma_a.iter().chain(&sigma_s).chain(&le).any(|v| *v < 0.0) {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("medium '{name}': sigma_a, sigma_s and Le must not be negative"),
+                    ));
+                }
+                if params.loc_of("preset").is_some() {
+                    return Err(SceneError::at(
+                        loc,
+                        "medium \"preset\" (measured scattering data) is not supported yet; give sigma_a and sigma_s",
+                    ));
+                }
+                MediumKind::Homogeneous {
+                    sigma_a,
+                    sigma_s,
+                    le,
+                    g,
+                }
+            }
+            other => {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "medium type '{other}' is not supported yet (Kiln has 'homogeneous'); the image would be wrong without it"
+                    ),
+                ));
+            }
+        };
+        params.mark_used("type");
+        self.check_unused(params, &format!("medium '{name}'"), &[])?;
+        let id = MediumId(self.media.len() as u32);
+        self.media.push(MediumDesc {
+            name: name.clone(),
+            kind,
+            loc: loc.clone(),
+        });
+        self.named_media.insert(name, id);
+        Ok(())
+    }
+
     fn camera(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_options(loc, "Camera")?;
+        self.camera_medium = self.medium_id(&self.gs.media.1.clone());
         let camera_from_world = self.gs.ctm;
         let camera_to_world = camera_from_world.inverse();
         if !camera_to_world.is_finite() {
@@ -1528,12 +1634,17 @@ impl Parser {
             ));
         }
         self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
+        let (inside, outside) = (
+            self.medium_id(&self.gs.media.0),
+            self.medium_id(&self.gs.media.1),
+        );
         let shape = ShapeDesc {
             kind,
             object_to_world: self.gs.ctm,
             reverse_orientation: self.gs.reverse_orientation,
             material: self.gs.material,
             area_light: self.gs.area_light.clone(),
+            media: (inside != outside).then_some(MediumInterfaceDesc { inside, outside }),
             loc: loc.clone(),
         };
         match &mut self.current_object {
@@ -1600,6 +1711,8 @@ impl Parser {
                 loc: Loc::synthetic("default integrator"),
             }),
             materials: self.materials,
+            media: self.media,
+            camera_medium: self.camera_medium,
             shapes: self.shapes,
             lights: self.lights,
             objects: self.objects,
