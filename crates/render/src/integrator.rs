@@ -117,7 +117,6 @@ fn path_li(
                     {
                         let v = Vertex {
                             p,
-                            ng: None,
                             surface: None,
                             medium,
                         };
@@ -231,7 +230,6 @@ fn path_li(
         {
             let v = Vertex {
                 p: hit.p,
-                ng: Some(hit.ng),
                 surface: Some(&hit),
                 medium,
             };
@@ -285,11 +283,10 @@ fn path_li(
     l
 }
 
-/// Where next-event estimation starts: a point, the normal to offset shadow rays along
-/// (none inside a medium), and the medium a shadow ray leaving in `dir` starts in.
+/// Where next-event estimation starts: a point, the surface it lies on (none inside a
+/// medium), and the medium the path is in there.
 struct Vertex<'a> {
     p: Vec3A,
-    ng: Option<Vec3A>,
     surface: Option<&'a SurfaceHit>,
     medium: Option<u32>,
 }
@@ -331,7 +328,7 @@ fn sample_direct(
     if f == Color::ZERO {
         return Color::ZERO;
     }
-    let origin = v.ng.map_or(v.p, |ng| offset_origin(v.p, ng, ls.wi));
+    let origin = v.surface.map_or(v.p, |h| offset_origin(v.p, h.ng, ls.wi));
     let medium = v.medium_towards(ls.wi);
     let tr = if ls.distance.is_finite() {
         // Aim at the light's point moved off its surface towards us, and stop short of it:

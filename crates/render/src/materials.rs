@@ -1,8 +1,7 @@
 //! Materials: the scene's description turned into a BSDF at a hit point.
 
-use crate::bsdf::{Bsdf, TrowbridgeReitz};
+use crate::bsdf::{Bsdf, TrowbridgeReitz, internal_diffuse_reflectance};
 use crate::math::{Color, rgb};
-use crate::scene::coat_internal_reflectance;
 use kiln_scene::{MaterialKind, RgbValue, Roughness};
 
 #[derive(Debug, Clone)]
@@ -61,7 +60,7 @@ impl Material {
                 r: constant(reflectance).clamp(Color::ZERO, Color::ONE),
                 eta: *eta,
                 distrib: distrib(roughness),
-                fdr_internal: coat_internal_reflectance(*eta),
+                fdr_internal: internal_diffuse_reflectance(*eta),
             },
             MaterialKind::Interface => return Material::Interface,
         })

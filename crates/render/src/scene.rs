@@ -1,7 +1,6 @@
 //! Turns a [`SceneDescription`] into a scene ready to render: world-space
 //! geometry in BVHs, materials, lights and the light sampler.
 
-use crate::bsdf::internal_diffuse_reflectance;
 use crate::bsdf::{Bsdf, TrowbridgeReitz, refract};
 use crate::camera::{Camera, Filter};
 use crate::geometry::{Geometry, MeshInfo, Sphere, SurfaceInfo};
@@ -680,9 +679,4 @@ impl Scene {
         }
         (sum / samples.max(1) as f64) as f32 * area * std::f32::consts::PI
     }
-}
-
-/// Precomputes what coated materials need once per material.
-pub(crate) fn coat_internal_reflectance(eta: f32) -> f32 {
-    internal_diffuse_reflectance(eta)
 }
