@@ -516,3 +516,80 @@ fn progress_events_never_go_backwards_and_end_at_100_percent() {
         (JobState::Done, 1.0, last.tiles_total)
     );
 }
+
+#[test]
+fn a_worker_that_keeps_failing_is_set_aside() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), None);
+    let client = Client::new(&url, None);
+    let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = JobSpec {
+        scene: digest,
+        spp: Some(1),
+        resolution: None,
+        tile: 8,
+        seed: None,
+    };
+    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    // Five failures on five different tiles: no tile reaches three, so the job goes on...
+    for _ in 0..kiln_farm::coordinator::MAX_WORKER_FAILURES {
+        let lease = rt.block_on(client.lease("flaky")).unwrap().unwrap();
+        rt.block_on(client.fail(lease.lease, "out of memory"))
+            .unwrap();
+        // Another worker takes the returned tile, so the next failure is on another one.
+        let other = rt.block_on(client.lease("steady")).unwrap().unwrap();
+        assert_eq!(other.tile_index, lease.tile_index);
+    }
+    assert_eq!(
+        rt.block_on(client.status(id)).unwrap().state,
+        JobState::Running
+    );
+    // ...but the worker is set aside.
+    let err = rt.block_on(client.lease("flaky")).unwrap_err();
+    assert_eq!(err.status(), Some(reqwest::StatusCode::FORBIDDEN), "{err}");
+    assert!(err.to_string().contains("set aside"));
+    assert!(rt.block_on(client.lease("steady")).unwrap().is_some());
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_lets_a_worker_finish_its_tile_and_leave() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let coord = start_coordinator(&dir.path().join("data"), port);
+    let log = dir.path().join("w.log");
+    let mut w = start_worker(&coord.url, "w", &dir.path().join("cache"), &log);
+    let id = submit(&coord.url, &scene("mis/scene.pbrt"), SLOW_JOB);
+    let start = Instant::now();
+    while rendered_lines(&log) < 1 {
+        assert!(start.elapsed() < Duration::from_secs(60));
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let term = std::process::Command::new("kill")
+        .args(["-TERM", &w.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(term.success());
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = w.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "the worker did not leave after SIGTERM"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}");
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(text.contains("stopped after"), "{text}");
+    // Every tile it says it rendered was delivered: none is lost or held.
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let s = rt
+        .block_on(Client::new(&coord.url, None).status(id))
+        .unwrap();
+    assert_eq!(s.tiles_done as usize, rendered_lines(&log), "{text}");
+}

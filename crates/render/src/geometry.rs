@@ -183,8 +183,12 @@ impl Geometry {
                         v2: positions[v[2] as usize],
                     })
                     .collect();
-                let params = BvhBuildParams { pre_split: true, ..BvhBuildParams::medium_build() };
-                let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(&plain, params, &mut build_time);
+                let params = BvhBuildParams {
+                    pre_split: true,
+                    ..BvhBuildParams::medium_build()
+                };
+                let bvh =
+                    obvhs::cwbvh::builder::build_cwbvh_from_tris(&plain, params, &mut build_time);
                 bvh_triangles = bvh
                     .primitive_indices
                     .iter()
