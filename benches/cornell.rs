@@ -5,27 +5,12 @@
 //! `cargo bench --bench cornell [-- --spp N --resolution N --repeats N]`
 //! Mitsuba 3's figures on the same scene and settings: benches/mitsuba/.
 
+mod common;
+use common::{arg, peak_rss_mib};
 use kiln_render::{RenderSettings, Scene, TileStats, render_tile, split_into_tiles};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::time::Instant;
-
-fn arg(name: &str, default: u32) -> u32 {
-    let args: Vec<String> = std::env::args().collect();
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-/// Peak resident memory of this process, from /proc (Linux).
-fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib / 1024.0)
-}
 
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));

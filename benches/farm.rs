@@ -9,21 +9,14 @@
 //!
 //! `cargo bench --bench farm [-- --skip-efficiency] [--workers N]`
 
+mod common;
+use common::arg;
 use kiln_farm::api::{JobSpec, JobState};
 use kiln_farm::client::Client;
 use kiln_farm::coordinator::{self, Config, Coordinator};
 use std::process::Command;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-fn arg(name: &str, default: usize) -> usize {
-    let args: Vec<String> = std::env::args().collect();
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
 
 fn efficiency() {
     let kiln = env!("CARGO_BIN_EXE_kiln");

@@ -5,30 +5,12 @@
 //!
 //! `cargo bench --bench volume_light [-- --rings N --spp N --resolution N]`
 
+mod common;
+use common::{arg, peak_rss_mib};
 use kiln_render::{RenderSettings, Scene, TileStats, render_tile, split_into_tiles};
 use rayon::prelude::*;
 use std::io::Write;
 use std::time::Instant;
-
-fn arg(name: &str, default: u32) -> u32 {
-    let args: Vec<String> = std::env::args().collect();
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-fn peak_rss_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-        })
-        .map_or(0.0, |kib| kib / 1024.0)
-}
 
 /// Writes a binary PLY UV sphere with smooth normals; returns its face count.
 fn write_sphere_ply(path: &std::path::Path, rings: usize, segments: usize) -> usize {
@@ -180,5 +162,5 @@ fn main() {
         rates[0] / rates[1],
         rates[0] / rates[2]
     );
-    println!("peak_rss_mib={:.1}", peak_rss_mib());
+    println!("peak_rss_mib={:.1}", peak_rss_mib().unwrap_or(0.0));
 }

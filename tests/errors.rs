@@ -25,6 +25,20 @@ fn failing(text: &str) -> (String, tempfile::TempDir) {
     (stderr, dir)
 }
 
+/// Renders a scene file that must fail; returns kiln's stderr.
+fn render_failure(scene: &std::path::Path, dir: &std::path::Path) -> String {
+    let out = kiln()
+        .arg("render")
+        .arg(scene)
+        .arg("-q")
+        .arg("-o")
+        .arg(dir.join("o.exr"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "kiln accepted {}", scene.display());
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
 fn assert_names(stderr: &str, file: &str, line: u32, words: &str) {
     let at = format!("{file}:{line}:");
     assert!(stderr.contains(&at), "expected '{at}' in:\n{stderr}");
@@ -91,16 +105,7 @@ fn errors_in_included_files_name_that_file() {
         "main.pbrt",
         "WorldBegin\nInclude \"inner.pbrt\"\n",
     );
-    let out = kiln()
-        .arg("render")
-        .arg(&main)
-        .arg("-q")
-        .arg("-o")
-        .arg(dir.path().join("o.exr"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
+    let err = render_failure(&main, dir.path());
     assert_names(&err, "inner.pbrt", 3, "needs numbers");
 }
 
@@ -117,16 +122,7 @@ fn corrupt_ply_names_the_directive_and_the_problem() {
         "scene.pbrt",
         "WorldBegin\n\nShape \"plymesh\" \"string filename\" \"bad.ply\"\n",
     );
-    let out = kiln()
-        .arg("render")
-        .arg(&main)
-        .arg("-q")
-        .arg("-o")
-        .arg(dir.path().join("o.exr"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
+    let err = render_failure(&main, dir.path());
     assert_names(&err, "scene.pbrt", 3, "refers to vertex 7");
 }
 

@@ -1,59 +1,14 @@
 //! Estimators that must agree: light sampling alone, BSDF sampling alone, and their
 //! combination by multiple importance sampling estimate the same direct lighting.
 
-use crate::util::{max_z_score, reference_scene, render, with_integrator, write_scene};
+use crate::util::{assert_strategies_agree, reference_scene, render_strategies, write_scene};
 use std::path::Path;
 
 /// Renders the scene's direct lighting with each strategy and compares them block by block.
 /// Variants are written to a temp dir, or beside `path` when `beside` (for scenes that refer to other files).
 fn strategies_agree(path: &Path, args: &[&str], max_z: f64, beside: bool) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let mut images = Vec::new();
-    for (i, strategy) in ["light", "bsdf", "mis"].iter().enumerate() {
-        let variant = with_integrator(
-            &text,
-            &format!(
-                "Integrator \"path\" \"integer maxdepth\" [ 1 ] \"string strategy\" \"{strategy}\""
-            ),
-        );
-        // Different seeds keep the three estimates independent.
-        let seed = (i + 1).to_string();
-        let variant_dir = if beside {
-            path.parent().unwrap()
-        } else {
-            dir.path()
-        };
-        let file = write_scene(variant_dir, &format!("{strategy}-variant.pbrt"), &variant);
-        let r = render(
-            &file,
-            dir.path(),
-            strategy,
-            &[args, &["--seed", &seed]].concat(),
-        );
-        images.push(r.image);
-    }
-    let means: Vec<[f64; 3]> = images.iter().map(|i| i.mean()).collect();
-    for (a, b, what) in [
-        (0, 1, "light vs bsdf"),
-        (0, 2, "light vs mis"),
-        (1, 2, "bsdf vs mis"),
-    ] {
-        let z = max_z_score(&images[a], &images[b], 4, 2);
-        eprintln!(
-            "{}: {what}: max z {z:.2}, means {:?} vs {:?}",
-            path.display(),
-            means[a],
-            means[b]
-        );
-        assert!(
-            z < max_z,
-            "{}: {what}: worst block differs by {z:.2} standard errors (means {:?} vs {:?})",
-            path.display(),
-            means[a],
-            means[b]
-        );
-    }
+    let images = render_strategies(path, "path", 1, 1, beside, args);
+    assert_strategies_agree(&path.display().to_string(), &images, max_z, None);
 }
 
 #[test]

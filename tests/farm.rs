@@ -291,22 +291,34 @@ fn in_process(rt: &tokio::runtime::Runtime, data: &Path, token: Option<&str>) ->
     url
 }
 
+/// Uploads one of the repository's scenes and creates a job for it; returns the job id.
+fn new_job(
+    rt: &tokio::runtime::Runtime,
+    client: &Client,
+    scene_file: &str,
+    spp: Option<u32>,
+    resolution: Option<(u32, u32)>,
+    tile: u32,
+) -> u64 {
+    let bundle = kiln_farm::bundle::pack(&scene(scene_file)).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = JobSpec {
+        scene: digest,
+        spp,
+        resolution,
+        tile,
+        seed: None,
+    };
+    rt.block_on(client.create_job(&spec, None)).unwrap()
+}
+
 #[test]
 fn corrupt_uploads_are_rejected_and_the_tile_is_issued_again() {
     let dir = tempfile::tempdir().unwrap();
     let rt = tokio::runtime::Runtime::new().unwrap();
     let url = in_process(&rt, &dir.path().join("data"), None);
     let client = Client::new(&url, None);
-    let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
-    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
-    let spec = JobSpec {
-        scene: digest,
-        spp: Some(1),
-        resolution: None,
-        tile: 16,
-        seed: None,
-    };
-    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    let id = new_job(&rt, &client, "furnace/scene.pbrt", Some(1), None, 16);
     let lease = rt.block_on(client.lease("t")).unwrap().unwrap();
     let err = rt
         .block_on(client.upload_tile(lease.lease, b"garbage".to_vec()))
@@ -475,16 +487,7 @@ fn progress_events_never_go_backwards_and_end_at_100_percent() {
     let rt = tokio::runtime::Runtime::new().unwrap();
     let url = in_process(&rt, &dir.path().join("data"), None);
     let client = Client::new(&url, None);
-    let bundle = kiln_farm::bundle::pack(&scene("mis/scene.pbrt")).unwrap();
-    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
-    let spec = JobSpec {
-        scene: digest,
-        spp: Some(8),
-        resolution: Some((96, 54)),
-        tile: 16,
-        seed: None,
-    };
-    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    let id = new_job(&rt, &client, "mis/scene.pbrt", Some(8), Some((96, 54)), 16);
     let mut events = rt
         .block_on(reqwest::get(format!("{url}/v1/jobs/{id}/events")))
         .unwrap();
@@ -523,16 +526,7 @@ fn a_worker_that_keeps_failing_is_set_aside() {
     let rt = tokio::runtime::Runtime::new().unwrap();
     let url = in_process(&rt, &dir.path().join("data"), None);
     let client = Client::new(&url, None);
-    let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
-    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
-    let spec = JobSpec {
-        scene: digest,
-        spp: Some(1),
-        resolution: None,
-        tile: 8,
-        seed: None,
-    };
-    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    let id = new_job(&rt, &client, "furnace/scene.pbrt", Some(1), None, 8);
     // Five failures on five different tiles: no tile reaches three, so the job goes on...
     for _ in 0..kiln_farm::coordinator::MAX_WORKER_FAILURES {
         let lease = rt.block_on(client.lease("flaky")).unwrap().unwrap();

@@ -1,7 +1,7 @@
 //! Participating media (issue 5, first part): homogeneous media behind interface
 //! boundaries, scattering, emission, and estimators that must agree through them.
 
-use crate::util::{max_z_score, mean_and_error, render, scene, with_integrator, write_scene};
+use crate::util::{assert_strategies_agree, render, render_strategies, scene, write_scene};
 
 /// pbrt-v4's convention: the source term is sigma_a * Le, so a ray through the centre of a
 /// non-scattering emissive sphere sees Le (1 - exp(-2 r sigma_a)); off centre, the chord.
@@ -77,48 +77,15 @@ fn scattering_furnace_stays_uniform() {
 /// light and a floor in coloured, forward-scattering fog.
 #[test]
 fn light_and_phase_sampling_agree_through_fog() {
-    let path = scene("media/fog.pbrt");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let mut images = Vec::new();
-    for (i, strategy) in ["light", "bsdf", "mis"].iter().enumerate() {
-        let variant = with_integrator(
-            &text,
-            &format!(
-                "Integrator \"volpath\" \"integer maxdepth\" [ 3 ] \"string strategy\" \"{strategy}\""
-            ),
-        );
-        let file = write_scene(dir.path(), &format!("{strategy}.pbrt"), &variant);
-        let seed = (i + 21).to_string();
-        images.push(
-            render(
-                &file,
-                dir.path(),
-                strategy,
-                &["--spp", "128", "--seed", &seed],
-            )
-            .image,
-        );
-    }
-    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-        for c in 0..3 {
-            let diffs = images[a]
-                .pixels
-                .iter()
-                .zip(&images[b].pixels)
-                .map(|(x, y)| x[c] as f64 - y[c] as f64);
-            let (mean, se) = mean_and_error(diffs);
-            assert!(
-                mean.abs() < 3.0 * se,
-                "strategies {a} and {b}, channel {c}: {mean} (standard error {se})"
-            );
-        }
-        let z = max_z_score(&images[a], &images[b], 4, 2);
-        assert!(
-            z < 4.5,
-            "strategies {a} and {b}: a block differs by {z:.2} standard errors"
-        );
-    }
+    let images = render_strategies(
+        &scene("media/fog.pbrt"),
+        "volpath",
+        3,
+        21,
+        false,
+        &["--spp", "128"],
+    );
+    assert_strategies_agree("fog", &images, 4.5, Some(3.0));
 }
 
 #[test]

@@ -143,3 +143,87 @@ pub fn max_z_score(a: &RgbBuffer, b: &RgbBuffer, bx: u32, by: u32) -> f64 {
     }
     worst
 }
+
+/// Renders `path` once per direct-lighting strategy (light, bsdf, mis) with the given
+/// integrator and depth, each with its own seed (`first_seed`, +1, +2) so the three
+/// estimates are independent. Variants are written to a temp dir, or beside `path` (then
+/// removed) when `beside`, for scenes that refer to other files.
+pub fn render_strategies(
+    path: &Path,
+    integrator: &str,
+    max_depth: u32,
+    first_seed: usize,
+    beside: bool,
+    args: &[&str],
+) -> Vec<RgbBuffer> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut images = Vec::new();
+    for (i, strategy) in ["light", "bsdf", "mis"].iter().enumerate() {
+        let line = format!(
+            "Integrator \"{integrator}\" \"integer maxdepth\" [ {max_depth} ] \"string strategy\" \"{strategy}\""
+        );
+        let variant = with_integrator(&text, &line);
+        let file = if beside {
+            write_scene(
+                path.parent().unwrap(),
+                &format!(".{strategy}-{}.pbrt", std::process::id()),
+                &variant,
+            )
+        } else {
+            write_scene(dir.path(), &format!("{strategy}.pbrt"), &variant)
+        };
+        let seed = (first_seed + i).to_string();
+        let r = render(
+            &file,
+            dir.path(),
+            strategy,
+            &[args, &["--seed", &seed]].concat(),
+        );
+        if beside {
+            std::fs::remove_file(&file).ok();
+        }
+        images.push(r.image);
+    }
+    images
+}
+
+/// Asserts that every pair of strategy images agrees: each of a 4x2 grid of blocks within
+/// `max_z` standard errors and, with `mean_within`, each channel's image mean within that many.
+pub fn assert_strategies_agree(
+    label: &str,
+    images: &[RgbBuffer],
+    max_z: f64,
+    mean_within: Option<f64>,
+) {
+    let names = ["light", "bsdf", "mis"];
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        let what = format!("{label}: {} vs {}", names[a], names[b]);
+        if let Some(k) = mean_within {
+            for c in 0..3 {
+                let diffs = images[a]
+                    .pixels
+                    .iter()
+                    .zip(&images[b].pixels)
+                    .map(|(x, y)| x[c] as f64 - y[c] as f64);
+                let (mean, se) = mean_and_error(diffs);
+                assert!(
+                    mean.abs() < k * se,
+                    "{what}, channel {c}: means differ by {mean} (standard error {se})"
+                );
+            }
+        }
+        let z = max_z_score(&images[a], &images[b], 4, 2);
+        eprintln!(
+            "{what}: max z {z:.2}, means {:?} vs {:?}",
+            images[a].mean(),
+            images[b].mean()
+        );
+        assert!(
+            z < max_z,
+            "{what}: worst block differs by {z:.2} standard errors (means {:?} vs {:?})",
+            images[a].mean(),
+            images[b].mean()
+        );
+    }
+}

@@ -1,7 +1,7 @@
 //! The VolumeLight (seed 000): analytic chords, estimator agreement, power estimates,
 //! voxel grids.
 
-use crate::util::{max_z_score, mean_and_error, render, with_integrator, write_scene};
+use crate::util::{assert_strategies_agree, render, render_strategies, write_scene};
 use kiln_render::Scene;
 use std::path::Path;
 
@@ -67,53 +67,9 @@ fn index_matched_sphere_shows_le_times_the_chord() {
 /// from a glass VolumeLight: the image means agree within three standard errors, and
 /// every block within 4.5 (24 comparisons per pair).
 fn glass_strategies_agree(path: &Path, args: &[&str]) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let mut images = Vec::new();
-    for (i, strategy) in ["light", "bsdf", "mis"].iter().enumerate() {
-        // Depth 4 takes paths into the glass, through internal reflections and out again.
-        let variant = with_integrator(
-            &text,
-            &format!(
-                "Integrator \"path\" \"integer maxdepth\" [ 4 ] \"string strategy\" \"{strategy}\""
-            ),
-        );
-        let file = write_scene(
-            path.parent().unwrap(),
-            &format!(".{strategy}-{}.pbrt", std::process::id()),
-            &variant,
-        );
-        let seed = (i + 11).to_string();
-        let r = render(
-            &file,
-            dir.path(),
-            strategy,
-            &[args, &["--seed", &seed]].concat(),
-        );
-        std::fs::remove_file(&file).ok();
-        images.push(r.image);
-    }
-    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-        for c in 0..3 {
-            let diffs = images[a]
-                .pixels
-                .iter()
-                .zip(&images[b].pixels)
-                .map(|(x, y)| x[c] as f64 - y[c] as f64);
-            let (mean, se) = mean_and_error(diffs);
-            assert!(
-                mean.abs() < 3.0 * se,
-                "{}: strategies {a} and {b}, channel {c}: means differ by {mean} (standard error {se})",
-                path.display()
-            );
-        }
-        let z = max_z_score(&images[a], &images[b], 4, 2);
-        assert!(
-            z < 4.5,
-            "{}: strategies {a} and {b}: a block differs by {z:.2} standard errors",
-            path.display()
-        );
-    }
+    // Depth 4 takes paths into the glass, through internal reflections and out again.
+    let images = render_strategies(path, "path", 4, 11, true, args);
+    assert_strategies_agree(&path.display().to_string(), &images, 4.5, Some(3.0));
 }
 
 #[test]

@@ -302,10 +302,7 @@ impl Geometry {
         );
         let p = ray.at(t);
         let b = barycentrics(p, p0, p1, p2);
-        let mut ng = (p0 - p2).cross(p1 - p2).normalize_or_zero();
-        if mesh.flip {
-            ng = -ng;
-        }
+        let (ng, ns) = self.oriented_normals(mesh, [i0, i1, i2], [p0, p1, p2], b);
         let (uv0, uv1, uv2) = if mesh.has_uvs {
             (
                 self.uvs[i0 as usize],
@@ -324,19 +321,6 @@ impl Geometry {
         } else {
             p1 - p0
         };
-        let mut ns = ng;
-        if mesh.has_normals {
-            let n = self.normals[i0 as usize] * b[0]
-                + self.normals[i1 as usize] * b[1]
-                + self.normals[i2 as usize] * b[2];
-            if n.length_squared() > 0.0 {
-                ns = n.normalize();
-                // With per-vertex normals, pbrt orients the geometric normal by them.
-                if ng.dot(ns) < 0.0 {
-                    ng = -ng;
-                }
-            }
-        }
         let local = tri - mesh.first_triangle;
         SurfaceHit {
             p,
@@ -361,15 +345,29 @@ impl Geometry {
             self.positions[i2 as usize],
         );
         let p = p0 * b[0] + p1 * b[1] + p2 * b[2];
-        let mut ng = (p0 - p2).cross(p1 - p2).normalize_or_zero();
+        let (ng, ns) = self.oriented_normals(mesh, [i0, i1, i2], [p0, p1, p2], b);
+        (p, ng, ns)
+    }
+
+    /// A triangle's geometric and shading normals at barycentrics `b`, oriented as pbrt
+    /// orients them: flipped by ReverseOrientation or a handedness-swapping transform, and
+    /// with per-vertex normals, the geometric normal on the shading normal's side.
+    fn oriented_normals(
+        &self,
+        mesh: &MeshInfo,
+        v: [u32; 3],
+        p: [Vec3A; 3],
+        b: [f32; 3],
+    ) -> (Vec3A, Vec3A) {
+        let mut ng = (p[0] - p[2]).cross(p[1] - p[2]).normalize_or_zero();
         if mesh.flip {
             ng = -ng;
         }
         let mut ns = ng;
         if mesh.has_normals {
-            let n = self.normals[i0 as usize] * b[0]
-                + self.normals[i1 as usize] * b[1]
-                + self.normals[i2 as usize] * b[2];
+            let n = self.normals[v[0] as usize] * b[0]
+                + self.normals[v[1] as usize] * b[1]
+                + self.normals[v[2] as usize] * b[2];
             if n.length_squared() > 0.0 {
                 ns = n.normalize();
                 if ng.dot(ns) < 0.0 {
@@ -377,7 +375,7 @@ impl Geometry {
                 }
             }
         }
-        (p, ng, ns)
+        (ng, ns)
     }
 
     fn sphere_hit(&self, ray: &Ray, t: f32, id: u32) -> SurfaceHit {

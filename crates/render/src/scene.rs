@@ -219,20 +219,13 @@ impl Builder {
                 {
                     for t in mesh.indices.chunks_exact(3) {
                         let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
-                        let cross = (p[0] - p[2]).cross(p[1] - p[2]);
-                        let area = 0.5 * cross.length();
-                        let mut n = cross.normalize_or_zero();
-                        if flip {
-                            n = -n;
-                        }
-                        if has_normals {
-                            // Orient by the shading normals, as hits on the mesh do.
-                            let ns: Vec3A =
-                                t.iter().map(|&k| self.normals[(base + k) as usize]).sum();
-                            if n.dot(ns) < 0.0 {
-                                n = -n;
-                            }
-                        }
+                        let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
+                        let n = self.face_normal(
+                            p,
+                            flip,
+                            has_normals,
+                            [base + t[0], base + t[1], base + t[2]],
+                        );
                         self.lights.push(Light::Triangle {
                             p,
                             n,
