@@ -107,4 +107,9 @@ fn media_are_bit_identical_across_tiles_and_threads() {
         &scene("media/fog.pbrt"),
         &["--spp", "4", "--resolution", "60x40"],
     );
+    // A grid medium: delta and ratio tracking, and a flame sampled as a light.
+    assert_same_bytes_for_any_split(
+        &scene("media/ember.pbrt"),
+        &["--spp", "4", "--resolution", "60x40"],
+    );
 }

@@ -1,5 +1,6 @@
-//! Participating media (issue 5, first part): homogeneous media behind interface
-//! boundaries, scattering, emission, and estimators that must agree through them.
+//! Participating media: homogeneous and grid media behind interface boundaries,
+//! scattering, emission (emissive grids sampled as lights), and estimators that must
+//! agree through them.
 
 use crate::util::{assert_strategies_agree, render, render_strategies, scene, write_scene};
 
@@ -100,6 +101,31 @@ fn medium_errors_name_their_place() {
         (
             "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\"\n",
             "scene.pbrt:2:",
+            "needs \"float density\"",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\"\n  \"integer nx\" 2 \"float density\" [ 1 2 3 ]\n",
+            "scene.pbrt:3:",
+            "\"density\" has 3 values; nx*ny*nz = 2*1*1 = 2",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"string densityfile\" \"missing.vol\"\n",
+            "scene.pbrt:2:",
+            "missing.vol",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"float density\" [ 1 ] \"float temperature\" [ 1 2 ]\n",
+            "scene.pbrt:2:",
+            "\"temperature\" has 2 values",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"homogeneous\" \"string phase\" \"rayleigh\"\n",
+            "scene.pbrt:2:",
+            "phase function 'rayleigh' is unknown",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"cloud\"\n",
+            "scene.pbrt:2:",
             "not supported yet",
         ),
         (
@@ -128,6 +154,110 @@ fn medium_errors_name_their_place() {
         assert!(
             err.contains(at) && err.contains(what),
             "expected {at} and {what} in {err}"
+        );
+    }
+}
+
+/// The same closed form through a grid medium: constant density and emission scale inside
+/// the grid's samples (pbrt's grids fall off over the outer half voxel, so the sphere sits
+/// well inside), tracked against the majorant grid; once with a constant Le, once with a
+/// temperature grid, whose Le is the peak-normalised blackbody at (T - offset) * scale.
+/// Tracking estimates the emission (it is not in closed form here), so this takes 131,072
+/// samples per chord: the standard error is then under 0.15%.
+#[test]
+fn emissive_grid_sphere_matches_the_closed_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let (r, sigma_a) = (1.5f64, 0.8f64);
+    let ones = vec!["1"; 64].join(" ");
+    let blackbody = kiln_scene::spectrum::blackbody_peak_rgb(2200.0).map(|v| v as f64 * 50.0);
+    let cases = [
+        ("\"rgb Le\" [ 2 1 0.5 ]".to_string(), "1", [2.0, 1.0, 0.5]),
+        (
+            format!(
+                "\"float temperature\" [ {} ] \"float temperatureoffset\" 100 \"float temperaturescale\" 2",
+                vec!["1200"; 64].join(" ")
+            ),
+            "50",
+            blackbody,
+        ),
+    ];
+    for (emission, scale, le) in cases {
+        let scales = vec![scale; 64].join(" ");
+        for b in [0.0, 1.2] {
+            let text = format!(
+                "Sampler \"zsobol\" \"integer pixelsamples\" [ 8192 ]
+                Film \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]
+                LookAt {b} 0 10  {b} 0 0  0 1 0
+                Camera \"orthographic\" \"float screenwindow\" [ -0.0001 0.0001 -0.0001 0.0001 ]
+                WorldBegin
+                AttributeBegin
+                  Rotate 30 1 1 0
+                  MakeNamedMedium \"glow\" \"string type\" \"uniformgrid\"
+                    \"point3 p0\" [ -3 -3 -3 ] \"point3 p1\" [ 3 3 3 ]
+                    \"integer nx\" 4 \"integer ny\" 4 \"integer nz\" 4 \"float density\" [ {ones} ]
+                    \"rgb sigma_a\" [ {sigma_a} {sigma_a} {sigma_a} ] \"rgb sigma_s\" [ 0 0 0 ]
+                    \"float Lescale\" [ {scales} ] {emission}
+                AttributeEnd
+                AttributeBegin
+                  MediumInterface \"glow\" \"\"
+                  Material \"interface\"
+                  Shape \"sphere\" \"float radius\" [ {r} ]
+                AttributeEnd"
+            );
+            let path = write_scene(dir.path(), "glow.pbrt", &text);
+            let img = render(&path, dir.path(), "glow", &[]).image;
+            let chord = 2.0 * (r * r - b * b).sqrt();
+            for (c, le) in le.iter().enumerate() {
+                let expected = le * (1.0 - (-chord * sigma_a).exp());
+                let got = img.mean()[c];
+                assert!(
+                    (got - expected).abs() <= 0.005 * expected,
+                    "{emission}, b = {b}, channel {c}: {got} vs {expected}"
+                );
+            }
+        }
+    }
+}
+
+/// Seed 001's failure, done right: a flame (an emissive temperature grid) lighting a floor
+/// through fog. Emitter sampling alone (the flame sampled as a light by its 3D
+/// distribution), phase/BSDF sampling alone and MIS estimate the same image: block by
+/// block and in the mean, and in the distribution of pixel values (no fireflies, no
+/// darker image): each image's quantiles agree with the others'.
+#[test]
+fn flame_light_phase_and_mis_sampling_agree() {
+    let images = render_strategies(
+        &scene("media/ember.pbrt"),
+        "volpath",
+        3,
+        31,
+        false,
+        &["--spp", "256"],
+    );
+    assert_strategies_agree("ember", &images, 4.5, Some(3.0));
+    let quantiles = |img: &kiln_image::RgbBuffer| {
+        let mut lum: Vec<f64> = img
+            .pixels
+            .iter()
+            .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+            .collect();
+        lum.sort_by(f64::total_cmp);
+        let q = |f: f64| lum[((lum.len() - 1) as f64 * f) as usize];
+        [q(0.25), q(0.5), q(0.75), q(0.95), q(0.99), q(1.0)]
+    };
+    let names = ["light", "bsdf", "mis"];
+    let qs: Vec<_> = images.iter().map(quantiles).collect();
+    for (name, q) in names.iter().zip(&qs) {
+        eprintln!("ember {name}: luminance quantiles 25/50/75/95/99/100%: {q:.4?}");
+    }
+    // BSDF sampling alone is far noisier (most of its samples miss the small flame), so
+    // its pixel distribution is wider by nature; light sampling alone must match MIS's.
+    let (light, mis) = (&qs[0], &qs[2]);
+    for (k, (a, b)) in light.iter().zip(mis).enumerate() {
+        let tolerance = if k < 4 { 0.1 } else { 0.25 };
+        assert!(
+            (a - b).abs() <= tolerance * b + 1e-3,
+            "light vs mis: luminance quantile {k} differs: {a} vs {b} (fireflies or a darker image)"
         );
     }
 }

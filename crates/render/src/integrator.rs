@@ -6,8 +6,9 @@
 //! becomes data the variant owns, built once before any tile renders.
 
 use crate::geometry::SurfaceHit;
+use crate::lights::Light;
 use crate::math::{Color, Frame, Ray, offset_origin};
-use crate::media::Medium;
+use crate::media::{GridMedium, Medium, TrackingRng};
 use crate::sampler::PixelSampler;
 use crate::sampling::power_heuristic;
 use crate::scene::Scene;
@@ -91,15 +92,40 @@ fn path_li(
         if let Some(m) = medium {
             let med = &scene.media[m as usize];
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-            // The medium's own emission along the segment, in closed form; tracking below
-            // then estimates only what is scattered into the ray and what lies beyond.
-            l += beta * med.segment_emission(t_max);
             // Each bounce's tracking numbers are seeded from its unused eighth dimension.
             let seed_dim = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * depth + 7;
             segments += 1;
-            let mut rng =
-                TrackingRng(((sampler.value(seed_dim).to_bits() as u64) << 32) | segments as u64);
-            match track(med, t_max, &mut rng, &mut beta) {
+            let mut rng = TrackingRng::new(
+                ((sampler.value(seed_dim).to_bits() as u64) << 32) | segments as u64,
+            );
+            let event = match med {
+                Medium::Grid(g) => {
+                    // Emission met at a tentative collision could also have been found by
+                    // sampling the medium as a light from the previous vertex.
+                    let light = scene.medium_lights[m as usize];
+                    let weight = |x: Vec3A, sigma_maj: f32| match light {
+                        None => 1.0,
+                        Some(light) => emission_weight(
+                            settings,
+                            first_or_specular,
+                            prev_pdf * sigma_maj,
+                            || {
+                                scene.light_sampler.pmf(light as usize)
+                                    * g.emission_pdf(x)
+                                    * (x - prev_p).length_squared()
+                            },
+                        ),
+                    };
+                    track_grid(g, &ray, t_max, &mut rng, &mut beta, &mut l, weight)
+                }
+                homogeneous => {
+                    // The medium's own emission along the segment, in closed form; tracking
+                    // then estimates only what is scattered into the ray and what lies beyond.
+                    l += beta * homogeneous.segment_emission(t_max);
+                    track(homogeneous, t_max, &mut rng, &mut beta)
+                }
+            };
+            match event {
                 MediumEvent::Crossed => {}
                 MediumEvent::Absorbed => break,
                 MediumEvent::Scattered(t) => {
@@ -330,6 +356,7 @@ fn sample_direct(
     }
     let origin = v.surface.map_or(v.p, |h| offset_origin(v.p, h.ng, ls.wi));
     let medium = v.medium_towards(ls.wi);
+    let mut rng = TrackingRng::from_values(&[u_light, u.x, u.y], 2);
     let tr = if ls.distance.is_finite() {
         // Aim at the light's point moved off its surface towards us, and stop short of it:
         // following ls.wi for the full distance would graze the light's own surface.
@@ -341,22 +368,36 @@ fn sample_direct(
         let d = target - origin;
         let len = d.length();
         if len > 0.0 {
-            scene.transmittance(origin, d / len, len * (1.0 - 1e-4), medium, rays)
+            scene.transmittance(origin, d / len, len * (1.0 - 1e-4), medium, &mut rng, rays)
         } else {
-            Color::ZERO
+            (Color::ZERO, medium)
         }
     } else {
-        scene.transmittance(origin, ls.wi, f32::INFINITY, medium, rays)
+        scene.transmittance(origin, ls.wi, f32::INFINITY, medium, &mut rng, rays)
     };
+    let (tr, end_medium) = tr;
     if tr == Color::ZERO {
         return Color::ZERO;
+    }
+    // A point sampled in a grid medium emits only if the medium fills it, that is if the
+    // shadow ray arrives in that medium (the grid's box may reach beyond its boundary).
+    // The other strategy would find it at a tentative collision, at the majorant's rate.
+    let unidirectional_pdf = || pdf(ls.wi);
+    let mut medium_rate = 1.0;
+    if let Light::Medium { medium: lm, .. } = &scene.lights[index] {
+        if end_medium != Some(*lm) {
+            return Color::ZERO;
+        }
+        if let Medium::Grid(g) = &scene.media[*lm as usize] {
+            medium_rate = g.majorant_at(g.to_box(v.p + ls.wi * ls.distance));
+        }
     }
     let light_pdf = pmf * ls.pdf;
     if ls.delta {
         return f * tr * ls.radiance / light_pdf;
     }
     let w = match settings.strategy {
-        LightStrategy::Mis => power_heuristic(light_pdf, pdf(ls.wi)),
+        LightStrategy::Mis => power_heuristic(light_pdf, unidirectional_pdf() * medium_rate),
         _ => 1.0,
     };
     f * tr * ls.radiance * (w / light_pdf)
@@ -372,23 +413,6 @@ enum MediumEvent {
     Scattered(f32),
 }
 
-/// A small deterministic generator for the unbounded number of random numbers that
-/// delta tracking may need, seeded from the path's sampler (so still a pure function of
-/// pixel, sample and dimension).
-struct TrackingRng(u64);
-
-impl TrackingRng {
-    fn next(&mut self) -> f32 {
-        // SplitMix64.
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        (z >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// Free-flight sampling in a homogeneous medium: a colour channel is chosen uniformly and
 /// the distance sampled by its extinction; the weights divide by the density averaged over
 /// channels (the one-sample balance heuristic, as pbrt-v3's homogeneous medium does), so
@@ -398,11 +422,13 @@ fn track(medium: &Medium, t_max: f32, rng: &mut TrackingRng, beta: &mut Color) -
     if sigma_t.max_element() <= 0.0 {
         return MediumEvent::Crossed;
     }
-    let Medium::Homogeneous { sigma_s, .. } = medium;
-    let channel = ((rng.next() * 3.0) as usize).min(2);
+    let Medium::Homogeneous { sigma_s, .. } = medium else {
+        return MediumEvent::Crossed;
+    };
+    let channel = ((rng.next_f32() * 3.0) as usize).min(2);
     let st = sigma_t[channel];
     let t = if st > 0.0 {
-        -(1.0 - rng.next()).ln() / st
+        -(1.0 - rng.next_f32()).ln() / st
     } else {
         f32::INFINITY
     };
@@ -429,4 +455,63 @@ fn track(medium: &Medium, t_max: f32, rng: &mut TrackingRng, beta: &mut Color) -
         *beta *= tr / p_cross;
         MediumEvent::Crossed
     }
+}
+
+/// Tracking through a grid medium against its majorants: at each tentative collision the
+/// emission sigma_a Le / sigma_maj is collected (times `weight`, the multiple importance
+/// weight against sampling the medium as a light), then absorption, scattering or a null
+/// collision is chosen with probabilities from the channel-averaged coefficients. The
+/// weights sigma_x / (sigma_maj P_x) keep the estimate unbiased for coloured media (and are
+/// exactly 1 for grey ones: plain delta tracking).
+fn track_grid(
+    g: &GridMedium,
+    ray: &Ray,
+    t_max: f32,
+    rng: &mut TrackingRng,
+    beta: &mut Color,
+    l: &mut Color,
+    weight: impl Fn(Vec3A, f32) -> f32,
+) -> MediumEvent {
+    let mut event = MediumEvent::Crossed;
+    let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x6a09_e667_f3bc_c909);
+    let emissive = g.is_emissive();
+    g.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
+        let d = g.density(p);
+        if d <= 0.0 {
+            return true;
+        }
+        let sigma_a = g.sigma_a * d;
+        let sigma_s = g.sigma_s * d;
+        if emissive {
+            let le = g.le(p);
+            if le != Color::ZERO {
+                let w = weight(ray.at(t), sigma_maj);
+                *l += *beta * sigma_a * le * (w / sigma_maj);
+            }
+        }
+        let p_a = sigma_a.element_sum() / (3.0 * sigma_maj);
+        let p_s = sigma_s.element_sum() / (3.0 * sigma_maj);
+        let xi = choice.next_f32();
+        if xi < p_a {
+            event = MediumEvent::Absorbed;
+            return false;
+        }
+        if xi < p_a + p_s {
+            *beta *= sigma_s / (sigma_maj * p_s);
+            event = MediumEvent::Scattered(t);
+            return false;
+        }
+        let p_n = 1.0 - p_a - p_s;
+        if p_n <= 0.0 {
+            event = MediumEvent::Absorbed;
+            return false;
+        }
+        let sigma_n = (Color::splat(sigma_maj) - sigma_a - sigma_s).max(Color::ZERO);
+        *beta *= sigma_n / (sigma_maj * p_n);
+        *beta != Color::ZERO
+    });
+    if *beta == Color::ZERO {
+        return MediumEvent::Absorbed;
+    }
+    event
 }

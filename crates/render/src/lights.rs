@@ -61,6 +61,12 @@ pub enum Light {
         volume: u32,
         power: f32,
     },
+    /// An emissive grid medium, sampled by its 3D emission distribution (scene.rs does it,
+    /// as it needs the medium). `power` is its emitted luminance times 4 pi.
+    Medium {
+        medium: u32,
+        power: f32,
+    },
     UniformInfinite {
         radiance: Color,
     },
@@ -269,7 +275,9 @@ impl Light {
                 4.0 * PI * disk * mean
             }
             Light::Dome { radiance, .. } => 2.0 * PI * disk * luminance(*radiance),
-            Light::VolumeTriangle { power, .. } | Light::VolumeSphere { power, .. } => *power,
+            Light::VolumeTriangle { power, .. }
+            | Light::VolumeSphere { power, .. }
+            | Light::Medium { power, .. } => *power,
         }
     }
 
@@ -382,8 +390,11 @@ impl Light {
                 let radiance = self.area_le(point.n, -point.wi);
                 (radiance != Color::ZERO).then_some(point.with_radiance(radiance))
             }
-            // A VolumeLight's radiance needs the scene: Scene::sample_light evaluates it.
-            Light::VolumeTriangle { .. } | Light::VolumeSphere { .. } => None,
+            // A VolumeLight's radiance and a medium's points need the scene:
+            // Scene::sample_light samples them.
+            Light::VolumeTriangle { .. } | Light::VolumeSphere { .. } | Light::Medium { .. } => {
+                None
+            }
             Light::UniformInfinite { radiance } => {
                 let wi = uniform_sphere(u);
                 Some(LightSample {
@@ -429,6 +440,9 @@ impl Light {
     pub fn pdf(&self, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
         match self {
             Light::Point { .. } | Light::Spot { .. } | Light::Distant { .. } => 0.0,
+            // Emission met inside a medium is weighted by the integrator, which knows the
+            // medium (GridMedium::emission_pdf).
+            Light::Medium { .. } => 0.0,
             Light::Triangle { area, .. } | Light::VolumeTriangle { area, .. } => {
                 let dist2 = (q - p).length_squared();
                 let cos_l = n.dot(wi).abs();

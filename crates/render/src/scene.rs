@@ -8,7 +8,7 @@ use crate::lights::{EnvironmentMap, Light};
 use crate::lights::{LightSample, sample_sphere_point, sample_triangle_point};
 use crate::materials::Material;
 use crate::math::{Color, Frame, Ray, luminance, rgb};
-use crate::media::Medium;
+use crate::media::{GridMedium, Medium, Phase, TrackingRng};
 use crate::sampler::PixelSampler;
 use crate::sampling::AliasTable;
 use crate::sampling::cosine_hemisphere;
@@ -52,6 +52,8 @@ pub struct Scene {
     /// Participating media, referred to by `SurfaceInfo::media`.
     pub media: Vec<Medium>,
     pub camera_medium: Option<u32>,
+    /// The light of each medium that is one (an emissive grid).
+    pub medium_lights: Vec<Option<u32>>,
 }
 
 struct Builder {
@@ -66,6 +68,8 @@ struct Builder {
     materials: Vec<Material>,
     interface_materials: Vec<bool>,
     volumes: Vec<VolumeEmitter>,
+    /// False for Integrator "path", which (as pbrt-v4's) ignores participating media.
+    use_media: bool,
 }
 
 impl Builder {
@@ -159,9 +163,9 @@ impl Builder {
     fn add_shape(&mut self, shape: &ShapeDesc, to_world: DMat4) -> Result<(), BuildError> {
         let material = shape.material.0;
         let is_interface = self.interface_materials[material as usize];
-        // Without media (not supported yet) an interface surface has no effect at all,
-        // unless it emits.
-        if is_interface && shape.area_light.is_none() && shape.media.is_none() {
+        // Without media an interface surface has no effect at all, unless it emits.
+        let shape_media = shape.media.filter(|_| self.use_media);
+        if is_interface && shape.area_light.is_none() && shape_media.is_none() {
             return Ok(());
         }
         let swaps_handedness = to_world.determinant() < 0.0;
@@ -169,7 +173,7 @@ impl Builder {
             Some(AreaLightDesc::Volume(v)) => self.add_volume(shape, v, to_world)?,
             _ => (material, None),
         };
-        let media = shape.media.map(|m| {
+        let media = shape_media.map(|m| {
             [m.inside, m.outside].map(|x| x.map_or(crate::geometry::NO_MEDIUM, |id| id.0))
         });
         let surface = |light| SurfaceInfo {
@@ -345,6 +349,7 @@ impl Scene {
             materials,
             interface_materials,
             volumes: Vec::new(),
+            use_media: desc.integrator.name != "path",
         };
         for shape in &desc.shapes {
             b.add_shape(shape, shape.object_to_world)?;
@@ -449,22 +454,38 @@ impl Scene {
             media: desc
                 .media
                 .iter()
+                .filter(|_| b.use_media)
                 .map(|m| match &m.kind {
                     kiln_scene::MediumKind::Homogeneous {
                         sigma_a,
                         sigma_s,
                         le,
-                        g,
+                        phase,
                     } => Medium::Homogeneous {
                         sigma_a: rgb(*sigma_a),
                         sigma_s: rgb(*sigma_s),
                         le: rgb(*le),
-                        g: *g,
+                        phase: Phase::new(*phase),
                     },
+                    kiln_scene::MediumKind::Grid(g) => Medium::Grid(Box::new(GridMedium::new(g))),
                 })
                 .collect(),
-            camera_medium: desc.camera_medium.map(|m| m.0),
+            camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
+            medium_lights: Vec::new(),
         };
+        // Each emissive grid medium is a light, sampled by its emission distribution.
+        scene.medium_lights = vec![None; scene.media.len()];
+        for (i, m) in scene.media.iter().enumerate() {
+            if let Medium::Grid(g) = m
+                && g.emission_distribution.is_some()
+            {
+                scene.medium_lights[i] = Some(scene.lights.len() as u32);
+                scene.lights.push(Light::Medium {
+                    medium: i as u32,
+                    power: g.emitted_power(),
+                });
+            }
+        }
         scene.estimate_volume_powers();
         let powers: Vec<f64> = scene
             .lights
@@ -477,21 +498,25 @@ impl Scene {
 
     /// Transmittance from `origin` along `dir` over `tmax`, starting in `medium`, through
     /// media and the interface surfaces that bound them; zero if any other surface blocks it.
+    /// Also returns the medium the segment ends in. Grid media are crossed by ratio
+    /// tracking, with numbers from `rng`.
     pub fn transmittance(
         &self,
         origin: Vec3A,
         dir: Vec3A,
         tmax: f32,
         mut medium: Option<u32>,
+        rng: &mut TrackingRng,
         rays: &mut u64,
-    ) -> Color {
+    ) -> (Color, Option<u32>) {
         if self.media.is_empty() {
             *rays += 1;
-            return if self.geometry.unoccluded(origin, dir, tmax) {
+            let tr = if self.geometry.unoccluded(origin, dir, tmax) {
                 Color::ONE
             } else {
                 Color::ZERO
             };
+            return (tr, None);
         }
         let mut tr = Color::ONE;
         let mut o = origin;
@@ -501,14 +526,19 @@ impl Scene {
             let hit = self.geometry.intersect(&Ray::new(o, dir), remaining);
             let seg = hit.as_ref().map_or(remaining, |h| h.t);
             if let Some(m) = medium {
-                tr *= self.media[m as usize].transmittance(seg);
+                tr *= match &self.media[m as usize] {
+                    Medium::Grid(g) => g.transmittance(o, dir, seg, rng),
+                    homogeneous => homogeneous.transmittance(seg),
+                };
                 if tr == Color::ZERO {
-                    return tr;
+                    return (tr, medium);
                 }
             }
-            let Some(h) = hit else { return tr };
+            let Some(h) = hit else {
+                return (tr, medium);
+            };
             if self.materials[h.surface.material as usize].bsdf().is_some() {
-                return Color::ZERO;
+                return (Color::ZERO, medium);
             }
             // An interface: cross it into the medium on its other side.
             if let Some(next) = h.surface.medium_towards(dir, h.ng) {
@@ -517,7 +547,7 @@ impl Scene {
             o = crate::math::offset_origin(h.p, h.ng, dir);
             remaining -= h.t;
         }
-        Color::ZERO
+        (Color::ZERO, medium)
     }
 
     /// Radiance leaving VolumeLight `volume` at surface point `p` (normals `ng`, `ns`,
@@ -590,6 +620,37 @@ impl Scene {
                 let (le, rays) = self.volume_le(*volume, q, ls.n, ls.n, -ls.wi);
                 ls.radiance = le;
                 ((le != Color::ZERO).then_some(ls), rays)
+            }
+            Light::Medium { medium, .. } => {
+                let Medium::Grid(g) = &self.media[*medium as usize] else {
+                    return (None, 0);
+                };
+                // Three numbers pick the voxel: two from the sampler, one (and the point
+                // within the voxel) from a generator seeded by them.
+                let mut rng = TrackingRng::from_values(&[u.x, u.y], 1);
+                let Some((q, pdf_volume)) = g.sample_emission([u.x, u.y, rng.next_f32()], &mut rng)
+                else {
+                    return (None, 0);
+                };
+                let d = q - p;
+                let dist2 = d.length_squared();
+                let source = g.source(g.to_box(q));
+                if dist2 == 0.0 || source == Color::ZERO {
+                    return (None, 0);
+                }
+                let distance = dist2.sqrt();
+                // Per unit volume to per unit solid angle and length: dV = r^2 dw dt.
+                (
+                    Some(LightSample {
+                        radiance: source,
+                        wi: d / distance,
+                        pdf: pdf_volume * dist2,
+                        distance,
+                        n: Vec3A::ZERO,
+                        delta: false,
+                    }),
+                    0,
+                )
             }
             light => (light.sample(p, u), 0),
         }

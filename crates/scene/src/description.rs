@@ -256,7 +256,56 @@ pub enum MediumKind {
         sigma_a: Rgb,
         sigma_s: Rgb,
         le: Rgb,
-        g: f32,
+        phase: PhaseDesc,
+    },
+    /// pbrt-v4's "uniformgrid": coefficients scaled by a density grid over the box `p0`..`p1`
+    /// of the medium's own space.
+    Grid(Arc<GridMediumDesc>),
+}
+
+/// A phase function: Henyey-Greenstein (pbrt's), or Schlick's approximation of it
+/// ("string phase" "schlick", a Kiln parameter) with the same asymmetry `g`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PhaseDesc {
+    HenyeyGreenstein { g: f32 },
+    Schlick { g: f32 },
+}
+
+/// A heterogeneous medium. Grids are looked up as pbrt-v4's `SampledGrid` does: sample
+/// (i, j, k) sits at the centre of voxel (i, j, k) of the box, values are interpolated
+/// trilinearly, and samples outside the grid count as zero (so a field falls off over the
+/// outer half voxel).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridMediumDesc {
+    /// Per unit density and length, `scale` applied.
+    pub sigma_a: Rgb,
+    pub sigma_s: Rgb,
+    pub phase: PhaseDesc,
+    pub density: VoxelGrid,
+    pub emission: GridEmission,
+    pub p0: [f32; 3],
+    pub p1: [f32; 3],
+    /// The CTM when the medium was defined (pbrt's renderFromMedium).
+    pub medium_to_world: DMat4,
+}
+
+/// Where a grid medium's emitted radiance Le comes from; the source term is sigma_a · Le.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GridEmission {
+    None,
+    /// A constant colour times the `scale` grid ("Lescale": nx·ny·nz values, or one value
+    /// as a 1x1x1 grid, pbrt's default).
+    Constant {
+        le: Rgb,
+        scale: VoxelGrid,
+    },
+    /// The peak-normalised blackbody at (T − offset) · t_scale (none at or below 100 K),
+    /// times the `scale` grid.
+    Temperature {
+        temperature: VoxelGrid,
+        offset: f32,
+        t_scale: f32,
+        scale: VoxelGrid,
     },
 }
 

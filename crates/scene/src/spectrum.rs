@@ -351,25 +351,55 @@ pub fn blackbody_rgb(kelvin: f32) -> Result<[f32; 3], String> {
             "blackbody temperature must be a positive, finite number of kelvin, got {kelvin}"
         ));
     }
-    let t = f64::from(kelvin);
-    // B(λ, T) = 2hc² / λ⁵ / (e^x − 1), x = hc / (λkT). Work with ln B relative to its maximum:
-    // the constant factor cancels in the Y normalisation, and cold bodies (x far beyond the
-    // range of exp) neither overflow nor vanish. ln(e^x − 1) = x + ln(1 − e^−x).
-    let ln_b: Vec<(f64, f64)> = (0..=470u32)
+    // Normalised by the largest visible value, not the true peak: the Y normalisation
+    // cancels the factor either way, and cold bodies then do not underflow to black.
+    spectrum_to_rgb(
+        &blackbody_samples(f64::from(kelvin), true),
+        SpectrumUse::Illuminant,
+    )
+}
+
+/// Planck's curve at `kelvin` over the visible range, divided by its value at the peak
+/// wavelength (which may lie outside the range), or by its largest value in the range if
+/// `visible_peak`, sampled every 1 nm: far finer than the curve varies, and treated as
+/// piecewise linear.
+fn blackbody_samples(t: f64, visible_peak: bool) -> Vec<(f64, f64)> {
+    // B(λ, T) = 2hc² / λ⁵ / (e^x − 1), x = hc / (λkT). Work with ln B: cold bodies (x far
+    // beyond the range of exp) neither overflow nor vanish. ln(e^x − 1) = x + ln(1 − e^−x).
+    let ln_b = |m: f64| {
+        let x = PLANCK_H * LIGHT_C / (m * BOLTZMANN_K * t);
+        -5.0 * m.ln() - x - (-(-x).exp_m1()).ln()
+    };
+    let ln: Vec<(f64, f64)> = (0..=470u32)
         .map(|i| {
             let nm = LAMBDA_MIN + f64::from(i);
-            let m = nm * 1e-9;
-            let x = PLANCK_H * LIGHT_C / (m * BOLTZMANN_K * t);
-            (nm, -5.0 * m.ln() - x - (-(-x).exp_m1()).ln())
+            (nm, ln_b(nm * 1e-9))
         })
         .collect();
-    let peak = ln_b.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
-    // Sampled every 1 nm and treated as piecewise linear: far finer than Planck's curve varies.
-    let samples: Vec<(f64, f64)> = ln_b
-        .iter()
-        .map(|&(nm, lb)| (nm, (lb - peak).exp()))
-        .collect();
-    spectrum_to_rgb(&samples, SpectrumUse::Illuminant)
+    let peak = if visible_peak {
+        ln.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max)
+    } else {
+        // Wien's displacement law gives the peak.
+        ln_b(2.897_771_955e-3 / t)
+    };
+    ln.iter().map(|&(nm, l)| (nm, (l - peak).exp())).collect()
+}
+
+/// Linear sRGB of the blackbody at `kelvin` normalised to 1 at its peak wavelength and not
+/// otherwise (pbrt-v4's `BlackbodySpectrum`, which emissive temperature grids use): its
+/// luminance grows with temperature. As pbrt's RGB film does, XYZ is ∫ S·(x̄, ȳ, z̄) / ∫ ȳ.
+/// Zero for kelvin <= 0 or non-finite.
+pub fn blackbody_peak_rgb(kelvin: f32) -> [f32; 3] {
+    if !kelvin.is_finite() || kelvin <= 0.0 {
+        return [0.0; 3];
+    }
+    static Y_INTEGRAL: OnceLock<f64> = OnceLock::new();
+    let y_integral = *Y_INTEGRAL.get_or_init(|| integrate_xyz(&[(560.0, 1.0)], false)[1]);
+    let xyz =
+        integrate_xyz(&blackbody_samples(f64::from(kelvin), false), false).map(|v| v / y_integral);
+    let (white, _) = d65_reference();
+    let rgb = xyz_to_srgb(xyz);
+    std::array::from_fn(|c| (rgb[c] / white[c]).max(0.0) as f32)
 }
 
 #[cfg(test)]
@@ -492,6 +522,21 @@ mod tests {
             [0.0; 3]
         );
         assert!(sampled_to_rgb(&[(500.0, -1.0)], SpectrumUse::Illuminant).is_err());
+    }
+
+    #[test]
+    fn peak_normalised_blackbody_grows_with_temperature() {
+        // At 6500 K the peak (446 nm) lies in the visible range and the curve is nearly flat
+        // there: luminance close to, and below, that of a constant 1 spectrum.
+        let y = |t: f32| luminance(blackbody_peak_rgb(t));
+        assert!(y(6500.0) > 0.7 && y(6500.0) < 1.0, "{}", y(6500.0));
+        assert!(y(1000.0) < 1e-3 * y(3000.0));
+        assert!(y(1500.0) < y(2000.0) && y(2000.0) < y(4000.0));
+        // Same colour as the luminance-normalised blackbody.
+        let (a, b) = (blackbody_peak_rgb(3000.0), blackbody_rgb(3000.0).unwrap());
+        let ya = luminance(a);
+        assert_close(a.map(|v| v / ya), b, 1e-3, "3000 K colour");
+        assert_eq!(blackbody_peak_rgb(0.0), [0.0; 3]);
     }
 
     #[test]
