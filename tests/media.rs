@@ -261,3 +261,111 @@ fn flame_light_phase_and_mis_sampling_agree() {
         );
     }
 }
+
+/// Cuts `"float NAME" [ ... ]` out of a scene's text.
+fn cut_array(text: &str, name: &str) -> String {
+    let start = text.find(&format!("\"float {name}\" [")).unwrap();
+    let end = start + text[start..].find(']').unwrap() + 1;
+    format!("{}{}", &text[..start], &text[end..])
+}
+
+/// Grids read from Mitsuba .vol files (seed 001's format) render exactly as the same grids
+/// given inline; a truncated file is an error naming the scene line, the file and the cause.
+#[test]
+fn vol_file_grids_match_inline_grids() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene("media/ember.pbrt");
+    let desc = kiln_scene::load_file(&path).unwrap();
+    let kiln_scene::MediumKind::Grid(grid) = &desc.media[1].kind else {
+        panic!("ember.pbrt's second medium is its grid");
+    };
+    let kiln_scene::GridEmission::Temperature { temperature, .. } = &grid.emission else {
+        panic!("the flame is a temperature grid");
+    };
+    let bbox = (grid.p0, grid.p1);
+    let density = kiln_scene::mesh_files::write_vol(&grid.density, bbox);
+    std::fs::write(dir.path().join("density.vol"), &density).unwrap();
+    std::fs::write(
+        dir.path().join("temperature.vol"),
+        kiln_scene::mesh_files::write_vol(temperature, bbox),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let from_files = cut_array(&cut_array(&text, "density"), "temperature").replace(
+        "\"float Lescale\" [ 600 ]",
+        "\"float Lescale\" [ 600 ] \"string densityfile\" \"density.vol\" \"string temperaturefile\" \"temperature.vol\"",
+    );
+    assert!(from_files.contains("densityfile") && !from_files.contains("\"float density\""));
+    let args = ["--spp", "2", "--resolution", "48x32"];
+    let inline = render(&path, dir.path(), "inline", &args);
+    let variant = write_scene(dir.path(), "files.pbrt", &from_files);
+    let files = render(&variant, dir.path(), "files", &args);
+    assert!(
+        inline.bytes == files.bytes,
+        "the .vol grids render differently"
+    );
+
+    std::fs::write(
+        dir.path().join("density.vol"),
+        &density[..density.len() - 10],
+    )
+    .unwrap();
+    let out = crate::util::kiln()
+        .args(["render", "-q", "-o"])
+        .arg(dir.path().join("o.exr"))
+        .arg(&variant)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    let line = from_files
+        .lines()
+        .position(|l| l.contains("densityfile"))
+        .unwrap()
+        + 1;
+    for want in [
+        format!("files.pbrt:{line}:"),
+        "density.vol".to_string(),
+        "truncated".to_string(),
+    ] {
+        assert!(err.contains(&want), "expected {want:?} in {err}");
+    }
+}
+
+/// As in pbrt-v4, Integrator "path" ignores media (and says so); "volpath" renders them.
+#[test]
+fn path_integrator_ignores_media_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scene("media/fog.pbrt")).unwrap();
+    let path_text =
+        crate::util::with_integrator(&text, "Integrator \"path\" \"integer maxdepth\" [ 6 ]");
+    let no_media = path_text
+        .lines()
+        .filter(|l| !l.contains("MakeNamedMedium") && !l.contains("MediumInterface"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let args = ["--spp", "4", "--resolution", "48x32"];
+    let a = render(
+        &write_scene(dir.path(), "a.pbrt", &path_text),
+        dir.path(),
+        "a",
+        &args,
+    );
+    let b = render(
+        &write_scene(dir.path(), "b.pbrt", &no_media),
+        dir.path(),
+        "b",
+        &args,
+    );
+    let c = render(&scene("media/fog.pbrt"), dir.path(), "c", &args);
+    let warning = String::from_utf8_lossy(&a.output.stderr);
+    assert!(
+        warning.contains("'path' ignores participating media"),
+        "{warning}"
+    );
+    assert!(
+        a.bytes == b.bytes,
+        "'path' must render as if there were no media"
+    );
+    assert!(a.bytes != c.bytes);
+}
