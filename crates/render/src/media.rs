@@ -193,6 +193,18 @@ impl SampledGrid {
         let d = s - f;
         let (x, y, z) = (f.x as i64, f.y as i64, f.z as i64);
         let lerp = |t: f32, a: f32, b: f32| a + t * (b - a);
+        let [nx, ny, nz] = self.n.map(|v| v as i64);
+        if x >= 0 && y >= 0 && z >= 0 && x + 1 < nx && y + 1 < ny && z + 1 < nz {
+            // All eight samples inside: one index computation, no per-sample checks.
+            let (sy, sz) = (nx as usize, (nx * ny) as usize);
+            let i = ((z * ny + y) * nx + x) as usize;
+            let v = &self.values[i..i + sz + sy + 2];
+            let c00 = lerp(d.x, v[0], v[1]);
+            let c10 = lerp(d.x, v[sy], v[sy + 1]);
+            let c01 = lerp(d.x, v[sz], v[sz + 1]);
+            let c11 = lerp(d.x, v[sz + sy], v[sz + sy + 1]);
+            return lerp(d.z, lerp(d.y, c00, c10), lerp(d.y, c01, c11));
+        }
         let c00 = lerp(d.x, self.at(x, y, z), self.at(x + 1, y, z));
         let c10 = lerp(d.x, self.at(x, y + 1, z), self.at(x + 1, y + 1, z));
         let c01 = lerp(d.x, self.at(x, y, z + 1), self.at(x + 1, y, z + 1));
