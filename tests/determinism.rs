@@ -107,6 +107,11 @@ fn media_are_bit_identical_across_tiles_and_threads() {
         &scene("media/fog.pbrt"),
         &["--spp", "4", "--resolution", "60x40"],
     );
+    // Caustic photon maps: built once per render, the same for every tile.
+    assert_same_bytes_for_any_split(
+        &scene("media/lens.pbrt"),
+        &["--spp", "4", "--resolution", "40x40"],
+    );
     // A grid medium: delta and ratio tracking, and a flame sampled as a light.
     assert_same_bytes_for_any_split(
         &scene("media/ember.pbrt"),

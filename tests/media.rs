@@ -369,3 +369,84 @@ fn path_integrator_ignores_media_and_says_so() {
     );
     assert!(a.bytes != c.bytes);
 }
+
+/// Caustic photon maps (seeds 003 and 004) estimate the same light as path tracing: a glass
+/// ball focusing a small light into gas and onto the floor. Path tracing alone converges
+/// slowly here (its fireflies are the caustic), so the check is on the image mean, within
+/// four standard errors and 3%.
+#[test]
+fn caustic_photon_maps_agree_with_path_tracing() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene("media/lens.pbrt");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains(" \"integer causticphotons\" [ 300000 ]"));
+    let pt_text = text.replace(" \"integer causticphotons\" [ 300000 ]", "");
+    let pt = render(
+        &write_scene(dir.path(), "pt.pbrt", &pt_text),
+        dir.path(),
+        "pt",
+        &["--resolution", "48x48", "--spp", "1024", "--seed", "3"],
+    )
+    .image;
+    let pm = render(
+        &path,
+        dir.path(),
+        "pm",
+        &["--resolution", "48x48", "--spp", "256"],
+    )
+    .image;
+    for c in 0..3 {
+        let stats = |img: &kiln_image::RgbBuffer| {
+            crate::util::mean_and_error(img.pixels.iter().map(|p| p[c] as f64))
+        };
+        let ((a, sa), (b, sb)) = (stats(&pt), stats(&pm));
+        let se = (sa * sa + sb * sb).sqrt();
+        eprintln!("lens channel {c}: path tracing {a:.5} ± {sa:.5}, photon maps {b:.5} ± {sb:.5}");
+        assert!(
+            (a - b).abs() < 4.0 * se && (a - b).abs() < 0.03 * a,
+            "channel {c}: path tracing {a} vs photon maps {b} (standard error {se})"
+        );
+    }
+    // The caustic itself, the cone under the ball and the spot on the floor (pixels 18..30
+    // by 26..46 of the 48x48 frame), with many more samples: there path tracing's error is
+    // its fireflies.
+    let crop = |t: &str| {
+        t.replace(
+            "\"string filename\"",
+            "\"float cropwindow\" [ 0.375 0.625 0.5416667 0.9583333 ] \"string filename\"",
+        )
+    };
+    let args = |spp: &'static str| ["--resolution", "48x48", "--spp", spp, "--seed", "5"];
+    let pt = render(
+        &write_scene(dir.path(), "ptc.pbrt", &crop(&pt_text)),
+        dir.path(),
+        "ptc",
+        &args("8192"),
+    )
+    .image;
+    let pm = render(
+        &write_scene(dir.path(), "pmc.pbrt", &crop(&text)),
+        dir.path(),
+        "pmc",
+        &args("1024"),
+    )
+    .image;
+    assert_eq!((pt.width, pt.height), (12, 20));
+    for c in 0..3 {
+        // Differences pixel by pixel remove the caustic's own shape from the error estimate.
+        let (d, se) = crate::util::mean_and_error(
+            pt.pixels
+                .iter()
+                .zip(&pm.pixels)
+                .map(|(a, b)| a[c] as f64 - b[c] as f64),
+        );
+        let (b, _) = crate::util::mean_and_error(pm.pixels.iter().map(|p| p[c] as f64));
+        eprintln!(
+            "lens caustic channel {c}: photon maps {b:.5}, path tracing minus photon maps {d:.5} ± {se:.5}"
+        );
+        assert!(
+            d.abs() < 4.0 * se,
+            "caustic, channel {c}: path tracing differs from photon maps ({b}) by {d} (standard error {se})"
+        );
+    }
+}

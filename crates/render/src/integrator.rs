@@ -86,6 +86,9 @@ fn path_li(
     // (each gets its own tracking numbers).
     let mut medium = scene.camera_medium;
     let mut segments = 0u32;
+    // With caustic photon maps: specular bounces since the last vertex that gathered
+    // photons (None before the first).
+    let mut specular_since_gather: Option<u32> = None;
     loop {
         *rays += 1;
         let found = scene.geometry.intersect(&ray, f32::INFINITY);
@@ -136,6 +139,22 @@ fn path_li(
                     let p = ray.at(t);
                     let phase = med.phase();
                     let wo = -ray.dir;
+                    if let Some(maps) = &scene.caustics {
+                        // Caustic light scattered here, from the volume photon map; the
+                        // throughput already holds sigma_s, the estimate divides it out.
+                        let sigma_s = match med {
+                            Medium::Grid(g) => g.sigma_s * g.density(g.to_box(p)),
+                            Medium::Homogeneous { sigma_s, .. } => *sigma_s,
+                        };
+                        let lv = maps.volume_radiance(p, wo, |a, b| phase.p(a, b));
+                        let inv = Color::select(
+                            sigma_s.cmpgt(Color::ZERO),
+                            Color::ONE / sigma_s,
+                            Color::ZERO,
+                        );
+                        l += beta * lv * inv;
+                        specular_since_gather = Some(0);
+                    }
                     let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (depth - 1);
                     sampler.set_dimension(base);
                     if settings.strategy != LightStrategy::BsdfOnly
@@ -219,7 +238,11 @@ fn path_li(
                     l += beta * le * w;
                 }
             }
-        } else if let Some(light_id) = hit.light {
+        } else if let Some(light_id) = hit.light
+            // Reached through specular bounces from a vertex that gathered caustic photons:
+            // the photon map has already counted this light.
+            && !matches!(specular_since_gather, Some(k) if k > 0)
+        {
             let light = &scene.lights[light_id as usize];
             let le = light.area_le(hit.ng, -ray.dir);
             if le != Color::ZERO {
@@ -248,6 +271,20 @@ fn path_li(
         depth += 1;
         let frame = Frame::new(hit.ns, hit.dpdu);
         let wo = frame.to_local(-ray.dir);
+        if let Some(maps) = &scene.caustics {
+            if bsdf.is_specular() {
+                specular_since_gather = specular_since_gather.map(|k| k + 1);
+            } else {
+                // Caustic light reflected here, from the surface photon map.
+                let side = if ray.dir.dot(hit.ns) < 0.0 {
+                    hit.ns
+                } else {
+                    -hit.ns
+                };
+                l += beta * maps.surface_radiance(hit.p, side, |wi| bsdf.f(wo, frame.to_local(wi)));
+                specular_since_gather = Some(0);
+            }
+        }
         let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (depth - 1);
         sampler.set_dimension(base);
         if !bsdf.is_specular()

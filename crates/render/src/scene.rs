@@ -54,6 +54,11 @@ pub struct Scene {
     pub camera_medium: Option<u32>,
     /// The light of each medium that is one (an emissive grid).
     pub medium_lights: Vec<Option<u32>>,
+    /// The media on either side of each area light's surface (inside, outside), by light
+    /// index; for photons leaving it.
+    pub light_media: Vec<Option<[u32; 2]>>,
+    /// Caustic photon maps, when the integrator asks for them.
+    pub caustics: Option<crate::photons::CausticMaps>,
 }
 
 struct Builder {
@@ -70,6 +75,8 @@ struct Builder {
     volumes: Vec<VolumeEmitter>,
     /// False for Integrator "path", which (as pbrt-v4's) ignores participating media.
     use_media: bool,
+    /// The media on either side of each area light's surface (by light index).
+    light_media: Vec<Option<[u32; 2]>>,
 }
 
 impl Builder {
@@ -230,6 +237,8 @@ impl Builder {
                             has_normals,
                             [base + t[0], base + t[1], base + t[2]],
                         );
+                        self.light_media.resize(self.lights.len(), None);
+                        self.light_media.push(media);
                         self.lights.push(Light::Triangle {
                             p,
                             n,
@@ -291,6 +300,8 @@ impl Builder {
                     ..
                 }) = &shape.area_light
                 {
+                    self.light_media.resize(self.lights.len(), None);
+                    self.light_media.push(media);
                     self.lights.push(Light::Sphere {
                         center: center.as_vec3().into(),
                         radius: world_radius,
@@ -350,6 +361,7 @@ impl Scene {
             interface_materials,
             volumes: Vec::new(),
             use_media: desc.integrator.name != "path",
+            light_media: Vec::new(),
         };
         for shape in &desc.shapes {
             b.add_shape(shape, shape.object_to_world)?;
@@ -472,7 +484,10 @@ impl Scene {
                 .collect(),
             camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
             medium_lights: Vec::new(),
+            light_media: b.light_media,
+            caustics: None,
         };
+        scene.light_media.resize(scene.lights.len(), None);
         // Each emissive grid medium is a light, sampled by its emission distribution.
         scene.medium_lights = vec![None; scene.media.len()];
         for (i, m) in scene.media.iter().enumerate() {
@@ -493,6 +508,21 @@ impl Scene {
             .map(|l| l.power(radius).max(0.0) as f64)
             .collect();
         scene.light_sampler = AliasTable::new(&powers);
+        if desc.integrator.caustic_photons > 0 {
+            let radius = if desc.integrator.caustic_radius > 0.0 {
+                desc.integrator.caustic_radius
+            } else {
+                scene.radius / 200.0
+            };
+            let maps = crate::photons::CausticMaps::build(
+                &scene,
+                crate::photons::CausticSettings {
+                    photons: desc.integrator.caustic_photons,
+                    radius,
+                },
+            );
+            scene.caustics = (!maps.is_empty()).then_some(maps);
+        }
         Ok(scene)
     }
 

@@ -107,6 +107,11 @@ pub struct IntegratorDesc {
     pub strategy: LightStrategy,
     /// Clamp the radiance of each path sample to this value (0 disables it).
     pub max_radiance: f32,
+    /// Photons traced for the caustic photon maps (Kiln's "integer causticphotons"; 0:
+    /// none, pure path tracing).
+    pub caustic_photons: u64,
+    /// Their search radius ("float causticradius"; 0: 1/200 of the scene's radius).
+    pub caustic_radius: f32,
     pub loc: Loc,
 }
 

@@ -1440,6 +1440,15 @@ impl Parser {
                 );
             }
         }
+        // Kiln's caustic photon maps (seeds 003 and 004), off unless asked for.
+        let caustic_photons = params.int("causticphotons", 0)?;
+        let caustic_radius = params.float("causticradius", 0.0)? as f32;
+        if !(0..=1_000_000_000).contains(&caustic_photons) || caustic_radius < 0.0 {
+            return Err(SceneError::at(
+                loc,
+                "Integrator: causticphotons must be 0 to 10^9 and causticradius not negative",
+            ));
+        }
         self.check_unused(params, "Integrator", &["regularize"])?;
         self.integrator = Some(IntegratorDesc {
             name: ty.to_string(),
@@ -1447,6 +1456,8 @@ impl Parser {
             rr_depth: rr_depth as u32,
             strategy,
             max_radiance,
+            caustic_photons: caustic_photons as u64,
+            caustic_radius,
             loc: loc.clone(),
         });
         Ok(())
@@ -1912,6 +1923,8 @@ impl Parser {
                 rr_depth: 5,
                 strategy: LightStrategy::Mis,
                 max_radiance: 0.0,
+                caustic_photons: 0,
+                caustic_radius: 0.0,
                 loc: Loc::synthetic("default integrator"),
             }),
             materials: self.materials,

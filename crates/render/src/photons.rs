@@ -1,0 +1,405 @@
+//! Caustic photon maps (seeds 003 and 004): light that reaches a diffuse surface or a
+//! participating medium only through specular surfaces (a lens of glass focusing a small
+//! light) is nearly impossible for a path tracer to find from the camera, and easy to find
+//! from the light. Photons are traced from the area lights through specular bounces and
+//! stored where they first meet a diffuse surface or scatter in a medium; the path tracer
+//! then estimates that light by density estimation at its own vertices, and stops counting
+//! the same paths when they reach a light through specular bounces.
+//!
+//! The maps are built once per render, before any tile, from a fixed number of photons
+//! with seeds that depend only on the photon's index: every worker of a farm builds the
+//! same map, so tiles stay independent and the image bit-identical.
+
+use crate::geometry::SurfaceHit;
+use crate::lights::Light;
+use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::media::{Medium, TrackingRng};
+use crate::sampling::{AliasTable, cosine_hemisphere, uniform_sphere, uniform_triangle};
+use crate::scene::Scene;
+use glam::{Vec2, Vec3A};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::f32::consts::PI;
+
+/// One stored photon: where, from which direction it arrived (pointing away from `p`),
+/// the surface normal there (zero in a medium) and its flux.
+#[derive(Debug, Clone, Copy)]
+pub struct Photon {
+    pub p: Vec3A,
+    pub wi: Vec3A,
+    pub n: Vec3A,
+    pub power: Color,
+}
+
+/// Photons bucketed in a uniform hash grid whose cells are as wide as the search radius,
+/// so a query visits at most 27 cells.
+#[derive(Debug, Clone, Default)]
+pub struct PhotonGrid {
+    photons: Vec<Photon>,
+    cells: HashMap<(i32, i32, i32), (u32, u32)>,
+    radius: f32,
+}
+
+impl PhotonGrid {
+    fn new(mut photons: Vec<Photon>, radius: f32) -> PhotonGrid {
+        let key = |p: Vec3A| {
+            let c = (p / radius).floor();
+            (c.x as i32, c.y as i32, c.z as i32)
+        };
+        // A stable sort keeps the photons' (deterministic) order within a cell.
+        photons.sort_by_key(|ph| key(ph.p));
+        let mut cells = HashMap::new();
+        let mut start = 0;
+        while start < photons.len() {
+            let k = key(photons[start].p);
+            let mut end = start + 1;
+            while end < photons.len() && key(photons[end].p) == k {
+                end += 1;
+            }
+            cells.insert(k, (start as u32, end as u32));
+            start = end;
+        }
+        PhotonGrid {
+            photons,
+            cells,
+            radius,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.photons.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.photons.is_empty()
+    }
+
+    /// Calls `f` for each photon within the radius of `p`.
+    fn for_each_near(&self, p: Vec3A, mut f: impl FnMut(&Photon)) {
+        if self.photons.is_empty() {
+            return;
+        }
+        let r2 = self.radius * self.radius;
+        let c = (p / self.radius).floor();
+        let (cx, cy, cz) = (c.x as i32, c.y as i32, c.z as i32);
+        for z in cz - 1..=cz + 1 {
+            for y in cy - 1..=cy + 1 {
+                for x in cx - 1..=cx + 1 {
+                    if let Some(&(a, b)) = self.cells.get(&(x, y, z)) {
+                        for ph in &self.photons[a as usize..b as usize] {
+                            if (ph.p - p).length_squared() <= r2 {
+                                f(ph);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The caustic photon maps of a scene.
+#[derive(Debug, Clone, Default)]
+pub struct CausticMaps {
+    pub surface: PhotonGrid,
+    pub volume: PhotonGrid,
+    /// Photons emitted (each stored photon's power is already divided by it).
+    pub emitted: u64,
+}
+
+/// Settings of the caustic photon pass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CausticSettings {
+    pub photons: u64,
+    /// Search radius on surfaces and in media (world units).
+    pub radius: f32,
+}
+
+/// Photons per parallel batch: the batches, not the threads, fix the order of the result.
+const BATCH: u64 = 4096;
+
+impl CausticMaps {
+    /// Traces `settings.photons` photons from the scene's area lights, chosen in
+    /// proportion to their power. Lights of other kinds (points, spots, distant,
+    /// environments, VolumeLights, emissive media) shoot none: their caustics are left to
+    /// the path tracer, which counts them as usual.
+    pub fn build(scene: &Scene, settings: CausticSettings) -> CausticMaps {
+        let powers: Vec<f64> = scene
+            .lights
+            .iter()
+            .map(|l| match l {
+                Light::Triangle { .. } | Light::Sphere { .. } => l.power(scene.radius) as f64,
+                _ => 0.0,
+            })
+            .collect();
+        if settings.photons == 0 || powers.iter().all(|p| *p <= 0.0) {
+            return CausticMaps::default();
+        }
+        let table = AliasTable::new(&powers);
+        let n = settings.photons;
+        let batches: Vec<(Vec<Photon>, Vec<Photon>)> = (0..n.div_ceil(BATCH))
+            .into_par_iter()
+            .map(|b| {
+                let mut surface = Vec::new();
+                let mut volume = Vec::new();
+                for i in b * BATCH..((b + 1) * BATCH).min(n) {
+                    trace_photon(scene, &table, i, n, &mut surface, &mut volume);
+                }
+                (surface, volume)
+            })
+            .collect();
+        let mut surface = Vec::new();
+        let mut volume = Vec::new();
+        for (s, v) in batches {
+            surface.extend(s);
+            volume.extend(v);
+        }
+        CausticMaps {
+            surface: PhotonGrid::new(surface, settings.radius),
+            volume: PhotonGrid::new(volume, settings.radius),
+            emitted: n,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.surface.is_empty() && self.volume.is_empty()
+    }
+
+    /// Caustic radiance scattered at medium point `p` towards `wo` (both away from `p`),
+    /// per unit scattering coefficient: (1 / sigma_s) sum phase * flux / (4/3 pi r^3) is
+    /// what the caller gets after dividing by sigma_s. `phase(wo, wi)`.
+    pub fn volume_radiance(
+        &self,
+        p: Vec3A,
+        wo: Vec3A,
+        phase: impl Fn(Vec3A, Vec3A) -> f32,
+    ) -> Color {
+        let mut sum = Color::ZERO;
+        self.volume.for_each_near(p, |ph| {
+            sum += ph.power * phase(wo, ph.wi);
+        });
+        let r = self.volume.radius;
+        sum / (4.0 / 3.0 * PI * r * r * r)
+    }
+
+    /// Caustic radiance leaving surface point `p` (normal `n`) towards `wo`, given the
+    /// BSDF times nothing (`f(wi)`, the photon's flux already holds its cosine).
+    pub fn surface_radiance(&self, p: Vec3A, n: Vec3A, f: impl Fn(Vec3A) -> Color) -> Color {
+        let mut sum = Color::ZERO;
+        self.surface.for_each_near(p, |ph| {
+            if ph.n.dot(n) > 0.9 {
+                sum += ph.power * f(ph.wi);
+            }
+        });
+        let r = self.surface.radius;
+        sum / (PI * r * r)
+    }
+}
+
+/// Traces photon `index` of `count`; stores it where it first meets a diffuse surface or
+/// scatters in a medium after at least one specular bounce.
+fn trace_photon(
+    scene: &Scene,
+    table: &AliasTable,
+    index: u64,
+    count: u64,
+    surface: &mut Vec<Photon>,
+    volume: &mut Vec<Photon>,
+) {
+    let mut rng = TrackingRng::new(index.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0xc0ff_ee00);
+    let Some((light_index, pmf)) = table.sample(rng.next_f32()) else {
+        return;
+    };
+    let u1 = Vec2::new(rng.next_f32(), rng.next_f32());
+    let u2 = Vec2::new(rng.next_f32(), rng.next_f32());
+    let light = &scene.lights[light_index];
+    // A point and a cosine-distributed direction on the emitting side; flux = L A pi
+    // (twice for two-sided lights, which pick a side at random).
+    let (p, n, radiance, area, two_sided) = match light {
+        Light::Triangle {
+            p,
+            n,
+            area,
+            radiance,
+            two_sided,
+        } => {
+            let b = uniform_triangle(u1);
+            (
+                p[0] * b[0] + p[1] * b[1] + p[2] * b[2],
+                *n,
+                *radiance,
+                *area,
+                *two_sided,
+            )
+        }
+        Light::Sphere {
+            center,
+            radius,
+            radiance,
+            two_sided,
+            inward,
+        } => {
+            let d = uniform_sphere(u1);
+            let n = if *inward { -d } else { d };
+            (
+                *center + d * *radius,
+                n,
+                *radiance,
+                4.0 * PI * radius * radius,
+                *two_sided,
+            )
+        }
+        _ => return,
+    };
+    let (n, sides) = if two_sided {
+        (if rng.next_f32() < 0.5 { n } else { -n }, 2.0)
+    } else {
+        (n, 1.0)
+    };
+    let dir = Frame::from_z(n).to_world(cosine_hemisphere(u2));
+    let mut beta = radiance * (area * PI * sides / (pmf * count as f32));
+    let mut medium = scene
+        .light_media
+        .get(light_index)
+        .copied()
+        .flatten()
+        .and_then(|[inside, outside]| {
+            let m = if dir.dot(n) > 0.0 { outside } else { inside };
+            (m != crate::geometry::NO_MEDIUM).then_some(m)
+        });
+    let mut ray = Ray::new(offset_origin(p, n, dir), dir);
+    let mut specular_bounces = 0u32;
+    for _ in 0..64 {
+        let found = scene.geometry.intersect(&ray, f32::INFINITY);
+        if let Some(m) = medium {
+            let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
+            if let Some(t) =
+                scatter_distance(&scene.media[m as usize], &ray, t_max, &mut rng, &mut beta)
+            {
+                if specular_bounces > 0 {
+                    volume.push(Photon {
+                        p: ray.at(t),
+                        wi: -ray.dir,
+                        n: Vec3A::ZERO,
+                        power: beta,
+                    });
+                }
+                return;
+            }
+            if beta == Color::ZERO {
+                return;
+            }
+        }
+        let Some(hit) = found else { return };
+        let Some(bsdf) = scene.materials[hit.surface.material as usize].bsdf() else {
+            // An interface: straight on, into the medium on the other side.
+            if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
+                medium = next;
+            }
+            ray = Ray::new(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+            continue;
+        };
+        if !bsdf.is_specular() {
+            if specular_bounces > 0 {
+                store_surface(surface, &hit, &ray, beta);
+            }
+            return;
+        }
+        let frame = Frame::new(hit.ns, hit.dpdu);
+        let wo = frame.to_local(-ray.dir);
+        let uc = rng.next_f32();
+        let u = Vec2::new(rng.next_f32(), rng.next_f32());
+        let Some(bs) = bsdf.sample(wo, uc, u) else {
+            return;
+        };
+        let wi = frame.to_world(bs.wi);
+        // Flux, not radiance, crosses the boundary: undo the BSDF's 1/eta^2.
+        beta *= bs.f * wi.dot(hit.ns).abs() / bs.pdf * (bs.eta * bs.eta);
+        if !beta.is_finite() || beta == Color::ZERO {
+            return;
+        }
+        specular_bounces += 1;
+        if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
+            medium = next;
+        }
+        ray = Ray::new(offset_origin(hit.p, hit.ng, wi), wi);
+    }
+}
+
+fn store_surface(surface: &mut Vec<Photon>, hit: &SurfaceHit, ray: &Ray, power: Color) {
+    // The side the photon arrived on.
+    let n = if ray.dir.dot(hit.ns) < 0.0 {
+        hit.ns
+    } else {
+        -hit.ns
+    };
+    surface.push(Photon {
+        p: hit.p,
+        wi: -ray.dir,
+        n,
+        power,
+    });
+}
+
+/// Free-flight sampling of a photon in a medium: the distance to a scattering event before
+/// `t_max`, with `beta` weighted so that absorption is accounted for on average. None if
+/// the photon crosses the segment (or is absorbed: `beta` is then zero).
+fn scatter_distance(
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f32,
+    rng: &mut TrackingRng,
+    beta: &mut Color,
+) -> Option<f32> {
+    match medium {
+        Medium::Homogeneous {
+            sigma_a, sigma_s, ..
+        } => {
+            let sigma_t = *sigma_a + *sigma_s;
+            let st = sigma_t.element_sum() / 3.0;
+            if st <= 0.0 {
+                return None;
+            }
+            // Sampled by the mean extinction; weights correct each channel.
+            let t = -(1.0 - rng.next_f32()).ln() / st;
+            if t < t_max {
+                let tr = (-sigma_t * t).exp();
+                *beta *= *sigma_s * tr / (st * (-st * t).exp());
+                Some(t)
+            } else {
+                let tr = (-sigma_t * t_max).exp();
+                *beta *= tr / (-st * t_max).exp();
+                None
+            }
+        }
+        Medium::Grid(g) => {
+            let mut scattered = None;
+            let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x51ed_2701);
+            g.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
+                let d = g.density(p);
+                if d <= 0.0 {
+                    return true;
+                }
+                let sigma_a = g.sigma_a * d;
+                let sigma_s = g.sigma_s * d;
+                let p_a = sigma_a.element_sum() / (3.0 * sigma_maj);
+                let p_s = sigma_s.element_sum() / (3.0 * sigma_maj);
+                let xi = choice.next_f32();
+                if xi < p_a {
+                    *beta = Color::ZERO;
+                    return false;
+                }
+                if xi < p_a + p_s {
+                    *beta *= sigma_s / (sigma_maj * p_s);
+                    scattered = Some(t);
+                    return false;
+                }
+                let p_n = 1.0 - p_a - p_s;
+                *beta *= (Color::splat(sigma_maj) - sigma_a - sigma_s).max(Color::ZERO)
+                    / (sigma_maj * p_n.max(1e-12));
+                true
+            });
+            scattered
+        }
+    }
+}
