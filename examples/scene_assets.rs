@@ -1,0 +1,330 @@
+//! Writes the generated assets of the scenes in `scenes/` (their outputs are committed, so a
+//! fresh clone renders without running this):
+//!
+//! - `scenes/molten-glass/snail.ply`: the glass snail, a coiled shell on a body with two
+//!   eye stalks, 120k+ triangles;
+//! - `scenes/fire/density.vol`, `scenes/fire/temperature.vol`: a flame for seed 001's
+//!   emissive medium, in Mitsuba's .vol format;
+//! - `scenes/martini/glass.ply`, `scenes/martini/liquid.ply`: a martini glass and its
+//!   drink, surfaces of revolution of 2D contours (seed 003).
+//!
+//! `cargo run --release --example scene_assets`
+
+use std::f32::consts::PI;
+use std::io::Write;
+use std::path::Path;
+
+/// A triangle mesh being built.
+#[derive(Default)]
+struct Mesh {
+    v: Vec<[f32; 3]>,
+    f: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// A closed tube around a grid of rings (`rings[i]` has `n` points, in order around
+    /// the ring); the two ends are closed by fans to their centres.
+    fn add_tube(&mut self, rings: &[Vec<[f32; 3]>]) {
+        let first_face = self.f.len();
+        self.add_tube_faces(rings);
+        // pbrt's normal is (p0 - p2) x (p1 - p2): outward when the closed surface's signed
+        // volume is positive. Wind the new part so that it is.
+        let volume: f64 = self.f[first_face..]
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.v[i as usize].map(f64::from));
+                a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                    + a[2] * (b[0] * c[1] - b[1] * c[0])
+            })
+            .sum();
+        if volume < 0.0 {
+            for t in &mut self.f[first_face..] {
+                t.swap(1, 2);
+            }
+        }
+    }
+
+    fn add_tube_faces(&mut self, rings: &[Vec<[f32; 3]>]) {
+        let base = self.v.len() as u32;
+        let n = rings[0].len() as u32;
+        for ring in rings {
+            self.v.extend(ring);
+        }
+        let m = rings.len() as u32;
+        for i in 0..m - 1 {
+            for j in 0..n {
+                let a = base + i * n + j;
+                let b = base + i * n + (j + 1) % n;
+                let (c, d) = (a + n, b + n);
+                self.f.push([a, c, b]);
+                self.f.push([b, c, d]);
+            }
+        }
+        for (ring, flip) in [(0u32, true), (m - 1, false)] {
+            let centre = rings[ring as usize]
+                .iter()
+                .fold([0.0; 3], |s, p| [s[0] + p[0], s[1] + p[1], s[2] + p[2]])
+                .map(|c| c / n as f32);
+            let c = self.v.len() as u32;
+            self.v.push(centre);
+            for j in 0..n {
+                let a = base + ring * n + j;
+                let b = base + ring * n + (j + 1) % n;
+                self.f.push(if flip { [c, a, b] } else { [c, b, a] });
+            }
+        }
+    }
+
+    /// A closed surface of revolution about +y: `profile` is (radius, height) from bottom to
+    /// top, its first and last radius 0 (the poles).
+    fn add_revolution(&mut self, profile: &[(f32, f32)], segments: usize) {
+        let rings: Vec<Vec<[f32; 3]>> = profile[1..profile.len() - 1]
+            .iter()
+            .map(|&(r, y)| {
+                (0..segments)
+                    .map(|j| {
+                        let a = 2.0 * PI * j as f32 / segments as f32;
+                        [r * a.cos(), y, -r * a.sin()]
+                    })
+                    .collect()
+            })
+            .collect();
+        let base = self.v.len() as u32;
+        self.add_tube(&rings);
+        // Move the fan centres onto the poles.
+        let n_ring = (rings.len() * segments) as u32;
+        self.v[(base + n_ring) as usize] = [0.0, profile[0].1, 0.0];
+        self.v[(base + n_ring + 1) as usize] = [0.0, profile[profile.len() - 1].1, 0.0];
+    }
+
+    fn write_ply(&self, path: &Path) {
+        let mut out = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+        write!(
+            out,
+            "ply\nformat binary_little_endian 1.0\ncomment made by examples/scene_assets.rs\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+            self.v.len(),
+            self.f.len()
+        )
+        .unwrap();
+        for p in &self.v {
+            for c in p {
+                out.write_all(&c.to_le_bytes()).unwrap();
+            }
+        }
+        for t in &self.f {
+            out.write_all(&[3]).unwrap();
+            for i in t {
+                out.write_all(&(*i as i32).to_le_bytes()).unwrap();
+            }
+        }
+        println!("wrote {} ({} triangles)", path.display(), self.f.len());
+    }
+}
+
+fn add(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+fn scale(a: [f32; 3], s: f32) -> [f32; 3] {
+    a.map(|c| c * s)
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn normalize(a: [f32; 3]) -> [f32; 3] {
+    let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    scale(a, 1.0 / l)
+}
+
+/// The snail: a logarithmic helico-spiral shell (its tube grows by the same factor every
+/// turn and just touches the previous turn), a body with a raised head, two eye stalks.
+fn snail() -> Mesh {
+    let mut mesh = Mesh::default();
+    let turns = 3.25f32;
+    let growth = 5.5f32.ln() / (2.0 * PI * turns);
+    let (steps, around) = (560usize, 96usize);
+    // Centre line: radius and drop both proportional to the tube's size.
+    let centre = |t: f32| {
+        let s = (growth * t).exp() * 0.24;
+        [0.5 * s * t.cos(), -0.42 * s, 0.5 * s * t.sin()]
+    };
+    let t_max = 2.0 * PI * turns;
+    let rings: Vec<Vec<[f32; 3]>> = (0..=steps)
+        .map(|i| {
+            let t = t_max * i as f32 / steps as f32;
+            let s = (growth * t).exp() * 0.24;
+            let rho = 0.17 * s;
+            let c = centre(t);
+            let tangent = normalize(add(centre(t + 1e-3), scale(c, -1.0)));
+            let side = normalize(cross(tangent, [0.0, 1.0, 0.0]));
+            let up = cross(side, tangent);
+            (0..around)
+                .map(|j| {
+                    let a = 2.0 * PI * j as f32 / around as f32;
+                    add(c, add(scale(side, rho * a.cos()), scale(up, rho * a.sin())))
+                })
+                .collect()
+        })
+        .collect();
+    // Tip the coil's axis towards the viewer (+z), as a snail carries its shell, and set
+    // the shell on the body's back, its underside just above the body.
+    let (sin, cos) = (1.2f32).sin_cos();
+    let rings: Vec<Vec<[f32; 3]>> = rings
+        .into_iter()
+        .map(|r| r.into_iter().map(|p| [p[0], p[1] * cos - p[2] * sin, p[1] * sin + p[2] * cos]).collect())
+        .collect();
+    let lift = 0.37 - rings.iter().flatten().map(|p| p[1]).fold(f32::INFINITY, f32::min);
+    let rings: Vec<Vec<[f32; 3]>> = rings
+        .into_iter()
+        .map(|r| r.into_iter().map(|p| [p[0] - 0.25, p[1] + lift, p[2]]).collect())
+        .collect();
+    mesh.add_tube(&rings);
+
+    // The body: a long, low blob along x, its head end raised.
+    let (n_len, n_around) = (120usize, 64usize);
+    let body_rings: Vec<Vec<[f32; 3]>> = (1..n_len)
+        .map(|i| {
+            let u = i as f32 / n_len as f32; // 0 tail .. 1 head
+            let x = -1.5 + 3.0 * u;
+            let width = 0.32 * (PI * u).sin().powf(0.6) * (1.0 - 0.25 * u);
+            let height = 0.3 * (PI * u).sin().powf(0.5);
+            let rise = 0.45 * ((u - 0.6).max(0.0) / 0.4).powf(1.5);
+            (0..n_around)
+                .map(|j| {
+                    let a = 2.0 * PI * j as f32 / n_around as f32;
+                    // A flat sole: the lower half is squashed.
+                    let (s, c) = (a.sin(), a.cos());
+                    let y = if s < 0.0 { 0.25 * s } else { s };
+                    [x, 0.02 + height * (1.0 + y) * 0.55 + rise, width * c]
+                })
+                .collect()
+        })
+        .collect();
+    mesh.add_tube(&body_rings);
+
+    // Eye stalks: thin tubes leaning forward out of the head, with rounded tips.
+    for side in [-1.0f32, 1.0] {
+        let base = [1.2, 0.6, 0.12 * side];
+        let tip = [1.55, 1.15, 0.32 * side];
+        let dir = normalize(add(tip, scale(base, -1.0)));
+        let sidev = normalize(cross(dir, [0.0, 0.0, 1.0]));
+        let upv = cross(sidev, dir);
+        let n = 60;
+        let rings: Vec<Vec<[f32; 3]>> = (0..=n)
+            .map(|i| {
+                let u = i as f32 / n as f32;
+                let c = add(base, scale(add(tip, scale(base, -1.0)), u));
+                let r = 0.045 * (1.0 - u * 0.3) * if u > 0.85 { ((1.0 - u) / 0.15).sqrt().max(0.05) } else { 1.0 };
+                (0..32)
+                    .map(|j| {
+                        let a = 2.0 * PI * j as f32 / 32.0;
+                        add(c, add(scale(sidev, r * a.cos()), scale(upv, r * a.sin())))
+                    })
+                    .collect()
+            })
+            .collect();
+        mesh.add_tube(&rings);
+    }
+    mesh
+}
+
+/// A martini glass: foot, stem and a conical bowl with thickness; and the drink filling
+/// the bowl to 80% of its height, a hair inside the glass.
+fn martini() -> (Mesh, Mesh) {
+    let bowl_bottom = 1.1f32;
+    let bowl_top = 2.0f32;
+    let bowl_r = 0.95f32;
+    let wall = 0.03f32;
+    let mut profile = vec![(0.0, 0.0), (0.55, 0.0), (0.56, 0.02), (0.5, 0.04)];
+    for i in 0..=8 {
+        let u = i as f32 / 8.0;
+        profile.push((0.5 - 0.45 * u.powf(0.5), 0.04 + 0.06 * u));
+    }
+    profile.push((0.045, 0.2));
+    profile.push((0.04, 0.7));
+    profile.push((0.05, bowl_bottom - 0.05));
+    // Outer cone up to the rim, then back down the inner cone.
+    let n = 40;
+    for i in 0..=n {
+        let u = i as f32 / n as f32;
+        profile.push((0.08 + (bowl_r - 0.08) * u, bowl_bottom + (bowl_top - bowl_bottom) * u));
+    }
+    profile.push((bowl_r - wall * 0.5, bowl_top + 0.01));
+    for i in (0..=n).rev() {
+        let u = i as f32 / n as f32;
+        profile.push((
+            (0.08 + (bowl_r - 0.08) * u - wall).max(0.001),
+            bowl_bottom + wall * 2.0 + (bowl_top - bowl_bottom - wall * 2.0) * u,
+        ));
+    }
+    profile.push((0.0, bowl_bottom + wall * 2.0));
+    let mut glass = Mesh::default();
+    glass.add_revolution(&profile, 128);
+
+    // The drink: the inner cone, shrunk by a hair, up to 80% of the bowl.
+    let mut liquid = Vec::new();
+    let y0 = bowl_bottom + wall * 2.0 + 0.002;
+    let y1 = bowl_bottom + 0.8 * (bowl_top - bowl_bottom);
+    liquid.push((0.0, y0));
+    for i in 0..=n {
+        let u = i as f32 / n as f32;
+        let y = y0 + (y1 - y0) * u;
+        let v = (y - bowl_bottom - wall * 2.0) / (bowl_top - bowl_bottom - wall * 2.0);
+        liquid.push(((0.08 + (bowl_r - 0.08) * v - wall - 0.003).max(0.002), y));
+    }
+    liquid.push((0.0, y1));
+    let mut drink = Mesh::default();
+    drink.add_revolution(&liquid, 128);
+    (glass, drink)
+}
+
+/// Seed 001's flame: density and temperature on a 40x64x40 grid.
+fn fire() -> (kiln_scene::VoxelGrid, kiln_scene::VoxelGrid) {
+    let (nx, ny, nz) = (40usize, 64usize, 40usize);
+    let mut density = Vec::new();
+    let mut temperature = Vec::new();
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let u = (x as f32 + 0.5) / nx as f32 * 2.0 - 1.0;
+                let v = (y as f32 + 0.5) / ny as f32;
+                let w = (z as f32 + 0.5) / nz as f32 * 2.0 - 1.0;
+                // Tongues: the radius wobbles with height and angle.
+                let angle = w.atan2(u);
+                let wobble = 1.0 + 0.25 * (5.0 * angle + 11.0 * v).sin() * v;
+                let sway = 0.15 * (6.0 * v).sin() * v;
+                let r = (u - sway).hypot(w) / ((0.8 * (1.0 - v).powf(0.7) + 0.03) * wobble);
+                let d = (1.0 - r * r).max(0.0) * (1.0 - 0.5 * v);
+                density.push(d);
+                temperature.push(if d > 0.0 {
+                    800.0 + 1800.0 * (1.0 - r).max(0.0) * (1.0 - 0.55 * v)
+                } else {
+                    300.0
+                });
+            }
+        }
+    }
+    let grid = |values| kiln_scene::VoxelGrid { nx, ny, nz, values };
+    (grid(density), grid(temperature))
+}
+
+fn main() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    snail().write_ply(&root.join("molten-glass/snail.ply"));
+    let (glass, drink) = martini();
+    glass.write_ply(&root.join("martini/glass.ply"));
+    drink.write_ply(&root.join("martini/liquid.ply"));
+    let (density, temperature) = fire();
+    let bbox = ([-1.0, 0.0, -1.0], [1.0, 1.0, 1.0]);
+    for (name, grid) in [("density.vol", &density), ("temperature.vol", &temperature)] {
+        let path = root.join("fire").join(name);
+        std::fs::write(&path, kiln_scene::mesh_files::write_vol(grid, bbox)).unwrap();
+        println!("wrote {}", path.display());
+    }
+}
