@@ -177,12 +177,25 @@ fn snail() -> Mesh {
     let (sin, cos) = (1.2f32).sin_cos();
     let rings: Vec<Vec<[f32; 3]>> = rings
         .into_iter()
-        .map(|r| r.into_iter().map(|p| [p[0], p[1] * cos - p[2] * sin, p[1] * sin + p[2] * cos]).collect())
+        .map(|r| {
+            r.into_iter()
+                .map(|p| [p[0], p[1] * cos - p[2] * sin, p[1] * sin + p[2] * cos])
+                .collect()
+        })
         .collect();
-    let lift = 0.37 - rings.iter().flatten().map(|p| p[1]).fold(f32::INFINITY, f32::min);
+    let lift = 0.37
+        - rings
+            .iter()
+            .flatten()
+            .map(|p| p[1])
+            .fold(f32::INFINITY, f32::min);
     let rings: Vec<Vec<[f32; 3]>> = rings
         .into_iter()
-        .map(|r| r.into_iter().map(|p| [p[0] - 0.25, p[1] + lift, p[2]]).collect())
+        .map(|r| {
+            r.into_iter()
+                .map(|p| [p[0] - 0.25, p[1] + lift, p[2]])
+                .collect()
+        })
         .collect();
     mesh.add_tube(&rings);
 
@@ -220,7 +233,13 @@ fn snail() -> Mesh {
             .map(|i| {
                 let u = i as f32 / n as f32;
                 let c = add(base, scale(add(tip, scale(base, -1.0)), u));
-                let r = 0.045 * (1.0 - u * 0.3) * if u > 0.85 { ((1.0 - u) / 0.15).sqrt().max(0.05) } else { 1.0 };
+                let r = 0.045
+                    * (1.0 - u * 0.3)
+                    * if u > 0.85 {
+                        ((1.0 - u) / 0.15).sqrt().max(0.05)
+                    } else {
+                        1.0
+                    };
                 (0..32)
                     .map(|j| {
                         let a = 2.0 * PI * j as f32 / 32.0;
@@ -253,7 +272,10 @@ fn martini() -> (Mesh, Mesh) {
     let n = 40;
     for i in 0..=n {
         let u = i as f32 / n as f32;
-        profile.push((0.08 + (bowl_r - 0.08) * u, bowl_bottom + (bowl_top - bowl_bottom) * u));
+        profile.push((
+            0.08 + (bowl_r - 0.08) * u,
+            bowl_bottom + (bowl_top - bowl_bottom) * u,
+        ));
     }
     profile.push((bowl_r - wall * 0.5, bowl_top + 0.01));
     for i in (0..=n).rev() {

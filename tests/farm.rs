@@ -607,5 +607,8 @@ fn molten_glass_full_frame_through_the_farm_is_bit_identical() {
         "farm",
         &["--spp", "1", "--workers", "2", "--threads-per-worker", "1"],
     );
-    assert!(merged == direct.bytes, "the farm's frame differs from kiln render's");
+    assert!(
+        merged == direct.bytes,
+        "the farm's frame differs from kiln render's"
+    );
 }
