@@ -205,9 +205,9 @@ fn snail() -> Mesh {
         .map(|i| {
             let u = i as f32 / n_len as f32; // 0 tail .. 1 head
             let x = -1.5 + 3.0 * u;
-            let width = 0.32 * (PI * u).sin().powf(0.6) * (1.0 - 0.25 * u);
-            let height = 0.3 * (PI * u).sin().powf(0.5);
-            let rise = 0.45 * ((u - 0.6).max(0.0) / 0.4).powf(1.5);
+            let width = 0.34 * (PI * u).sin().powf(0.6) * (1.0 - 0.2 * u);
+            let height = 0.42 * (PI * u).sin().powf(0.5) * (0.7 + 0.3 * u);
+            let rise = 0.5 * ((u - 0.62).max(0.0) / 0.38).powf(1.3);
             (0..n_around)
                 .map(|j| {
                     let a = 2.0 * PI * j as f32 / n_around as f32;
@@ -223,8 +223,8 @@ fn snail() -> Mesh {
 
     // Eye stalks: thin tubes leaning forward out of the head, with rounded tips.
     for side in [-1.0f32, 1.0] {
-        let base = [1.2, 0.6, 0.12 * side];
-        let tip = [1.55, 1.15, 0.32 * side];
+        let base = [1.25, 0.75, 0.1 * side];
+        let tip = [1.5, 1.35, 0.3 * side];
         let dir = normalize(add(tip, scale(base, -1.0)));
         let sidev = normalize(cross(dir, [0.0, 0.0, 1.0]));
         let upv = cross(sidev, dir);
@@ -233,7 +233,7 @@ fn snail() -> Mesh {
             .map(|i| {
                 let u = i as f32 / n as f32;
                 let c = add(base, scale(add(tip, scale(base, -1.0)), u));
-                let r = 0.045
+                let r = 0.028
                     * (1.0 - u * 0.3)
                     * if u > 0.85 {
                         ((1.0 - u) / 0.15).sqrt().max(0.05)
