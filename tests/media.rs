@@ -124,6 +124,16 @@ fn medium_errors_name_their_place() {
             "phase function 'rayleigh' is unknown",
         ),
         (
+            "WorldBegin\nScale 1 0 1\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"float density\" [ 1 ]\n",
+            "scene.pbrt:3:",
+            "is singular",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 4000000 \"integer ny\" 4000000 \"integer nz\" 4000000 \"float density\" [ 1 ]\n",
+            "scene.pbrt:2:",
+            "too large",
+        ),
+        (
             "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"cloud\"\n",
             "scene.pbrt:2:",
             "not supported yet",

@@ -976,7 +976,16 @@ impl Parser {
                         format!("medium '{medium}': nx, ny and nz must be at least 1"),
                     ));
                 }
-                let want = (nx * ny * nz) as usize;
+                let want = nx
+                    .checked_mul(ny)
+                    .and_then(|v| v.checked_mul(nz))
+                    .filter(|v| *v <= 1 << 31)
+                    .ok_or_else(|| {
+                        SceneError::at(
+                            loc,
+                            format!("medium '{medium}': a {nx}x{ny}x{nz} grid is too large"),
+                        )
+                    })? as usize;
                 if values.len() != want {
                     return Err(SceneError::at(
                         params.loc_of(name).as_ref().unwrap_or(loc),
@@ -1118,6 +1127,13 @@ impl Parser {
         }
         for d in ["nx", "ny", "nz"] {
             params.mark_used(d);
+        }
+        let det = self.gs.ctm.determinant();
+        if !det.is_finite() || det.abs() < 1e-12 {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}': the transform in effect where it is defined is singular"),
+            ));
         }
         Ok(GridMediumDesc {
             sigma_a,
