@@ -8,7 +8,7 @@
 use crate::geometry::SurfaceHit;
 use crate::lights::Light;
 use crate::math::{Color, Frame, Ray, offset_origin};
-use crate::media::{GridMedium, Medium, TrackingRng};
+use crate::media::{Medium, MediumEvent, TrackingRng};
 use crate::sampler::PixelSampler;
 use crate::sampling::power_heuristic;
 use crate::scene::Scene;
@@ -119,13 +119,15 @@ fn path_li(
                             },
                         ),
                     };
-                    track_grid(g, &ray, t_max, &mut rng, &mut beta, &mut l, weight)
+                    med.sample_interaction(&ray, t_max, &mut rng, &mut beta, |t, sigma_maj, c| {
+                        l += c * (weight(ray.at(t), sigma_maj) / sigma_maj)
+                    })
                 }
-                homogeneous => {
+                Medium::Homogeneous { .. } => {
                     // The medium's own emission along the segment, in closed form; tracking
                     // then estimates only what is scattered into the ray and what lies beyond.
-                    l += beta * homogeneous.segment_emission(t_max);
-                    track(homogeneous, t_max, &mut rng, &mut beta)
+                    l += beta * med.segment_emission(t_max);
+                    med.sample_interaction(&ray, t_max, &mut rng, &mut beta, |_, _, _| {})
                 }
             };
             match event {
@@ -186,13 +188,8 @@ fn path_li(
                     if let Some((volume, _)) = inside {
                         inside = Some((volume, true));
                     }
-                    let rr = (beta * eta_scale).max_element();
-                    if rr < 1.0 && depth >= settings.rr_depth {
-                        let q = (1.0 - rr).max(0.05);
-                        if sampler.get_1d() < q {
-                            break;
-                        }
-                        beta /= 1.0 - q;
+                    if !survives_roulette(&mut beta, eta_scale, depth, settings, sampler) {
+                        break;
                     }
                     continue;
                 }
@@ -333,17 +330,31 @@ fn path_li(
             // Scattered off something inside the shape: the next segment emits too.
             inside = Some((volume, true));
         }
-        // Russian roulette, on throughput with the radiance scaling of refraction undone.
-        let rr = (beta * eta_scale).max_element();
-        if rr < 1.0 && depth >= settings.rr_depth {
-            let q = (1.0 - rr).max(0.05);
-            if sampler.get_1d() < q {
-                break;
-            }
-            beta /= 1.0 - q;
+        if !survives_roulette(&mut beta, eta_scale, depth, settings, sampler) {
+            break;
         }
     }
     l
+}
+
+/// Russian roulette from `settings.rr_depth` on, on the throughput with the radiance scaling
+/// of refraction undone; false ends the path, and a survivor's throughput is scaled up.
+fn survives_roulette(
+    beta: &mut Color,
+    eta_scale: f32,
+    depth: u32,
+    settings: &PathSettings,
+    sampler: &mut PixelSampler,
+) -> bool {
+    let rr = (*beta * eta_scale).max_element();
+    if rr < 1.0 && depth >= settings.rr_depth {
+        let q = (1.0 - rr).max(0.05);
+        if sampler.get_1d() < q {
+            return false;
+        }
+        *beta /= 1.0 - q;
+    }
+    true
 }
 
 /// Where next-event estimation starts: a point, the surface it lies on (none inside a
@@ -419,7 +430,6 @@ fn sample_direct(
     // A point sampled in a grid medium emits only if the medium fills it, that is if the
     // shadow ray arrives in that medium (the grid's box may reach beyond its boundary).
     // The other strategy would find it at a tentative collision, at the majorant's rate.
-    let unidirectional_pdf = || pdf(ls.wi);
     let mut medium_rate = 1.0;
     if let Light::Medium { medium: lm, .. } = &scene.lights[index] {
         if end_medium != Some(*lm) {
@@ -434,121 +444,8 @@ fn sample_direct(
         return f * tr * ls.radiance / light_pdf;
     }
     let w = match settings.strategy {
-        LightStrategy::Mis => power_heuristic(light_pdf, unidirectional_pdf() * medium_rate),
+        LightStrategy::Mis => power_heuristic(light_pdf, pdf(ls.wi) * medium_rate),
         _ => 1.0,
     };
     f * tr * ls.radiance * (w / light_pdf)
-}
-
-/// What free-flight sampling through a medium segment found.
-enum MediumEvent {
-    /// The segment was crossed: the ray reaches its surface (or escapes).
-    Crossed,
-    /// Absorbed: the path ends.
-    Absorbed,
-    /// Scattered at this distance along the ray.
-    Scattered(f32),
-}
-
-/// Free-flight sampling in a homogeneous medium: a colour channel is chosen uniformly and
-/// the distance sampled by its extinction; the weights divide by the density averaged over
-/// channels (the one-sample balance heuristic, as pbrt-v3's homogeneous medium does), so
-/// they stay bounded even when the channels' extinctions differ.
-fn track(medium: &Medium, t_max: f32, rng: &mut TrackingRng, beta: &mut Color) -> MediumEvent {
-    let sigma_t = medium.sigma_t();
-    if sigma_t.max_element() <= 0.0 {
-        return MediumEvent::Crossed;
-    }
-    let Medium::Homogeneous { sigma_s, .. } = medium else {
-        return MediumEvent::Crossed;
-    };
-    let channel = ((rng.next_f32() * 3.0) as usize).min(2);
-    let st = sigma_t[channel];
-    let t = if st > 0.0 {
-        -(1.0 - rng.next_f32()).ln() / st
-    } else {
-        f32::INFINITY
-    };
-    if t < t_max {
-        let tr = (-sigma_t * t).exp();
-        let density = (sigma_t * tr).element_sum() / 3.0;
-        if density <= 0.0 {
-            return MediumEvent::Absorbed;
-        }
-        *beta *= *sigma_s * tr / density;
-        if *beta == Color::ZERO {
-            return MediumEvent::Absorbed;
-        }
-        MediumEvent::Scattered(t)
-    } else {
-        if !t_max.is_finite() {
-            return MediumEvent::Absorbed;
-        }
-        let tr = (-sigma_t * t_max).exp();
-        let p_cross = tr.element_sum() / 3.0;
-        if p_cross <= 0.0 {
-            return MediumEvent::Absorbed;
-        }
-        *beta *= tr / p_cross;
-        MediumEvent::Crossed
-    }
-}
-
-/// Tracking through a grid medium against its majorants: at each tentative collision the
-/// emission sigma_a Le / sigma_maj is collected (times `weight`, the multiple importance
-/// weight against sampling the medium as a light), then absorption, scattering or a null
-/// collision is chosen with probabilities from the channel-averaged coefficients. The
-/// weights sigma_x / (sigma_maj P_x) keep the estimate unbiased for coloured media (and are
-/// exactly 1 for grey ones: plain delta tracking).
-fn track_grid(
-    g: &GridMedium,
-    ray: &Ray,
-    t_max: f32,
-    rng: &mut TrackingRng,
-    beta: &mut Color,
-    l: &mut Color,
-    weight: impl Fn(Vec3A, f32) -> f32,
-) -> MediumEvent {
-    let mut event = MediumEvent::Crossed;
-    let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x6a09_e667_f3bc_c909);
-    let emissive = g.is_emissive();
-    g.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
-        let d = g.density(p);
-        if d <= 0.0 {
-            return true;
-        }
-        let sigma_a = g.sigma_a * d;
-        let sigma_s = g.sigma_s * d;
-        if emissive {
-            let le = g.le(p);
-            if le != Color::ZERO {
-                let w = weight(ray.at(t), sigma_maj);
-                *l += *beta * sigma_a * le * (w / sigma_maj);
-            }
-        }
-        let p_a = sigma_a.element_sum() / (3.0 * sigma_maj);
-        let p_s = sigma_s.element_sum() / (3.0 * sigma_maj);
-        let xi = choice.next_f32();
-        if xi < p_a {
-            event = MediumEvent::Absorbed;
-            return false;
-        }
-        if xi < p_a + p_s {
-            *beta *= sigma_s / (sigma_maj * p_s);
-            event = MediumEvent::Scattered(t);
-            return false;
-        }
-        let p_n = 1.0 - p_a - p_s;
-        if p_n <= 0.0 {
-            event = MediumEvent::Absorbed;
-            return false;
-        }
-        let sigma_n = (Color::splat(sigma_maj) - sigma_a - sigma_s).max(Color::ZERO);
-        *beta *= sigma_n / (sigma_maj * p_n);
-        *beta != Color::ZERO
-    });
-    if *beta == Color::ZERO {
-        return MediumEvent::Absorbed;
-    }
-    event
 }

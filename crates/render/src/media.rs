@@ -1,6 +1,6 @@
 //! Participating media and phase functions.
 
-use crate::math::{Color, Frame};
+use crate::math::{Color, Frame, Ray};
 use glam::{Affine3A, Vec2, Vec3A};
 use std::f32::consts::PI;
 
@@ -66,6 +66,85 @@ impl Medium {
             Medium::Homogeneous { phase, .. } => *phase,
             Medium::Grid(g) => g.phase,
         }
+    }
+}
+
+/// What free-flight sampling through a medium segment found.
+pub enum MediumEvent {
+    /// The segment was crossed: the ray reaches its surface (or escapes).
+    Crossed,
+    /// Absorbed: the path ends.
+    Absorbed,
+    /// Scattered at this distance along the ray.
+    Scattered(f32),
+}
+
+impl Medium {
+    /// Free-flight sampling along `ray` over (0, `t_max`), updating the throughput `beta`.
+    /// In an emissive grid, `emission(t, sigma_maj, beta * sigma_a * Le)` is called at each
+    /// tentative collision before the event there is chosen (the caller weights it and
+    /// divides by sigma_maj); a homogeneous medium's emission is the caller's, in closed form
+    /// (`segment_emission`). The path tracer and the photon tracer share this.
+    pub fn sample_interaction(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        rng: &mut TrackingRng,
+        beta: &mut Color,
+        emission: impl FnMut(f32, f32, Color),
+    ) -> MediumEvent {
+        match self {
+            Medium::Grid(g) => g.track(ray, t_max, rng, beta, emission),
+            Medium::Homogeneous { sigma_s, .. } => {
+                homogeneous_track(self.sigma_t(), *sigma_s, t_max, rng, beta)
+            }
+        }
+    }
+}
+
+/// Free-flight sampling in a homogeneous medium: a colour channel is chosen uniformly and
+/// the distance sampled by its extinction; the weights divide by the density averaged over
+/// channels (the one-sample balance heuristic, as pbrt-v3's homogeneous medium does), so
+/// they stay bounded even when the channels' extinctions differ.
+fn homogeneous_track(
+    sigma_t: Color,
+    sigma_s: Color,
+    t_max: f32,
+    rng: &mut TrackingRng,
+    beta: &mut Color,
+) -> MediumEvent {
+    if sigma_t.max_element() <= 0.0 {
+        return MediumEvent::Crossed;
+    }
+    let channel = ((rng.next_f32() * 3.0) as usize).min(2);
+    let st = sigma_t[channel];
+    let t = if st > 0.0 {
+        -(1.0 - rng.next_f32()).ln() / st
+    } else {
+        f32::INFINITY
+    };
+    if t < t_max {
+        let tr = (-sigma_t * t).exp();
+        let density = (sigma_t * tr).element_sum() / 3.0;
+        if density <= 0.0 {
+            return MediumEvent::Absorbed;
+        }
+        *beta *= sigma_s * tr / density;
+        if *beta == Color::ZERO {
+            return MediumEvent::Absorbed;
+        }
+        MediumEvent::Scattered(t)
+    } else {
+        if !t_max.is_finite() {
+            return MediumEvent::Absorbed;
+        }
+        let tr = (-sigma_t * t_max).exp();
+        let p_cross = tr.element_sum() / 3.0;
+        if p_cross <= 0.0 {
+            return MediumEvent::Absorbed;
+        }
+        *beta *= tr / p_cross;
+        MediumEvent::Crossed
     }
 }
 
@@ -545,6 +624,62 @@ impl GridMedium {
             tr != Color::ZERO
         });
         tr
+    }
+
+    /// Tracking against the majorants: at each tentative collision the emission is handed
+    /// to `emission` (see [`Medium::sample_interaction`]), then absorption, scattering or a
+    /// null collision is chosen with probabilities from the channel-averaged coefficients.
+    /// The weights sigma_x / (sigma_maj P_x) keep the estimate unbiased for coloured media
+    /// (and are exactly 1 for grey ones: plain delta tracking).
+    fn track(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        rng: &mut TrackingRng,
+        beta: &mut Color,
+        mut emission: impl FnMut(f32, f32, Color),
+    ) -> MediumEvent {
+        let mut event = MediumEvent::Crossed;
+        let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x6a09_e667_f3bc_c909);
+        let emissive = self.is_emissive();
+        self.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
+            let d = self.density(p);
+            if d <= 0.0 {
+                return true;
+            }
+            let sigma_a = self.sigma_a * d;
+            let sigma_s = self.sigma_s * d;
+            if emissive {
+                let le = self.le(p);
+                if le != Color::ZERO {
+                    emission(t, sigma_maj, *beta * sigma_a * le);
+                }
+            }
+            let p_a = sigma_a.element_sum() / (3.0 * sigma_maj);
+            let p_s = sigma_s.element_sum() / (3.0 * sigma_maj);
+            let xi = choice.next_f32();
+            if xi < p_a {
+                event = MediumEvent::Absorbed;
+                return false;
+            }
+            if xi < p_a + p_s {
+                *beta *= sigma_s / (sigma_maj * p_s);
+                event = MediumEvent::Scattered(t);
+                return false;
+            }
+            let p_n = 1.0 - p_a - p_s;
+            if p_n <= 0.0 {
+                event = MediumEvent::Absorbed;
+                return false;
+            }
+            let sigma_n = (Color::splat(sigma_maj) - sigma_a - sigma_s).max(Color::ZERO);
+            *beta *= sigma_n / (sigma_maj * p_n);
+            *beta != Color::ZERO
+        });
+        if *beta == Color::ZERO {
+            return MediumEvent::Absorbed;
+        }
+        event
     }
 
     /// Builds the 3D distribution of emitted luminance: each voxel's weight is the source

@@ -13,7 +13,7 @@
 use crate::geometry::SurfaceHit;
 use crate::lights::Light;
 use crate::math::{Color, Frame, Ray, offset_origin};
-use crate::media::{Medium, TrackingRng};
+use crate::media::{MediumEvent, TrackingRng};
 use crate::sampling::{AliasTable, cosine_hemisphere, uniform_sphere, uniform_triangle};
 use crate::scene::Scene;
 use glam::{Vec2, Vec3A};
@@ -103,8 +103,6 @@ impl PhotonGrid {
 pub struct CausticMaps {
     pub surface: PhotonGrid,
     pub volume: PhotonGrid,
-    /// Photons emitted (each stored photon's power is already divided by it).
-    pub emitted: u64,
 }
 
 /// Settings of the caustic photon pass.
@@ -157,7 +155,6 @@ impl CausticMaps {
         CausticMaps {
             surface: PhotonGrid::new(surface, settings.radius),
             volume: PhotonGrid::new(volume, settings.radius),
-            emitted: n,
         }
     }
 
@@ -273,21 +270,27 @@ fn trace_photon(
         let found = scene.geometry.intersect(&ray, f32::INFINITY);
         if let Some(m) = medium {
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-            if let Some(t) =
-                scatter_distance(&scene.media[m as usize], &ray, t_max, &mut rng, &mut beta)
-            {
-                if specular_bounces > 0 {
-                    volume.push(Photon {
-                        p: ray.at(t),
-                        wi: -ray.dir,
-                        n: Vec3A::ZERO,
-                        power: beta,
-                    });
+            // The path tracer's free-flight sampling (photons carry no medium emission).
+            match scene.media[m as usize].sample_interaction(
+                &ray,
+                t_max,
+                &mut rng,
+                &mut beta,
+                |_, _, _| {},
+            ) {
+                MediumEvent::Crossed => {}
+                MediumEvent::Absorbed => return,
+                MediumEvent::Scattered(t) => {
+                    if specular_bounces > 0 {
+                        volume.push(Photon {
+                            p: ray.at(t),
+                            wi: -ray.dir,
+                            n: Vec3A::ZERO,
+                            power: beta,
+                        });
+                    }
+                    return;
                 }
-                return;
-            }
-            if beta == Color::ZERO {
-                return;
             }
         }
         let Some(hit) = found else { return };
@@ -339,67 +342,4 @@ fn store_surface(surface: &mut Vec<Photon>, hit: &SurfaceHit, ray: &Ray, power: 
         n,
         power,
     });
-}
-
-/// Free-flight sampling of a photon in a medium: the distance to a scattering event before
-/// `t_max`, with `beta` weighted so that absorption is accounted for on average. None if
-/// the photon crosses the segment (or is absorbed: `beta` is then zero).
-fn scatter_distance(
-    medium: &Medium,
-    ray: &Ray,
-    t_max: f32,
-    rng: &mut TrackingRng,
-    beta: &mut Color,
-) -> Option<f32> {
-    match medium {
-        Medium::Homogeneous {
-            sigma_a, sigma_s, ..
-        } => {
-            let sigma_t = *sigma_a + *sigma_s;
-            let st = sigma_t.element_sum() / 3.0;
-            if st <= 0.0 {
-                return None;
-            }
-            // Sampled by the mean extinction; weights correct each channel.
-            let t = -(1.0 - rng.next_f32()).ln() / st;
-            if t < t_max {
-                let tr = (-sigma_t * t).exp();
-                *beta *= *sigma_s * tr / (st * (-st * t).exp());
-                Some(t)
-            } else {
-                let tr = (-sigma_t * t_max).exp();
-                *beta *= tr / (-st * t_max).exp();
-                None
-            }
-        }
-        Medium::Grid(g) => {
-            let mut scattered = None;
-            let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x51ed_2701);
-            g.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
-                let d = g.density(p);
-                if d <= 0.0 {
-                    return true;
-                }
-                let sigma_a = g.sigma_a * d;
-                let sigma_s = g.sigma_s * d;
-                let p_a = sigma_a.element_sum() / (3.0 * sigma_maj);
-                let p_s = sigma_s.element_sum() / (3.0 * sigma_maj);
-                let xi = choice.next_f32();
-                if xi < p_a {
-                    *beta = Color::ZERO;
-                    return false;
-                }
-                if xi < p_a + p_s {
-                    *beta *= sigma_s / (sigma_maj * p_s);
-                    scattered = Some(t);
-                    return false;
-                }
-                let p_n = 1.0 - p_a - p_s;
-                *beta *= (Color::splat(sigma_maj) - sigma_a - sigma_s).max(Color::ZERO)
-                    / (sigma_maj * p_n.max(1e-12));
-                true
-            });
-            scattered
-        }
-    }
 }
