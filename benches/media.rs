@@ -9,11 +9,10 @@
 //! `cargo bench --bench media [-- --grid N --spp N --resolution N --runs N]`
 
 mod common;
-use common::{arg, peak_rss_mib};
+use common::{arg, peak_rss_mib, render_tiles};
 use kiln_render::media::{Medium, TrackingRng};
-use kiln_render::{RenderSettings, Scene, render_tile, split_into_tiles};
+use kiln_render::{RenderSettings, Scene};
 use kiln_scene::VoxelGrid;
-use rayon::prelude::*;
 use std::time::Instant;
 
 /// A flame: a teardrop of density with a hot core, rippled by a few sines so that the
@@ -76,13 +75,7 @@ fn scene_text(strategy: &str, res: u32, spp: u32) -> String {
 
 /// Renders the frame; returns seconds, samples and the pixels.
 fn render(scene: &Scene, settings: &RenderSettings, res: u32) -> (f64, u64, Vec<[f32; 3]>) {
-    let tiles = split_into_tiles([0, res, 0, res], 32);
-    let start = Instant::now();
-    let results: Vec<_> = tiles
-        .par_iter()
-        .map(|t| render_tile(scene, settings, *t))
-        .collect();
-    let secs = start.elapsed().as_secs_f64();
+    let (secs, results) = render_tiles(scene, settings, [0, res, 0, res]);
     let mut pixels = vec![[0.0f32; 3]; (res * res) as usize];
     let mut samples = 0;
     for r in &results {

@@ -6,9 +6,8 @@
 //! `cargo bench --bench volume_light [-- --rings N --spp N --resolution N]`
 
 mod common;
-use common::{arg, peak_rss_mib};
-use kiln_render::{RenderSettings, Scene, TileStats, render_tile, split_into_tiles};
-use rayon::prelude::*;
+use common::{arg, peak_rss_mib, render_tiles};
+use kiln_render::{RenderSettings, Scene, TileStats};
 use std::io::Write;
 use std::time::Instant;
 
@@ -82,13 +81,7 @@ fn scene_text(light: &str, material: &str, res: u32, spp: u32) -> String {
 }
 
 fn render(scene: &Scene, settings: &RenderSettings, bounds: [u32; 4]) -> (f64, TileStats) {
-    let tiles = split_into_tiles(bounds, 32);
-    let start = Instant::now();
-    let results: Vec<_> = tiles
-        .par_iter()
-        .map(|t| render_tile(scene, settings, *t))
-        .collect();
-    let secs = start.elapsed().as_secs_f64();
+    let (secs, results) = render_tiles(scene, settings, bounds);
     let mut stats = TileStats::default();
     for r in &results {
         stats.merge(&r.stats);

@@ -1,29 +1,6 @@
 //! Bad scenes exit non-zero with a message that names the file and line.
 
-use crate::util::{kiln, write_scene};
-
-/// Renders `text` as scene.pbrt and returns kiln's stderr, asserting that it failed.
-fn failing(text: &str) -> (String, tempfile::TempDir) {
-    let dir = tempfile::tempdir().unwrap();
-    let path = write_scene(dir.path(), "scene.pbrt", text);
-    let out = kiln()
-        .arg("render")
-        .arg(&path)
-        .arg("-o")
-        .arg(dir.path().join("out.exr"))
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success(), "kiln accepted a bad scene:\n{text}");
-    assert_eq!(out.status.code(), Some(1));
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    assert!(
-        !dir.path().join("out.exr").exists(),
-        "no image is written for a bad scene"
-    );
-    (stderr, dir)
-}
+use crate::util::{failing, kiln, write_scene};
 
 /// Renders a scene file that must fail; returns kiln's stderr.
 fn render_failure(scene: &std::path::Path, dir: &std::path::Path) -> String {

@@ -227,3 +227,32 @@ pub fn assert_strategies_agree(
         );
     }
 }
+
+/// Renders `text` as scene.pbrt and returns kiln's stderr, asserting that it failed with
+/// status 1, without a panic and without writing an image.
+pub fn failing(text: &str) -> (String, tempfile::TempDir) {
+    let dir = tempfile::tempdir().unwrap();
+    (failing_in(dir.path(), text), dir)
+}
+
+/// As [`failing`], with scene.pbrt written in `dir` (beside files it refers to).
+pub fn failing_in(dir: &Path, text: &str) -> String {
+    let path = write_scene(dir, "scene.pbrt", text);
+    let out = kiln()
+        .arg("render")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.join("out.exr"))
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "kiln accepted a bad scene:\n{text}");
+    assert_eq!(out.status.code(), Some(1));
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        !dir.join("out.exr").exists(),
+        "no image is written for a bad scene"
+    );
+    stderr
+}

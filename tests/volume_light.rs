@@ -273,17 +273,7 @@ fn volume_light_errors_name_their_place() {
         ),
     ];
     for (text, at, what) in cases {
-        let path = write_scene(dir.path(), "scene.pbrt", text);
-        let out = crate::util::kiln()
-            .arg("render")
-            .arg(&path)
-            .arg("-q")
-            .arg("-o")
-            .arg(dir.path().join("o.exr"))
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{text}");
+        let err = crate::util::failing_in(dir.path(), text);
         assert!(
             err.contains(at) && err.contains(what),
             "expected {at} and {what} in {err}"

@@ -1,4 +1,4 @@
-//! What the benchmarks share: flag parsing and peak memory.
+//! What the benchmarks share: flag parsing, peak memory, timed tile rendering.
 
 /// The value after `--name` on the command line, or `default`.
 pub fn arg<T: std::str::FromStr>(name: &str, default: T) -> T {
@@ -17,4 +17,22 @@ pub fn peak_rss_mib() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
+}
+
+/// Renders the pixels `bounds` in 32-pixel tiles on rayon's pool; returns the seconds taken
+/// and the tiles in order.
+#[allow(dead_code)]
+pub fn render_tiles(
+    scene: &kiln_render::Scene,
+    settings: &kiln_render::RenderSettings,
+    bounds: [u32; 4],
+) -> (f64, Vec<kiln_render::TileResult>) {
+    use rayon::prelude::*;
+    let tiles = kiln_render::split_into_tiles(bounds, 32);
+    let start = std::time::Instant::now();
+    let results: Vec<_> = tiles
+        .par_iter()
+        .map(|t| kiln_render::render_tile(scene, settings, *t))
+        .collect();
+    (start.elapsed().as_secs_f64(), results)
 }
