@@ -103,7 +103,7 @@ fn main() {
     for (name, grid) in [("density.vol", &density), ("temperature.vol", &temperature)] {
         std::fs::write(
             dir.path().join(name),
-            kiln_scene::mesh_files::write_vol(grid, bbox),
+            kiln_scene::files::vol::write_vol(grid, bbox),
         )
         .unwrap();
     }

@@ -346,7 +346,7 @@ fn main() {
     let bbox = ([-1.0, 0.0, -1.0], [1.0, 1.0, 1.0]);
     for (name, grid) in [("density.vol", &density), ("temperature.vol", &temperature)] {
         let path = root.join("fire").join(name);
-        std::fs::write(&path, kiln_scene::mesh_files::write_vol(grid, bbox)).unwrap();
+        std::fs::write(&path, kiln_scene::files::vol::write_vol(grid, bbox)).unwrap();
         println!("wrote {}", path.display());
     }
 }

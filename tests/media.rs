@@ -283,11 +283,11 @@ fn vol_file_grids_match_inline_grids() {
         panic!("the flame is a temperature grid");
     };
     let bbox = (grid.p0, grid.p1);
-    let density = kiln_scene::mesh_files::write_vol(&grid.density, bbox);
+    let density = kiln_scene::files::vol::write_vol(&grid.density, bbox);
     std::fs::write(dir.path().join("density.vol"), &density).unwrap();
     std::fs::write(
         dir.path().join("temperature.vol"),
-        kiln_scene::mesh_files::write_vol(temperature, bbox),
+        kiln_scene::files::vol::write_vol(temperature, bbox),
     )
     .unwrap();
     let text = std::fs::read_to_string(&path).unwrap();

@@ -24,11 +24,10 @@
 
 pub mod description;
 pub mod error;
+pub mod files;
 mod lexer;
-pub mod mesh_files;
 mod params;
 mod parser;
-pub mod ply;
 pub mod spectrum;
 
 pub use description::*;

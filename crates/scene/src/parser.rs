@@ -10,7 +10,7 @@ use crate::error::{Diagnostic, Loc, Result, SceneError, Severity};
 use crate::lexer::{Token, TokenKind, tokenize};
 use crate::params::{PARAM_TYPES, Param, ParamSet, ParamValues};
 use crate::spectrum::SpectrumUse;
-use crate::{mesh_files, spectrum};
+use crate::{files, spectrum};
 use glam::{DMat4, DVec3, DVec4};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -961,7 +961,7 @@ impl Parser {
             (None, Some(f)) => {
                 let path = self.resolve_file(&f);
                 let at = params.loc_of(&file_param).unwrap_or_else(|| loc.clone());
-                let vol = mesh_files::read_vol(&path, &at)?;
+                let vol = files::vol::read_vol(&path, &at)?;
                 Ok(Some((vol.grid, Some(vol.bbox))))
             }
             (Some(values), None) => {
@@ -1657,7 +1657,7 @@ impl Parser {
                         ));
                     }
                     let path = self.resolve_file(&name);
-                    let image = mesh_files::read_environment(&path, loc)?;
+                    let image = files::images::read_environment(&path, loc)?;
                     let layout = if image.width == image.height {
                         EnvironmentLayout::EqualArea
                     } else if image.width == 2 * image.height {
@@ -1784,7 +1784,7 @@ impl Parser {
             Some(name) => {
                 let path = self.resolve_file(&name);
                 let at = params.loc_of("grid").unwrap_or_else(|| loc.clone());
-                Some(Arc::new(mesh_files::read_voxel_grid(&path, &at)?))
+                Some(Arc::new(files::voxel_csv::read_voxel_grid(&path, &at)?))
             }
             None => None,
         };
@@ -1833,9 +1833,9 @@ impl Parser {
                             "plymesh: displacement is not supported yet",
                         ));
                     }
-                    mesh_files::read_ply(&path, loc)?
+                    files::ply::read_ply(&path, loc)?
                 } else {
-                    mesh_files::read_obj(&path, loc)?
+                    files::obj::read_obj(&path, loc)?
                 };
                 ShapeKind::Mesh(Arc::new(mesh))
             }

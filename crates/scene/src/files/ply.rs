@@ -3,7 +3,13 @@
 //! Only `vertex` and `face` are kept; other elements are still read (binary
 //! record sizes must be honoured to find what follows) and dropped. Nothing
 //! here panics: every count from the file is checked against the bytes left
-//! before it is trusted with an allocation or a loop.
+//! before it is trusted with an allocation or a loop. [`read_ply`] reads a
+//! file into the scene's [`TriangleMeshData`].
+
+use super::read_bytes;
+use crate::description::TriangleMeshData;
+use crate::error::{Loc, Result, SceneError};
+use std::path::Path;
 
 /// A triangle mesh read from a PLY file.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -188,6 +194,19 @@ struct Header {
     elements: Vec<Element>,
     end_line: usize,
     body_start: usize,
+}
+
+/// Reads a PLY mesh; errors name the directive's location and the file.
+pub fn read_ply(path: &Path, loc: &Loc) -> Result<TriangleMeshData> {
+    let bytes = read_bytes(path, loc)?;
+    let mesh = parse_ply(&bytes)
+        .map_err(|e| SceneError::at(loc, format!("PLY file '{}': {e}", path.display())))?;
+    Ok(TriangleMeshData {
+        positions: mesh.positions,
+        normals: mesh.normals,
+        uvs: mesh.uvs,
+        indices: mesh.indices,
+    })
 }
 
 /// Reads a PLY file held in memory into a triangle mesh.
