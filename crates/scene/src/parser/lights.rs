@@ -1,0 +1,250 @@
+//! Lights: `LightSource` (point, spot, distant, infinite, dome) and `AreaLightSource`
+//! (pbrt's "diffuse" and Kiln's "volume", the VolumeLight).
+
+use super::Parser;
+use crate::description::*;
+use crate::error::{Loc, Result, SceneError};
+use crate::files;
+use crate::params::ParamSet;
+use crate::spectrum::SpectrumUse;
+use glam::DVec3;
+use std::sync::Arc;
+
+impl Parser {
+    pub(super) fn light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
+        self.require_world(loc, "LightSource")?;
+        let scale = params.float("scale", 1.0)? as f32;
+        let scaled = |rgb: Rgb| rgb.map(|c| c * scale);
+        let ctm = self.gs.ctm;
+        let point = |p: [f64; 3]| ctm.transform_point3(DVec3::from(p));
+        if params.loc_of("power").is_some() || params.loc_of("illuminance").is_some() {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "LightSource '{ty}': \"power\"/\"illuminance\" are not supported yet; give the radiance or intensity"
+                ),
+            ));
+        }
+        let kind = match ty {
+            "point" => LightKind::Point {
+                position: point(params.point3("from", [0.0; 3])?),
+                intensity: scaled(
+                    params
+                        .rgb("I", SpectrumUse::Illuminant)?
+                        .unwrap_or([1.0; 3]),
+                ),
+            },
+            "spot" => {
+                let from = params.point3("from", [0.0; 3])?;
+                let to = params.point3("to", [0.0, 0.0, 1.0])?;
+                let direction = (point(to) - point(from)).normalize();
+                let cone = params.float("coneangle", 30.0)?;
+                let delta = params.float("conedelta", 5.0)?;
+                LightKind::Spot {
+                    position: point(from),
+                    direction,
+                    intensity: scaled(
+                        params
+                            .rgb("I", SpectrumUse::Illuminant)?
+                            .unwrap_or([1.0; 3]),
+                    ),
+                    cos_falloff_end: cone.to_radians().cos(),
+                    cos_falloff_start: (cone - delta).to_radians().cos(),
+                }
+            }
+            "distant" => {
+                let from = DVec3::from(params.point3("from", [0.0; 3])?);
+                let to = DVec3::from(params.point3("to", [0.0, 0.0, 1.0])?);
+                LightKind::Distant {
+                    direction: ctm.transform_vector3(from - to).normalize(),
+                    radiance: scaled(
+                        params
+                            .rgb("L", SpectrumUse::Illuminant)?
+                            .unwrap_or([1.0; 3]),
+                    ),
+                }
+            }
+            "infinite" => match params.string("filename")? {
+                Some(name) => {
+                    if params.loc_of("L").is_some() {
+                        return Err(SceneError::at(
+                            loc,
+                            "LightSource 'infinite': give either \"L\" or \"filename\", not both",
+                        ));
+                    }
+                    let path = self.resolve_file(&name);
+                    let image = files::images::read_environment(&path, loc)?;
+                    let layout = if image.width == image.height {
+                        EnvironmentLayout::EqualArea
+                    } else if image.width == 2 * image.height {
+                        EnvironmentLayout::LatLong
+                    } else {
+                        return Err(SceneError::at(
+                            loc,
+                            format!(
+                                "LightSource 'infinite': '{name}' is {}x{}; Kiln reads square equal-area maps (pbrt-v4) or 2:1 lat-long maps",
+                                image.width, image.height
+                            ),
+                        ));
+                    };
+                    LightKind::ImageInfinite {
+                        image: Arc::new(image),
+                        layout,
+                        scale,
+                        light_to_world: ctm,
+                    }
+                }
+                None => LightKind::UniformInfinite {
+                    radiance: scaled(
+                        params
+                            .rgb("L", SpectrumUse::Illuminant)?
+                            .unwrap_or([1.0; 3]),
+                    ),
+                },
+            },
+            "dome" => {
+                let up = DVec3::from(params.point3("up", [0.0, 0.0, 1.0])?);
+                LightKind::Dome {
+                    radiance: scaled(
+                        params
+                            .rgb("L", SpectrumUse::Illuminant)?
+                            .unwrap_or([1.0; 3]),
+                    ),
+                    up: ctm.transform_vector3(up).normalize(),
+                }
+            }
+            other => {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "LightSource '{other}' is not supported (Kiln has point, spot, distant, infinite, dome)"
+                    ),
+                ));
+            }
+        };
+        self.check_unused(params, &format!("LightSource '{ty}'"), &[])?;
+        self.lights.push(LightDesc {
+            kind,
+            loc: loc.clone(),
+        });
+        Ok(())
+    }
+
+    pub(super) fn area_light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
+        self.require_world(loc, "AreaLightSource")?;
+        if ty == "volume" {
+            return self.volume_light(params, loc);
+        }
+        if ty != "diffuse" {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "AreaLightSource '{ty}' is not supported (Kiln has 'diffuse' and 'volume')"
+                ),
+            ));
+        }
+        if params.loc_of("filename").is_some() || params.loc_of("power").is_some() {
+            return Err(SceneError::at(
+                loc,
+                "AreaLightSource: \"filename\" and \"power\" are not supported yet",
+            ));
+        }
+        let scale = params.float("scale", 1.0)? as f32;
+        let radiance = params
+            .rgb("L", SpectrumUse::Illuminant)?
+            .unwrap_or([1.0; 3])
+            .map(|c| c * scale);
+        let two_sided = params.bool("twosided", false)?;
+        self.check_unused(params, "AreaLightSource 'diffuse'", &[])?;
+        self.gs.area_light = Some(AreaLightDesc::Diffuse {
+            radiance,
+            two_sided,
+            loc: loc.clone(),
+        });
+        Ok(())
+    }
+
+    /// Kiln's `AreaLightSource "volume"` (seed 000's VolumeLight).
+    fn volume_light(&mut self, params: &ParamSet, loc: &Loc) -> Result<()> {
+        let scale = params.float("scale", 1.0)? as f32;
+        let le = params
+            .rgb("Le", SpectrumUse::Illuminant)?
+            .unwrap_or([1.0; 3])
+            .map(|c| c * scale);
+        let steps = params.int("steps", 32)?;
+        if !(1..=100_000).contains(&steps) {
+            return Err(SceneError::at(
+                loc,
+                format!("AreaLightSource 'volume': steps {steps} must be between 1 and 100000"),
+            ));
+        }
+        let power_samples = params.int("powersamples", 50)?;
+        if !(1..=1_000_000).contains(&power_samples) {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "AreaLightSource 'volume': powersamples {power_samples} must be between 1 and 1000000"
+                ),
+            ));
+        }
+        let sigma_a = params
+            .rgb("sigma_a", SpectrumUse::Unbounded)?
+            .unwrap_or([0.0; 3]);
+        if le.iter().chain(&sigma_a).any(|v| *v < 0.0) {
+            return Err(SceneError::at(
+                loc,
+                "AreaLightSource 'volume': Le and sigma_a must not be negative",
+            ));
+        }
+        let grid = match params.string("grid")? {
+            Some(name) => {
+                let path = self.resolve_file(&name);
+                let at = params.loc_of("grid").unwrap_or_else(|| loc.clone());
+                Some(Arc::new(files::voxel_csv::read_voxel_grid(&path, &at)?))
+            }
+            None => None,
+        };
+        self.check_unused(params, "AreaLightSource 'volume'", &[])?;
+        self.gs.area_light = Some(AreaLightDesc::Volume(VolumeLightDesc {
+            le,
+            grid,
+            steps: steps as u32,
+            power_samples: power_samples as u32,
+            sigma_a,
+            loc: loc.clone(),
+        }));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::description::*;
+    use crate::parser::tests::load;
+
+    #[test]
+    fn area_lights_and_reverse_orientation_follow_attributes() {
+        let s = load(
+            "WorldBegin
+             AttributeBegin
+               AreaLightSource \"diffuse\" \"blackbody L\" [ 6500 ] \"float scale\" [ 2 ] \"bool twosided\" true
+               ReverseOrientation
+               Shape \"sphere\"
+             AttributeEnd
+             Shape \"sphere\"",
+        );
+        let Some(AreaLightDesc::Diffuse {
+            radiance,
+            two_sided,
+            ..
+        }) = &s.shapes[0].area_light
+        else {
+            panic!()
+        };
+        assert!(*two_sided && s.shapes[0].reverse_orientation);
+        // A 6500 K blackbody is close to white at luminance 1, times the scale.
+        let y = 0.2126 * radiance[0] + 0.7152 * radiance[1] + 0.0722 * radiance[2];
+        assert!((y - 2.0).abs() < 0.01, "{radiance:?}");
+        assert!(s.shapes[1].area_light.is_none() && !s.shapes[1].reverse_orientation);
+    }
+}

@@ -1,0 +1,323 @@
+//! Participating media: `MakeNamedMedium` with homogeneous and grid ("uniformgrid")
+//! media, their grids (inline or Mitsuba `.vol` files) and phase functions.
+
+use super::Parser;
+use crate::description::*;
+use crate::error::{Loc, Result, SceneError};
+use crate::files;
+use crate::params::ParamSet;
+use crate::spectrum::SpectrumUse;
+use std::sync::Arc;
+
+/// A grid's bounding box as a .vol file gives it: (min corner, max corner).
+type GridBox = ([f32; 3], [f32; 3]);
+
+impl Parser {
+    pub(super) fn medium(&mut self, name: String, params: &ParamSet, loc: &Loc) -> Result<()> {
+        let ty = params.string("type")?.ok_or_else(|| {
+            SceneError::at(
+                loc,
+                format!("MakeNamedMedium '{name}' has no \"string type\""),
+            )
+        })?;
+        if self.named_media.contains_key(&name) {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}' is defined twice"),
+            ));
+        }
+        let phase = medium_phase(params, &name, loc)?;
+        let scale = params.float("scale", 1.0)? as f32;
+        let sigma_a = params
+            .rgb("sigma_a", SpectrumUse::Unbounded)?
+            .unwrap_or([1.0; 3])
+            .map(|v| v * scale);
+        let sigma_s = params
+            .rgb("sigma_s", SpectrumUse::Unbounded)?
+            .unwrap_or([1.0; 3])
+            .map(|v| v * scale);
+        if sigma_a.iter().chain(&sigma_s).any(|v| *v < 0.0) {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}': sigma_a and sigma_s must not be negative"),
+            ));
+        }
+        if params.loc_of("preset").is_some() {
+            return Err(SceneError::at(
+                loc,
+                "medium \"preset\" (measured scattering data) is not supported yet; give sigma_a and sigma_s",
+            ));
+        }
+        let kind = match ty.as_str() {
+            "homogeneous" => {
+                let le_scale = params.float("Lescale", 1.0)? as f32;
+                let le = params
+                    .rgb("Le", SpectrumUse::Illuminant)?
+                    .unwrap_or([0.0; 3])
+                    .map(|v| v * le_scale);
+                if le.iter().any(|v| *v < 0.0) {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("medium '{name}': Le must not be negative"),
+                    ));
+                }
+                MediumKind::Homogeneous {
+                    sigma_a,
+                    sigma_s,
+                    le,
+                    phase,
+                }
+            }
+            "uniformgrid" => MediumKind::Grid(Arc::new(
+                self.grid_medium(params, &name, loc, sigma_a, sigma_s, phase)?,
+            )),
+            other => {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "medium type '{other}' is not supported yet (Kiln has 'homogeneous' and 'uniformgrid'); the image would be wrong without it"
+                    ),
+                ));
+            }
+        };
+        params.mark_used("type");
+        self.check_unused(params, &format!("medium '{name}'"), &[])?;
+        let id = MediumId(self.media.len() as u32);
+        self.media.push(MediumDesc {
+            name: name.clone(),
+            kind,
+            loc: loc.clone(),
+        });
+        self.named_media.insert(name, id);
+        Ok(())
+    }
+
+    /// A grid given inline ("float <name>", nx*ny*nz values) or from a Mitsuba .vol file
+    /// ("string <name>file"); returns it with the .vol file's bounding box.
+    fn medium_grid(
+        &mut self,
+        params: &ParamSet,
+        medium: &str,
+        name: &str,
+        loc: &Loc,
+    ) -> Result<Option<(VoxelGrid, Option<GridBox>)>> {
+        let file_param = format!("{name}file");
+        let inline = params.floats(name)?;
+        let file = params.string(&file_param)?;
+        match (inline, file) {
+            (Some(_), Some(_)) => Err(SceneError::at(
+                loc,
+                format!("medium '{medium}': give \"{name}\" or \"{file_param}\", not both"),
+            )),
+            (None, None) => Ok(None),
+            (None, Some(f)) => {
+                let path = self.resolve_file(&f);
+                let at = params.loc_of(&file_param).unwrap_or_else(|| loc.clone());
+                let vol = files::vol::read_vol(&path, &at)?;
+                Ok(Some((vol.grid, Some(vol.bbox))))
+            }
+            (Some(values), None) => {
+                let (nx, ny, nz) = (
+                    params.int("nx", 1)?,
+                    params.int("ny", 1)?,
+                    params.int("nz", 1)?,
+                );
+                if nx < 1 || ny < 1 || nz < 1 {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("medium '{medium}': nx, ny and nz must be at least 1"),
+                    ));
+                }
+                let want = nx
+                    .checked_mul(ny)
+                    .and_then(|v| v.checked_mul(nz))
+                    .filter(|v| *v <= 1 << 31)
+                    .ok_or_else(|| {
+                        SceneError::at(
+                            loc,
+                            format!("medium '{medium}': a {nx}x{ny}x{nz} grid is too large"),
+                        )
+                    })? as usize;
+                if values.len() != want {
+                    return Err(SceneError::at(
+                        params.loc_of(name).as_ref().unwrap_or(loc),
+                        format!(
+                            "medium '{medium}': \"{name}\" has {} values; nx*ny*nz = {nx}*{ny}*{nz} = {want}",
+                            values.len()
+                        ),
+                    ));
+                }
+                if let Some(v) = values.iter().find(|v| !v.is_finite() || **v < 0.0) {
+                    return Err(SceneError::at(
+                        params.loc_of(name).as_ref().unwrap_or(loc),
+                        format!(
+                            "medium '{medium}': \"{name}\" value {v} is negative or not finite"
+                        ),
+                    ));
+                }
+                Ok(Some((
+                    VoxelGrid {
+                        nx: nx as usize,
+                        ny: ny as usize,
+                        nz: nz as usize,
+                        values: values.iter().map(|&v| v as f32).collect(),
+                    },
+                    None,
+                )))
+            }
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn grid_medium(
+        &mut self,
+        params: &ParamSet,
+        name: &str,
+        loc: &Loc,
+        sigma_a: [f32; 3],
+        sigma_s: [f32; 3],
+        phase: PhaseDesc,
+    ) -> Result<GridMediumDesc> {
+        let Some((density, bbox)) = self.medium_grid(params, name, "density", loc)? else {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "medium '{name}': a uniformgrid needs \"float density\" (with nx, ny, nz) or \"string densityfile\" (a Mitsuba .vol file)"
+                ),
+            ));
+        };
+        let same_shape = |g: &VoxelGrid| (g.nx, g.ny, g.nz) == (density.nx, density.ny, density.nz);
+        let temperature = self.medium_grid(params, name, "temperature", loc)?;
+        if let Some((t, _)) = &temperature
+            && !same_shape(t)
+        {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "medium '{name}': the temperature grid is {}x{}x{}, the density grid {}x{}x{}",
+                    t.nx, t.ny, t.nz, density.nx, density.ny, density.nz
+                ),
+            ));
+        }
+        let le = params.rgb("Le", SpectrumUse::Illuminant)?;
+        if le.is_some() && temperature.is_some() {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}': give \"Le\" or a temperature grid, not both"),
+            ));
+        }
+        let scale = match params.floats("Lescale")? {
+            None => VoxelGrid {
+                nx: 1,
+                ny: 1,
+                nz: 1,
+                values: vec![1.0],
+            },
+            Some(v) if v.len() == 1 => VoxelGrid {
+                nx: 1,
+                ny: 1,
+                nz: 1,
+                values: vec![v[0] as f32],
+            },
+            Some(v) if v.len() == density.values.len() => VoxelGrid {
+                values: v.iter().map(|&x| x as f32).collect(),
+                ..density.clone()
+            },
+            Some(v) => {
+                return Err(SceneError::at(
+                    params.loc_of("Lescale").as_ref().unwrap_or(loc),
+                    format!(
+                        "medium '{name}': \"Lescale\" has {} values; give 1 or one per density voxel ({})",
+                        v.len(),
+                        density.values.len()
+                    ),
+                ));
+            }
+        };
+        if scale.values.iter().any(|v| !v.is_finite() || *v < 0.0) {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}': \"Lescale\" must be finite and not negative"),
+            ));
+        }
+        let emission = match (le, temperature) {
+            (Some(le), None) if le.iter().any(|&v| v > 0.0) => {
+                if le.iter().any(|v| *v < 0.0) {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("medium '{name}': Le must not be negative"),
+                    ));
+                }
+                GridEmission::Constant { le, scale }
+            }
+            (_, Some((temperature, _))) => {
+                let offset = match params.float_opt("temperatureoffset")? {
+                    Some(v) => v,
+                    None => params.float("temperaturecutoff", 0.0)?,
+                } as f32;
+                GridEmission::Temperature {
+                    temperature,
+                    offset,
+                    t_scale: params.float("temperaturescale", 1.0)? as f32,
+                    scale,
+                }
+            }
+            _ => GridEmission::None,
+        };
+        let default_box = bbox.unwrap_or(([0.0; 3], [1.0; 3]));
+        let p0 = params
+            .point3("p0", default_box.0.map(f64::from))?
+            .map(|v| v as f32);
+        let p1 = params
+            .point3("p1", default_box.1.map(f64::from))?
+            .map(|v| v as f32);
+        if (0..3).any(|a| p1[a].partial_cmp(&p0[a]) != Some(std::cmp::Ordering::Greater)) {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}': the box p0 {p0:?} .. p1 {p1:?} is empty"),
+            ));
+        }
+        for d in ["nx", "ny", "nz"] {
+            params.mark_used(d);
+        }
+        let det = self.gs.ctm.determinant();
+        if !det.is_finite() || det.abs() < 1e-12 {
+            return Err(SceneError::at(
+                loc,
+                format!("medium '{name}': the transform in effect where it is defined is singular"),
+            ));
+        }
+        Ok(GridMediumDesc {
+            sigma_a,
+            sigma_s,
+            phase,
+            density,
+            emission,
+            p0,
+            p1,
+            medium_to_world: self.gs.ctm,
+        })
+    }
+}
+
+/// The phase function of a medium: "float g" and Kiln's "string phase" ("hg", the default,
+/// or "schlick").
+fn medium_phase(params: &ParamSet, name: &str, loc: &Loc) -> Result<PhaseDesc> {
+    let g = params.float("g", 0.0)? as f32;
+    if g.abs().partial_cmp(&1.0) != Some(std::cmp::Ordering::Less) {
+        return Err(SceneError::at(
+            loc,
+            format!("medium '{name}': g = {g} must be strictly between -1 and 1"),
+        ));
+    }
+    match params.string("phase")?.as_deref() {
+        None | Some("hg") | Some("henyeygreenstein") => Ok(PhaseDesc::HenyeyGreenstein { g }),
+        Some("schlick") => Ok(PhaseDesc::Schlick { g }),
+        Some(other) => Err(SceneError::at(
+            params.loc_of("phase").as_ref().unwrap_or(loc),
+            format!(
+                "medium '{name}': phase function '{other}' is unknown (Kiln has 'hg' and 'schlick')"
+            ),
+        )),
+    }
+}

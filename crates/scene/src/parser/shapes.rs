@@ -1,0 +1,195 @@
+//! Shapes: spheres and triangle meshes (inline `trianglemesh` and `bilinearmesh`, or read
+//! from PLY and OBJ files), with the graphics state they are made in.
+
+use super::Parser;
+use crate::description::*;
+use crate::error::{Loc, Result, SceneError};
+use crate::files;
+use crate::params::ParamSet;
+use std::sync::Arc;
+
+impl Parser {
+    pub(super) fn shape(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
+        self.require_world(loc, "Shape")?;
+        let kind = match ty {
+            "sphere" => {
+                let radius = params.float("radius", 1.0)?;
+                if radius <= 0.0 {
+                    return Err(SceneError::at(loc, "sphere: radius must be positive"));
+                }
+                let zmin = params.float("zmin", -radius)?;
+                let zmax = params.float("zmax", radius)?;
+                let phimax = params.float("phimax", 360.0)?;
+                if zmin > -radius || zmax < radius || phimax < 360.0 {
+                    return Err(SceneError::at(
+                        loc,
+                        "sphere: partial spheres (zmin, zmax, phimax) are not supported yet",
+                    ));
+                }
+                ShapeKind::Sphere { radius }
+            }
+            "trianglemesh" => ShapeKind::Mesh(Arc::new(mesh_from_params(params, loc)?)),
+            "bilinearmesh" => ShapeKind::Mesh(Arc::new(bilinear_from_params(params, loc)?)),
+            "plymesh" | "objmesh" => {
+                let name = params.string("filename")?.ok_or_else(|| {
+                    SceneError::at(loc, format!("{ty}: \"string filename\" is required"))
+                })?;
+                let path = self.resolve_file(&name);
+                let mesh = if ty == "plymesh" {
+                    if params.loc_of("displacement").is_some() {
+                        return Err(SceneError::at(
+                            loc,
+                            "plymesh: displacement is not supported yet",
+                        ));
+                    }
+                    files::ply::read_ply(&path, loc)?
+                } else {
+                    files::obj::read_obj(&path, loc)?
+                };
+                ShapeKind::Mesh(Arc::new(mesh))
+            }
+            other => {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, plymesh, objmesh, sphere)"
+                    ),
+                ));
+            }
+        };
+        if let Some(l) = params.loc_of("alpha") {
+            return Err(SceneError::at(
+                &l,
+                "shape parameter 'alpha' is not supported yet",
+            ));
+        }
+        self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
+        let (inside, outside) = (
+            self.medium_id(&self.gs.media.0),
+            self.medium_id(&self.gs.media.1),
+        );
+        let shape = ShapeDesc {
+            kind,
+            object_to_world: self.gs.ctm,
+            reverse_orientation: self.gs.reverse_orientation,
+            material: self.gs.material,
+            area_light: self.gs.area_light.clone(),
+            media: (inside != outside).then_some(MediumInterfaceDesc { inside, outside }),
+            loc: loc.clone(),
+        };
+        match &mut self.current_object {
+            Some(object) => {
+                if shape.area_light.is_some() {
+                    return Err(SceneError::at(
+                        loc,
+                        "area lights inside ObjectBegin/ObjectEnd are not supported (as in pbrt-v4)",
+                    ));
+                }
+                object.shapes.push(shape);
+            }
+            None => self.shapes.push(shape),
+        }
+        Ok(())
+    }
+}
+
+fn mesh_from_params(params: &ParamSet, loc: &Loc) -> Result<TriangleMeshData> {
+    let positions = params
+        .point3s("P")?
+        .ok_or_else(|| SceneError::at(loc, "trianglemesh: \"point3 P\" is required"))?;
+    let indices = match params.ints("indices")? {
+        Some(i) => i,
+        None if positions.len() == 3 => vec![0, 1, 2],
+        None => {
+            return Err(SceneError::at(
+                loc,
+                "trianglemesh: \"integer indices\" is required unless P has exactly 3 points",
+            ));
+        }
+    };
+    let normals = params.point3s("N")?;
+    let uvs = match params.point2s("uv")? {
+        Some(uv) => Some(uv),
+        None => params.point2s("st")?,
+    };
+    params.mark_used("faceIndices");
+    if params.loc_of("S").is_some() {
+        params.mark_used("S");
+    }
+    validate_mesh(positions, normals, uvs, indices, 3, "trianglemesh", loc)
+}
+
+fn bilinear_from_params(params: &ParamSet, loc: &Loc) -> Result<TriangleMeshData> {
+    let positions = params
+        .point3s("P")?
+        .ok_or_else(|| SceneError::at(loc, "bilinearmesh: \"point3 P\" is required"))?;
+    let quads = match params.ints("indices")? {
+        Some(i) => i,
+        None if positions.len() == 4 => vec![0, 1, 2, 3],
+        None => {
+            return Err(SceneError::at(
+                loc,
+                "bilinearmesh: \"integer indices\" is required",
+            ));
+        }
+    };
+    if quads.len() % 4 != 0 {
+        return Err(SceneError::at(
+            loc,
+            "bilinearmesh: indices must come in fours",
+        ));
+    }
+    // pbrt's bilinear patch has corners p00 p10 p01 p11: split along p00-p11.
+    let mut tris = Vec::with_capacity(quads.len() / 4 * 6);
+    for q in quads.chunks_exact(4) {
+        tris.extend_from_slice(&[q[0], q[1], q[3], q[0], q[3], q[2]]);
+    }
+    let normals = params.point3s("N")?;
+    let uvs = params.point2s("uv")?;
+    validate_mesh(positions, normals, uvs, tris, 3, "bilinearmesh", loc)
+}
+
+fn validate_mesh(
+    positions: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
+    indices: Vec<i64>,
+    stride: usize,
+    what: &str,
+    loc: &Loc,
+) -> Result<TriangleMeshData> {
+    if indices.len() % stride != 0 {
+        return Err(SceneError::at(
+            loc,
+            format!(
+                "{what}: {} indices is not a multiple of {stride}",
+                indices.len()
+            ),
+        ));
+    }
+    let n = positions.len() as i64;
+    if let Some(bad) = indices.iter().find(|&&i| i < 0 || i >= n) {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: index {bad} is out of range (there are {n} points)"),
+        ));
+    }
+    if normals.as_ref().is_some_and(|v| v.len() != positions.len()) {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: N has a different count than P"),
+        ));
+    }
+    if uvs.as_ref().is_some_and(|v| v.len() != positions.len()) {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: uv has a different count than P"),
+        ));
+    }
+    Ok(TriangleMeshData {
+        positions,
+        normals,
+        uvs,
+        indices: indices.into_iter().map(|i| i as u32).collect(),
+    })
+}

@@ -1,0 +1,378 @@
+//! pbrt's graphics state: the current transform (and which of the start and end
+//! transforms directives change), named coordinate systems, the attribute stack, the
+//! current material and media chosen by name, and object instancing.
+
+use super::Parser;
+use super::cursor::Cursor;
+use crate::description::*;
+use crate::error::{Loc, Result, SceneError};
+use crate::lexer::TokenKind;
+use glam::{DMat4, DVec3, DVec4};
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum ActiveTransform {
+    Start,
+    End,
+    All,
+}
+
+#[derive(Clone)]
+pub(super) struct GraphicsState {
+    pub(super) ctm: DMat4,
+    pub(super) active: ActiveTransform,
+    pub(super) reverse_orientation: bool,
+    pub(super) material: MaterialId,
+    pub(super) area_light: Option<AreaLightDesc>,
+    /// Names of the current inside and outside media ("" is vacuum), with where they were set.
+    pub(super) media: (String, String),
+}
+
+impl Parser {
+    pub(super) fn apply_transform(&mut self, m: DMat4) {
+        // Only the start-time transform matters: Kiln renders no motion blur.
+        if self.gs.active != ActiveTransform::End {
+            self.gs.ctm *= m;
+        }
+    }
+
+    pub(super) fn medium_id(&self, name: &str) -> Option<MediumId> {
+        (!name.is_empty()).then(|| self.named_media[name])
+    }
+
+    pub(super) fn identity(&mut self) {
+        if self.gs.active != ActiveTransform::End {
+            self.gs.ctm = DMat4::IDENTITY;
+        }
+    }
+
+    pub(super) fn translate(&mut self, c: &mut Cursor) -> Result<()> {
+        let v = c.numbers("Translate", 3)?;
+        self.apply_transform(DMat4::from_translation(DVec3::new(v[0], v[1], v[2])));
+        Ok(())
+    }
+
+    pub(super) fn scale(&mut self, c: &mut Cursor) -> Result<()> {
+        let v = c.numbers("Scale", 3)?;
+        self.apply_transform(DMat4::from_scale(DVec3::new(v[0], v[1], v[2])));
+        Ok(())
+    }
+
+    pub(super) fn rotate(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let v = c.numbers("Rotate", 4)?;
+        let axis = DVec3::new(v[1], v[2], v[3]);
+        if axis.length_squared() == 0.0 {
+            return Err(SceneError::at(loc, "Rotate about a zero-length axis"));
+        }
+        self.apply_transform(DMat4::from_axis_angle(axis.normalize(), v[0].to_radians()));
+        Ok(())
+    }
+
+    pub(super) fn look_at(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let v = c.numbers("LookAt", 9)?;
+        let m = look_at_matrix(
+            DVec3::new(v[0], v[1], v[2]),
+            DVec3::new(v[3], v[4], v[5]),
+            DVec3::new(v[6], v[7], v[8]),
+        )
+        .ok_or_else(|| {
+            SceneError::at(
+                loc,
+                "LookAt: eye and target coincide, or 'up' is parallel to the view direction",
+            )
+        })?;
+        self.apply_transform(m);
+        Ok(())
+    }
+
+    /// `Transform` replaces the current transform, `ConcatTransform` multiplies it.
+    pub(super) fn transform(&mut self, directive: &str, c: &mut Cursor) -> Result<()> {
+        let v = c.numbers(directive, 16)?;
+        let mut a = [0.0; 16];
+        a.copy_from_slice(&v);
+        // pbrt lists the matrix column by column, as glam stores it.
+        let m = DMat4::from_cols_array(&a);
+        if directive == "Transform" {
+            if self.gs.active != ActiveTransform::End {
+                self.gs.ctm = m;
+            }
+        } else {
+            self.apply_transform(m);
+        }
+        Ok(())
+    }
+
+    pub(super) fn coordinate_system(&mut self, c: &mut Cursor) -> Result<()> {
+        let name = c.string("CoordinateSystem", "name")?;
+        self.named_coordinate_systems.insert(name, self.gs.ctm);
+        Ok(())
+    }
+
+    pub(super) fn coord_sys_transform(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let name = c.string("CoordSysTransform", "name")?;
+        match self.named_coordinate_systems.get(&name) {
+            Some(m) => self.gs.ctm = *m,
+            None => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("CoordSysTransform: no coordinate system named '{name}'"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn active_transform(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let which = match c.peek().map(|t| &t.kind) {
+            Some(TokenKind::Word(w)) => w.clone(),
+            _ => {
+                return Err(SceneError::at(
+                    loc,
+                    "ActiveTransform needs StartTime, EndTime or All",
+                ));
+            }
+        };
+        c.pos += 1;
+        self.gs.active = match which.as_str() {
+            "StartTime" => ActiveTransform::Start,
+            "EndTime" => ActiveTransform::End,
+            "All" => ActiveTransform::All,
+            _ => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("ActiveTransform: unknown '{which}'"),
+                ));
+            }
+        };
+        Ok(())
+    }
+
+    pub(super) fn transform_times(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        c.numbers("TransformTimes", 2)?;
+        self.warn(
+            loc,
+            "TransformTimes: Kiln renders no motion blur; the start transform is used",
+        );
+        Ok(())
+    }
+
+    pub(super) fn reverse_orientation(&mut self) {
+        self.gs.reverse_orientation = !self.gs.reverse_orientation;
+    }
+
+    /// `AttributeBegin` saves the whole graphics state, `TransformBegin` only the transform.
+    pub(super) fn attribute_begin(&mut self, directive: &str, loc: &Loc) {
+        let only_transform = directive == "TransformBegin";
+        self.stack
+            .push((self.gs.clone(), loc.clone(), only_transform));
+    }
+
+    pub(super) fn attribute_end(&mut self, directive: &str, loc: &Loc) -> Result<()> {
+        let Some((saved, _, only_transform)) = self.stack.pop() else {
+            return Err(SceneError::at(
+                loc,
+                format!("{directive} without a matching begin"),
+            ));
+        };
+        if only_transform {
+            self.gs.ctm = saved.ctm;
+            self.gs.active = saved.active;
+        } else {
+            self.gs = saved;
+        }
+        Ok(())
+    }
+
+    pub(super) fn medium_interface(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let inside = c.string("MediumInterface", "inside medium name")?;
+        // One name means the same medium on both sides.
+        let outside = match c.peek().map(|t| &t.kind) {
+            Some(TokenKind::Str(_)) => c.string("MediumInterface", "outside medium name")?,
+            _ => inside.clone(),
+        };
+        for name in [&inside, &outside] {
+            if !name.is_empty() && !self.named_media.contains_key(name) {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "MediumInterface: no medium named '{name}' (MakeNamedMedium defines one)"
+                    ),
+                ));
+            }
+        }
+        self.gs.media = (inside, outside);
+        Ok(())
+    }
+
+    pub(super) fn named_material(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let name = c.string("NamedMaterial", "material name")?;
+        match self.named_materials.get(&name) {
+            Some(id) => self.gs.material = *id,
+            None => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("NamedMaterial: no material named '{name}'"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn object_begin(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let name = c.string("ObjectBegin", "object name")?;
+        if self.current_object.is_some() {
+            return Err(SceneError::at(
+                loc,
+                "ObjectBegin inside another ObjectBegin",
+            ));
+        }
+        self.stack.push((self.gs.clone(), loc.clone(), false));
+        self.current_object = Some(ObjectDesc {
+            name,
+            shapes: Vec::new(),
+            loc: loc.clone(),
+        });
+        Ok(())
+    }
+
+    pub(super) fn object_end(&mut self, loc: &Loc) -> Result<()> {
+        let Some(object) = self.current_object.take() else {
+            return Err(SceneError::at(loc, "ObjectEnd without ObjectBegin"));
+        };
+        if let Some((saved, _, _)) = self.stack.pop() {
+            self.gs = saved;
+        }
+        if self.object_names.contains_key(&object.name) {
+            return Err(SceneError::at(
+                loc,
+                format!("object '{}' is defined twice", object.name),
+            ));
+        }
+        self.object_names
+            .insert(object.name.clone(), self.objects.len());
+        self.objects.push(object);
+        Ok(())
+    }
+
+    pub(super) fn object_instance(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let name = c.string("ObjectInstance", "object name")?;
+        let Some(&object) = self.object_names.get(&name) else {
+            return Err(SceneError::at(
+                loc,
+                format!("ObjectInstance: no object named '{name}'"),
+            ));
+        };
+        if self.current_object.is_some() {
+            return Err(SceneError::at(
+                loc,
+                "ObjectInstance inside ObjectBegin is not supported",
+            ));
+        }
+        self.instances.push(InstanceDesc {
+            object,
+            instance_to_world: self.gs.ctm,
+            loc: loc.clone(),
+        });
+        Ok(())
+    }
+}
+
+/// pbrt's LookAt: the camera-from-world transform of a camera at `eye` looking at `target`.
+fn look_at_matrix(eye: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
+    let dir = (target - eye).try_normalize()?;
+    let right = up.try_normalize()?.cross(dir).try_normalize()?;
+    let new_up = dir.cross(right);
+    let world_from_camera = DMat4::from_cols(
+        right.extend(0.0),
+        new_up.extend(0.0),
+        dir.extend(0.0),
+        DVec4::new(eye.x, eye.y, eye.z, 1.0),
+    );
+    Some(world_from_camera.inverse())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::parser::tests::load;
+
+    #[test]
+    fn look_at_puts_the_camera_at_the_eye_looking_at_the_target() {
+        let s = load("LookAt 1 2 3  1 2 10  0 1 0\nCamera \"perspective\"\nWorldBegin\n");
+        let m = s.camera.camera_to_world;
+        assert!((m.transform_point3(DVec3::ZERO) - DVec3::new(1.0, 2.0, 3.0)).length() < 1e-12);
+        assert!((m.transform_vector3(DVec3::Z) - DVec3::Z).length() < 1e-12);
+        assert!((m.transform_vector3(DVec3::Y) - DVec3::Y).length() < 1e-12);
+    }
+
+    #[test]
+    fn transform_lists_columns_and_attributes_restore_state() {
+        let s = load(
+            "WorldBegin
+             AttributeBegin
+               Transform [ 1 0 0 0  0 1 0 0  0 0 1 0  5 6 7 1 ]
+               Material \"conductor\"
+               Shape \"sphere\"
+             AttributeEnd
+             Translate 1 0 0
+             Rotate 90 0 0 1
+             Shape \"sphere\" \"float radius\" [ 2 ]",
+        );
+        let a = &s.shapes[0];
+        assert_eq!(
+            a.object_to_world.transform_point3(DVec3::ZERO),
+            DVec3::new(5.0, 6.0, 7.0)
+        );
+        assert!(matches!(
+            s.materials[a.material.0 as usize].kind,
+            MaterialKind::Conductor { .. }
+        ));
+        let b = &s.shapes[1];
+        assert_eq!(
+            b.material,
+            MaterialId(0),
+            "AttributeEnd restores the default material"
+        );
+        // Translate then Rotate: points rotate first, then move.
+        let p = b.object_to_world.transform_point3(DVec3::X);
+        assert!((p - DVec3::new(1.0, 1.0, 0.0)).length() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn coordinate_systems_named_materials_and_instances() {
+        let s = load(
+            "LookAt 0 0 -5  0 0 0  0 1 0
+             Camera \"perspective\"
+             WorldBegin
+             MakeNamedMaterial \"gold\" \"string type\" \"conductor\" \"spectrum eta\" \"metal-Au-eta\" \"spectrum k\" \"metal-Au-k\"
+             ObjectBegin \"ball\"
+               NamedMaterial \"gold\"
+               Translate 0 1 0
+               Shape \"sphere\"
+             ObjectEnd
+             Translate 10 0 0
+             ObjectInstance \"ball\"
+             CoordSysTransform \"camera\"
+             LightSource \"point\" \"rgb I\" [ 1 1 1 ]",
+        );
+        assert_eq!(s.instances.len(), 1);
+        let object = &s.objects[s.instances[0].object];
+        let world = s.instances[0].instance_to_world * object.shapes[0].object_to_world;
+        assert_eq!(
+            world.transform_point3(DVec3::ZERO),
+            DVec3::new(10.0, 1.0, 0.0)
+        );
+        assert_eq!(
+            s.materials[object.shapes[0].material.0 as usize]
+                .name
+                .as_deref(),
+            Some("gold")
+        );
+        let LightKind::Point { position, .. } = s.lights[0].kind else {
+            panic!()
+        };
+        assert!(
+            (position - DVec3::new(0.0, 0.0, -5.0)).length() < 1e-12,
+            "the light sits at the camera"
+        );
+    }
+}
