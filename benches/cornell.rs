@@ -7,7 +7,7 @@
 
 mod common;
 use common::{arg, peak_rss_mib};
-use kiln_render::{RenderSettings, Scene, TileStats, render_tile, split_into_tiles};
+use kiln_render::{Renderer, TileStats, render_tile, split_into_tiles};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -31,8 +31,8 @@ fn main() {
     desc.film.yresolution = res;
     desc.film.pixel_bounds = [0, res, 0, res];
     desc.sampler.pixel_samples = spp;
-    let scene = Scene::build(&desc).expect("the reference scene builds");
-    let settings = RenderSettings::from_description(&desc);
+    let renderer = Renderer::build(&desc).expect("the reference scene builds");
+    let scene = renderer.scene();
     let tiles = split_into_tiles(desc.film.pixel_bounds, 32);
     let reference = reference_image(&dir, res);
     println!(
@@ -53,7 +53,7 @@ fn main() {
             let results: Vec<_> = pool.install(|| {
                 tiles
                     .par_iter()
-                    .map(|t| render_tile(&scene, &settings, *t))
+                    .map(|t| render_tile(&renderer, *t))
                     .collect()
             });
             if i > 0 {

@@ -10,8 +10,9 @@
 
 mod common;
 use common::{arg, peak_rss_mib, render_tiles};
-use kiln_render::media::{Medium, TrackingRng};
-use kiln_render::{RenderSettings, Scene};
+use kiln_render::media::Medium;
+use kiln_render::sampling::TrackingRng;
+use kiln_render::{RenderSettings, Renderer};
 use kiln_scene::VoxelGrid;
 use std::time::Instant;
 
@@ -74,8 +75,8 @@ fn scene_text(strategy: &str, res: u32, spp: u32) -> String {
 }
 
 /// Renders the frame; returns seconds, samples and the pixels.
-fn render(scene: &Scene, settings: &RenderSettings, res: u32) -> (f64, u64, Vec<[f32; 3]>) {
-    let (secs, results) = render_tiles(scene, settings, [0, res, 0, res]);
+fn render(renderer: &Renderer, res: u32) -> (f64, u64, Vec<[f32; 3]>) {
+    let (secs, results) = render_tiles(renderer, [0, res, 0, res]);
     let mut pixels = vec![[0.0f32; 3]; (res * res) as usize];
     let mut samples = 0;
     for r in &results {
@@ -122,14 +123,15 @@ fn main() {
         std::fs::write(&path, scene_text(strategy, res, spp)).unwrap();
         let start = Instant::now();
         let desc = kiln_scene::load_file(&path).unwrap();
-        let scene = Scene::build(&desc).unwrap();
+        let mut renderer = Renderer::build(&desc).unwrap();
         let build = start.elapsed().as_secs_f64();
         let mut settings = RenderSettings::from_description(&desc);
         let mut images = Vec::new();
         let (mut secs, mut samples) = (0.0, 0u64);
         for run in 0..runs {
             settings.seed = 1000 + run as u32;
-            let (s, count, pixels) = render(&scene, &settings, res);
+            renderer = renderer.with_settings(settings.clone());
+            let (s, count, pixels) = render(&renderer, res);
             secs += s;
             samples += count;
             images.push(pixels);
@@ -170,8 +172,8 @@ fn main() {
     // Tracking throughput on one thread: ratio tracking along random rays through the grid.
     let path = dir.path().join("mis.pbrt");
     let desc = kiln_scene::load_file(&path).unwrap();
-    let scene = Scene::build(&desc).unwrap();
-    let Some(Medium::Grid(grid)) = scene.media.first() else {
+    let renderer = Renderer::build(&desc).unwrap();
+    let Some(Medium::Grid(grid)) = renderer.scene().media.first() else {
         panic!("the flame is the scene's first medium");
     };
     // Two workloads: shadow rays towards points sampled from the flame's emission (what

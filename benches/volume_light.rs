@@ -7,7 +7,8 @@
 
 mod common;
 use common::{arg, peak_rss_mib, render_tiles};
-use kiln_render::{RenderSettings, Scene, TileStats};
+use kiln_render::lights::volume::{VOLUME_POWER_SEED, power_estimates};
+use kiln_render::{Renderer, TileStats};
 use std::io::Write;
 use std::time::Instant;
 
@@ -80,8 +81,8 @@ fn scene_text(light: &str, material: &str, res: u32, spp: u32) -> String {
     )
 }
 
-fn render(scene: &Scene, settings: &RenderSettings, bounds: [u32; 4]) -> (f64, TileStats) {
-    let (secs, results) = render_tiles(scene, settings, bounds);
+fn render(renderer: &Renderer, bounds: [u32; 4]) -> (f64, TileStats) {
+    let (secs, results) = render_tiles(renderer, bounds);
     let mut stats = TileStats::default();
     for r in &results {
         stats.merge(&r.stats);
@@ -126,10 +127,10 @@ fn main() {
         let desc = kiln_scene::load_file(&path).unwrap();
         let load = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let scene = Scene::build(&desc).unwrap();
+        let renderer = Renderer::build(&desc).unwrap();
+        let scene = renderer.scene();
         let build = start.elapsed().as_secs_f64();
-        let settings = RenderSettings::from_description(&desc);
-        let (secs, stats) = render(&scene, &settings, desc.film.pixel_bounds);
+        let (secs, stats) = render(&renderer, desc.film.pixel_bounds);
         let rate = stats.samples as f64 / secs;
         rates.push(rate);
         println!(
@@ -141,7 +142,7 @@ fn main() {
         if name == "volume" {
             // The power estimation on its own, as Scene::build runs it.
             let start = Instant::now();
-            let powers = scene.volume_power_estimates(kiln_render::scene::VOLUME_POWER_SEED);
+            let powers = power_estimates(&scene.lights, &scene.light_context(), VOLUME_POWER_SEED);
             println!(
                 "volume: power estimation for {} faces ({} segments each): {:.3} s",
                 powers.iter().flatten().count(),

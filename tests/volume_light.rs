@@ -2,7 +2,8 @@
 //! voxel grids.
 
 use crate::util::{assert_strategies_agree, render, render_strategies, write_scene};
-use kiln_render::Scene;
+use kiln_render::lights::volume::power_estimates;
+use kiln_render::{MediaPolicy, Scene};
 use std::path::Path;
 
 /// A unit-Le VolumeLight seen through a tiny orthographic window at impact parameter `b`.
@@ -168,16 +169,14 @@ fn face_powers_sum_to_the_analytic_power() {
     };
     let faces = mesh.indices.len() / 3;
     assert!(faces >= 1000, "{faces} faces");
-    let scene = Scene::build(&desc).unwrap();
+    let scene = Scene::build(&desc, MediaPolicy::Ignore).unwrap();
     let analytic = 4.0 * std::f64::consts::PI * 2.0 * mesh_volume(&mesh.positions, &mesh.indices);
-    let a: Vec<f64> = scene
-        .volume_power_estimates(1)
+    let a: Vec<f64> = power_estimates(&scene.lights, &scene.light_context(), 1)
         .into_iter()
         .flatten()
         .map(|p| p as f64)
         .collect();
-    let b: Vec<f64> = scene
-        .volume_power_estimates(2)
+    let b: Vec<f64> = power_estimates(&scene.lights, &scene.light_context(), 2)
         .into_iter()
         .flatten()
         .map(|p| p as f64)

@@ -23,8 +23,7 @@ pub fn peak_rss_mib() -> Option<f64> {
 /// and the tiles in order.
 #[allow(dead_code)]
 pub fn render_tiles(
-    scene: &kiln_render::Scene,
-    settings: &kiln_render::RenderSettings,
+    renderer: &kiln_render::Renderer,
     bounds: [u32; 4],
 ) -> (f64, Vec<kiln_render::TileResult>) {
     use rayon::prelude::*;
@@ -32,7 +31,7 @@ pub fn render_tiles(
     let start = std::time::Instant::now();
     let results: Vec<_> = tiles
         .par_iter()
-        .map(|t| kiln_render::render_tile(scene, settings, *t))
+        .map(|t| kiln_render::render_tile(renderer, *t))
         .collect();
     (start.elapsed().as_secs_f64(), results)
 }

@@ -3,7 +3,7 @@
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use kiln_image::RgbBuffer;
-use kiln_render::{RenderSettings, Scene, TileStats, render_tile, split_into_tiles};
+use kiln_render::{Renderer, TileStats, render_tile, split_into_tiles};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -78,8 +78,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .num_threads(args.threads.unwrap_or(0))
         .build()
         .context("cannot start the worker threads")?;
-    let scene = Scene::build(&desc)?;
-    let settings = RenderSettings::from_description(&desc);
+    let renderer = Renderer::build(&desc)?;
+    let scene = renderer.scene();
     let load_time = start.elapsed();
     let film = &desc.film;
     let [x0, x1, y0, y1] = film.pixel_bounds;
@@ -99,7 +99,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         film.yresolution,
         x1 - x0,
         y1 - y0,
-        settings.samples_per_pixel,
+        renderer.settings().samples_per_pixel,
         tiles.len(),
         pool.current_num_threads(),
     );
@@ -121,7 +121,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         tiles
             .par_iter()
             .map(|t| {
-                let r = render_tile(&scene, &settings, *t);
+                let r = render_tile(&renderer, *t);
                 progress.inc(1);
                 r
             })

@@ -4,7 +4,7 @@ use crate::api::{JobSpec, Lease};
 use crate::bundle;
 use crate::client::{Client, ClientError};
 use kiln_image::RgbBuffer;
-use kiln_render::{RenderSettings, Scene, TileRect, render_tile};
+use kiln_render::{Renderer, TileRect, render_tile};
 use reqwest::StatusCode;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -27,8 +27,7 @@ pub struct WorkerConfig {
 
 /// A loaded scene, ready to render tiles of one job spec.
 struct Loaded {
-    scene: Scene,
-    settings: RenderSettings,
+    renderer: Renderer,
     frame: (u32, u32),
 }
 
@@ -147,11 +146,9 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
     tokio::task::spawn_blocking(move || {
         let mut desc = kiln_scene::load_file(&scene_path).map_err(|e| e.to_string())?;
         desc.apply_overrides(&overrides)?;
-        let scene = Scene::build(&desc).map_err(|e| e.to_string())?;
-        let settings = RenderSettings::from_description(&desc);
+        let renderer = Renderer::build(&desc).map_err(|e| e.to_string())?;
         Ok(Loaded {
-            scene,
-            settings,
+            renderer,
             frame: (desc.film.xresolution, desc.film.yresolution),
         })
     })
@@ -188,7 +185,7 @@ async fn render_and_upload(
     };
     let (pool, loaded2) = (pool.clone(), loaded.clone());
     let exr = tokio::task::spawn_blocking(move || {
-        let result = pool.install(|| render_tile(&loaded2.scene, &loaded2.settings, rect));
+        let result = pool.install(|| render_tile(&loaded2.renderer, rect));
         let mut buffer = RgbBuffer::new(
             loaded2.frame.0,
             loaded2.frame.1,

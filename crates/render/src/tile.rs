@@ -1,10 +1,11 @@
 //! The tile function: the pure function from (scene, settings, tile) to pixels
-//! that `kiln render` and the farm's workers both call.
+//! that `kiln render` and the farm's workers both call, and the [`Renderer`] it renders
+//! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
-use crate::integrator::Integrator;
+use crate::integrators::{Integrator, Prepass};
 use crate::math::Color;
-use crate::sampler::PixelSampler;
-use crate::scene::Scene;
+use crate::sampling::PixelSampler;
+use crate::scene::{BuildError, MediaPolicy, Scene};
 use glam::Vec2;
 use rayon::prelude::*;
 
@@ -57,6 +58,70 @@ pub struct RenderSettings {
     pub max_radiance: f32,
 }
 
+impl RenderSettings {
+    /// Settings as the scene file gives them.
+    pub fn from_description(desc: &kiln_scene::SceneDescription) -> RenderSettings {
+        RenderSettings {
+            samples_per_pixel: desc.sampler.pixel_samples,
+            seed: desc.sampler.seed,
+            integrator: Integrator::from_description(&desc.integrator),
+            max_radiance: desc.integrator.max_radiance,
+        }
+    }
+}
+
+/// Everything a tile is rendered from: the scene, the settings, and what the integrator
+/// computed once before any tile (photon maps). Build it once per job and share it between
+/// threads; every tile rendered from it is a pure function of it and the tile.
+pub struct Renderer {
+    scene: Scene,
+    settings: RenderSettings,
+    prepass: Prepass,
+}
+
+impl Renderer {
+    /// Builds the scene a description gives, with the settings it gives, and runs the
+    /// integrator's pre-passes.
+    pub fn build(desc: &kiln_scene::SceneDescription) -> Result<Renderer, BuildError> {
+        let settings = RenderSettings::from_description(desc);
+        let media = if settings.integrator.renders_media() {
+            MediaPolicy::Render
+        } else {
+            MediaPolicy::Ignore
+        };
+        let scene = Scene::build(desc, media)?;
+        Ok(Renderer::new(scene, settings))
+    }
+
+    /// Runs the integrator's pre-passes on `scene`. The scene should have been built with
+    /// the media policy the integrator asks for (see [`Integrator::renders_media`]).
+    pub fn new(scene: Scene, settings: RenderSettings) -> Renderer {
+        let prepass = settings.integrator.prepare(&scene);
+        Renderer {
+            scene,
+            settings,
+            prepass,
+        }
+    }
+
+    /// The same scene with other settings (pre-passes run again).
+    pub fn with_settings(self, settings: RenderSettings) -> Renderer {
+        Renderer::new(self.scene, settings)
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    pub fn prepass(&self) -> &Prepass {
+        &self.prepass
+    }
+}
+
 /// A sample whose radiance was NaN or infinite (and was counted as black).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct NonFiniteSample {
@@ -99,13 +164,13 @@ pub struct TileResult {
 
 /// Renders one tile. The result depends only on the scene, the settings and the
 /// tile's pixels: not on the tile's size, its neighbours, or the thread count.
-pub fn render_tile(scene: &Scene, settings: &RenderSettings, rect: TileRect) -> TileResult {
+pub fn render_tile(renderer: &Renderer, rect: TileRect) -> TileResult {
     let rows: Vec<(Vec<[f32; 3]>, TileStats)> = (rect.y0..rect.y0 + rect.height)
         .into_par_iter()
         .map(|y| {
             let mut stats = TileStats::default();
             let row = (rect.x0..rect.x0 + rect.width)
-                .map(|x| render_pixel(scene, settings, x, y, &mut stats))
+                .map(|x| render_pixel(renderer, x, y, &mut stats))
                 .collect();
             (row, stats)
         })
@@ -124,17 +189,11 @@ pub fn render_tile(scene: &Scene, settings: &RenderSettings, rect: TileRect) -> 
 }
 
 /// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean.
-pub fn render_pixel(
-    scene: &Scene,
-    settings: &RenderSettings,
-    x: u32,
-    y: u32,
-    stats: &mut TileStats,
-) -> [f32; 3] {
+pub fn render_pixel(renderer: &Renderer, x: u32, y: u32, stats: &mut TileStats) -> [f32; 3] {
     let mut sum = [0.0f64; 3];
     let mut weight_sum = 0.0f64;
-    for s in 0..settings.samples_per_pixel {
-        let (l, w) = render_sample(scene, settings, x, y, s, stats);
+    for s in 0..renderer.settings.samples_per_pixel {
+        let (l, w) = render_sample(renderer, x, y, s, stats);
         for c in 0..3 {
             sum[c] += (l[c] * w) as f64;
         }
@@ -148,21 +207,22 @@ pub fn render_pixel(
 
 /// One camera sample: its radiance (zeroed if not finite) and filter weight.
 pub fn render_sample(
-    scene: &Scene,
-    settings: &RenderSettings,
+    renderer: &Renderer,
     x: u32,
     y: u32,
     sample: u32,
     stats: &mut TileStats,
 ) -> (Color, f32) {
+    let (scene, settings) = (&renderer.scene, &renderer.settings);
     let mut sampler = PixelSampler::new(x, y, sample, settings.seed);
     let (offset, weight) = scene.filter.sample(sampler.get_2d());
     let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
     let lens = sampler.get_2d();
     let ray = scene.camera.generate_ray(film, lens);
-    let mut l = settings
-        .integrator
-        .li(scene, ray, &mut sampler, &mut stats.rays);
+    let mut l =
+        settings
+            .integrator
+            .li(&renderer.prepass, scene, ray, &mut sampler, &mut stats.rays);
     stats.samples += 1;
     if !l.is_finite() {
         stats.nonfinite += 1;

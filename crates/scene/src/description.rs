@@ -97,10 +97,20 @@ pub enum LightStrategy {
     BsdfOnly,
 }
 
+/// The integrators Kiln has: pbrt-v4's "path" ignores participating media, "volpath"
+/// renders them. Integrators Kiln lacks are rendered with "volpath".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IntegratorKind {
+    Path,
+    VolPath,
+}
+
 #[derive(Debug, Clone)]
 pub struct IntegratorDesc {
     /// The name in the file ("path", "volpath", or one Kiln mapped onto those).
     pub name: String,
+    /// What Kiln renders it with.
+    pub kind: IntegratorKind,
     pub max_depth: u32,
     /// Russian roulette may end paths from this bounce on (Kiln's "integer rrdepth").
     pub rr_depth: u32,

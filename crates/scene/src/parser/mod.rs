@@ -354,7 +354,7 @@ impl Parser {
     fn finish(mut self, file: &Arc<PathBuf>) -> Result<SceneDescription> {
         let end = Loc::new(file, 0);
         if let Some(i) = &self.integrator
-            && i.name == "path"
+            && i.kind == IntegratorKind::Path
             && !self.media.is_empty()
         {
             let loc = i.loc.clone();
@@ -403,6 +403,7 @@ impl Parser {
             }),
             integrator: self.integrator.unwrap_or_else(|| IntegratorDesc {
                 name: "volpath".into(),
+                kind: IntegratorKind::VolPath,
                 max_depth: 5,
                 rr_depth: 5,
                 strategy: LightStrategy::Mis,

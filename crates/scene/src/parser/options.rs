@@ -382,6 +382,11 @@ impl Parser {
         self.check_unused(params, "Integrator", &["regularize"])?;
         self.integrator = Some(IntegratorDesc {
             name: ty.to_string(),
+            kind: if ty == "path" {
+                IntegratorKind::Path
+            } else {
+                IntegratorKind::VolPath
+            },
             max_depth: max_depth as u32,
             rr_depth: rr_depth as u32,
             strategy,

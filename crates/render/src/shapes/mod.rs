@@ -1,14 +1,25 @@
-//! Scene geometry in world space: triangle meshes and spheres, each in an obvhs
-//! compressed wide BVH (CWBVH), with the primitives laid out in BVH order as
-//! obvhs recommends, so a leaf's triangles are contiguous in memory.
+//! Shapes and the aggregate that holds them: scene geometry in world space, triangle meshes
+//! ([`triangle`]) and spheres ([`sphere`]), each kind in an obvhs compressed wide BVH
+//! (CWBVH), with the primitives laid out in BVH order as obvhs recommends, so a leaf's
+//! triangles are contiguous in memory.
+//!
+//! A shape kind's file holds its intersection, its hit record, and its area sampling (the
+//! solid-angle density of a point on it seen from another point), which area lights and
+//! VolumeLights sample. Shapes know nothing of materials, lights or media beyond the
+//! indices a [`SurfaceInfo`] carries.
+
+pub mod sphere;
+pub mod triangle;
+
+pub use sphere::Sphere;
+pub use triangle::barycentrics;
 
 use crate::math::Ray;
 use glam::{Vec2, Vec3A};
-use obvhs::aabb::Aabb;
+use obvhs::BvhBuildParams;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray as BvhRay, RayHit};
 use obvhs::rt_triangle::RtTriangle;
-use obvhs::{Boundable, BvhBuildParams};
 use std::time::Duration;
 
 /// What a primitive is made of and whether it emits.
@@ -47,53 +58,6 @@ pub struct MeshInfo {
     pub has_uvs: bool,
     /// Flip the geometric normal (ReverseOrientation xor a handedness-swapping transform).
     pub flip: bool,
-}
-
-#[derive(Debug, Clone, Copy)]
-pub struct Sphere {
-    pub center: Vec3A,
-    pub radius: f32,
-    pub surface: SurfaceInfo,
-    /// Normals point inwards (ReverseOrientation).
-    pub flip: bool,
-}
-
-impl Sphere {
-    /// The nearest t in (tmin, tmax), or infinity.
-    pub fn intersect(&self, origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32) -> f32 {
-        // Solve with the origin moved near the sphere for precision (as in Ray Tracing Gems, ch. 7).
-        let f = origin - self.center;
-        let b = -f.dot(dir);
-        let l = f + b * dir;
-        let disc = self.radius * self.radius - l.length_squared();
-        if disc < 0.0 {
-            return f32::INFINITY;
-        }
-        let c = f.length_squared() - self.radius * self.radius;
-        let q = b + b.signum() * disc.sqrt();
-        let (t0, t1) = if q == 0.0 {
-            (0.0, 0.0)
-        } else {
-            let a = c / q;
-            (a.min(q), a.max(q))
-        };
-        if t0 > tmin && t0 < tmax {
-            t0
-        } else if t1 > tmin && t1 < tmax {
-            t1
-        } else {
-            f32::INFINITY
-        }
-    }
-}
-
-impl Boundable for Sphere {
-    fn aabb(&self) -> Aabb {
-        Aabb::new(
-            self.center - Vec3A::splat(self.radius),
-            self.center + Vec3A::splat(self.radius),
-        )
-    }
 }
 
 /// A ray hit on a surface, with everything shading needs.
@@ -138,6 +102,18 @@ pub struct Geometry {
 /// (see shared/CRATES.md); adding +0.0 turns -0.0 into +0.0 and changes nothing else.
 fn bvh_ray(origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32) -> BvhRay {
     BvhRay::new(origin, dir + Vec3A::ZERO, tmin, tmax)
+}
+
+/// A point sampled on a shape as seen from a reference point.
+#[derive(Debug, Clone, Copy)]
+pub struct ShapeSample {
+    /// Unit direction from the reference point to the sampled point.
+    pub wi: Vec3A,
+    /// Solid-angle density at the reference point.
+    pub pdf: f32,
+    pub distance: f32,
+    /// The sampled point's normal, for offsetting a shadow ray's far end.
+    pub n: Vec3A,
 }
 
 impl Geometry {
@@ -292,117 +268,6 @@ impl Geometry {
         true
     }
 
-    fn triangle_hit(&self, ray: &Ray, t: f32, tri: u32) -> SurfaceHit {
-        let [i0, i1, i2] = self.triangle_vertices[tri as usize];
-        let mesh = &self.meshes[self.triangle_mesh[tri as usize] as usize];
-        let (p0, p1, p2) = (
-            self.positions[i0 as usize],
-            self.positions[i1 as usize],
-            self.positions[i2 as usize],
-        );
-        let p = ray.at(t);
-        let b = barycentrics(p, p0, p1, p2);
-        let (ng, ns) = self.oriented_normals(mesh, [i0, i1, i2], [p0, p1, p2], b);
-        let (uv0, uv1, uv2) = if mesh.has_uvs {
-            (
-                self.uvs[i0 as usize],
-                self.uvs[i1 as usize],
-                self.uvs[i2 as usize],
-            )
-        } else {
-            (Vec2::ZERO, Vec2::X, Vec2::ONE)
-        };
-        let uv = uv0 * b[0] + uv1 * b[1] + uv2 * b[2];
-        let duv02 = uv0 - uv2;
-        let duv12 = uv1 - uv2;
-        let det = duv02.x * duv12.y - duv02.y * duv12.x;
-        let dpdu = if det.abs() > 1e-12 {
-            ((p0 - p2) * duv12.y - (p1 - p2) * duv02.y) / det
-        } else {
-            p1 - p0
-        };
-        let local = tri - mesh.first_triangle;
-        SurfaceHit {
-            p,
-            t,
-            ng,
-            ns,
-            dpdu,
-            uv,
-            surface: mesh.surface,
-            light: mesh.surface.light.map(|l| l + local),
-        }
-    }
-
-    /// Position, geometric and shading normal at barycentrics `b` of triangle `tri`,
-    /// oriented as a hit there would be.
-    pub fn surface_point(&self, tri: u32, b: [f32; 3]) -> (Vec3A, Vec3A, Vec3A) {
-        let [i0, i1, i2] = self.triangle_vertices[tri as usize];
-        let mesh = &self.meshes[self.triangle_mesh[tri as usize] as usize];
-        let (p0, p1, p2) = (
-            self.positions[i0 as usize],
-            self.positions[i1 as usize],
-            self.positions[i2 as usize],
-        );
-        let p = p0 * b[0] + p1 * b[1] + p2 * b[2];
-        let (ng, ns) = self.oriented_normals(mesh, [i0, i1, i2], [p0, p1, p2], b);
-        (p, ng, ns)
-    }
-
-    /// A triangle's geometric and shading normals at barycentrics `b`, oriented as pbrt
-    /// orients them: flipped by ReverseOrientation or a handedness-swapping transform, and
-    /// with per-vertex normals, the geometric normal on the shading normal's side.
-    fn oriented_normals(
-        &self,
-        mesh: &MeshInfo,
-        v: [u32; 3],
-        p: [Vec3A; 3],
-        b: [f32; 3],
-    ) -> (Vec3A, Vec3A) {
-        let mut ng = (p[0] - p[2]).cross(p[1] - p[2]).normalize_or_zero();
-        if mesh.flip {
-            ng = -ng;
-        }
-        let mut ns = ng;
-        if mesh.has_normals {
-            let n = self.normals[v[0] as usize] * b[0]
-                + self.normals[v[1] as usize] * b[1]
-                + self.normals[v[2] as usize] * b[2];
-            if n.length_squared() > 0.0 {
-                ns = n.normalize();
-                if ng.dot(ns) < 0.0 {
-                    ng = -ng;
-                }
-            }
-        }
-        (ng, ns)
-    }
-
-    fn sphere_hit(&self, ray: &Ray, t: f32, id: u32) -> SurfaceHit {
-        let s = &self.spheres[id as usize];
-        let mut n = (ray.at(t) - s.center).normalize();
-        // Put the point back on the surface to limit self-intersection.
-        let p = s.center + n * s.radius;
-        let dpdu = Vec3A::new(-n.y, n.x, 0.0);
-        let uv = Vec2::new(
-            (n.y.atan2(n.x) / std::f32::consts::TAU).rem_euclid(1.0),
-            n.z.clamp(-1.0, 1.0).acos() / std::f32::consts::PI,
-        );
-        if s.flip {
-            n = -n;
-        }
-        SurfaceHit {
-            p,
-            t,
-            ng: n,
-            ns: n,
-            dpdu,
-            uv,
-            surface: s.surface,
-            light: s.surface.light,
-        }
-    }
-
     /// Bounding box of everything.
     pub fn bounds(&self) -> (Vec3A, Vec3A) {
         let mut lo = Vec3A::splat(f32::INFINITY);
@@ -421,25 +286,6 @@ impl Geometry {
             (lo, hi)
         }
     }
-}
-
-/// Barycentric coordinates of `p` (assumed in the triangle's plane).
-pub fn barycentrics(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> [f32; 3] {
-    let v0 = b - a;
-    let v1 = c - a;
-    let v2 = p - a;
-    let d00 = v0.dot(v0);
-    let d01 = v0.dot(v1);
-    let d11 = v1.dot(v1);
-    let d20 = v2.dot(v0);
-    let d21 = v2.dot(v1);
-    let denom = d00 * d11 - d01 * d01;
-    if denom == 0.0 {
-        return [1.0, 0.0, 0.0];
-    }
-    let v = (d11 * d20 - d01 * d21) / denom;
-    let w = (d00 * d21 - d01 * d20) / denom;
-    [1.0 - v - w, v, w]
 }
 
 #[cfg(test)]

@@ -10,12 +10,12 @@
 //! with seeds that depend only on the photon's index: every worker of a farm builds the
 //! same map, so tiles stay independent and the image bit-identical.
 
-use crate::geometry::SurfaceHit;
-use crate::lights::Light;
+use crate::lights::EmissionPoint;
 use crate::math::{Color, Frame, Ray, offset_origin};
-use crate::media::{MediumEvent, TrackingRng};
-use crate::sampling::{AliasTable, cosine_hemisphere, uniform_sphere, uniform_triangle};
+use crate::media::MediumEvent;
+use crate::sampling::{AliasTable, TrackingRng, cosine_hemisphere};
 use crate::scene::Scene;
+use crate::shapes::{NO_MEDIUM, SurfaceHit};
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -125,9 +125,12 @@ impl CausticMaps {
         let powers: Vec<f64> = scene
             .lights
             .iter()
-            .map(|l| match l {
-                Light::Triangle { .. } | Light::Sphere { .. } => l.power(scene.radius) as f64,
-                _ => 0.0,
+            .map(|l| {
+                if l.shoots_photons() {
+                    l.power(scene.radius) as f64
+                } else {
+                    0.0
+                }
             })
             .collect();
         if settings.photons == 0 || powers.iter().all(|p| *p <= 0.0) {
@@ -212,41 +215,15 @@ fn trace_photon(
     let light = &scene.lights[light_index];
     // A point and a cosine-distributed direction on the emitting side; flux = L A pi
     // (twice for two-sided lights, which pick a side at random).
-    let (p, n, radiance, area, two_sided) = match light {
-        Light::Triangle {
-            p,
-            n,
-            area,
-            radiance,
-            two_sided,
-        } => {
-            let b = uniform_triangle(u1);
-            (
-                p[0] * b[0] + p[1] * b[1] + p[2] * b[2],
-                *n,
-                *radiance,
-                *area,
-                *two_sided,
-            )
-        }
-        Light::Sphere {
-            center,
-            radius,
-            radiance,
-            two_sided,
-            inward,
-        } => {
-            let d = uniform_sphere(u1);
-            let n = if *inward { -d } else { d };
-            (
-                *center + d * *radius,
-                n,
-                *radiance,
-                4.0 * PI * radius * radius,
-                *two_sided,
-            )
-        }
-        _ => return,
+    let Some(EmissionPoint {
+        p,
+        n,
+        radiance,
+        area,
+        two_sided,
+    }) = light.emission_point(u1)
+    else {
+        return;
     };
     let (n, sides) = if two_sided {
         (if rng.next_f32() < 0.5 { n } else { -n }, 2.0)
@@ -262,7 +239,7 @@ fn trace_photon(
         .flatten()
         .and_then(|[inside, outside]| {
             let m = if dir.dot(n) > 0.0 { outside } else { inside };
-            (m != crate::geometry::NO_MEDIUM).then_some(m)
+            (m != NO_MEDIUM).then_some(m)
         });
     let mut ray = Ray::new(offset_origin(p, n, dir), dir);
     let mut specular_bounces = 0u32;
@@ -276,7 +253,7 @@ fn trace_photon(
                 t_max,
                 &mut rng,
                 &mut beta,
-                |_, _, _| {},
+                |_| {},
             ) {
                 MediumEvent::Crossed => {}
                 MediumEvent::Absorbed => return,

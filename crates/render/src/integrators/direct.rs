@@ -1,0 +1,134 @@
+//! Next-event estimation and the weights that combine it with BSDF and phase sampling
+//! (multiple importance sampling), shared by every vertex of a path, on surfaces and in
+//! media; and Russian roulette.
+
+use super::PathSettings;
+use crate::math::{Color, offset_origin};
+use crate::sampling::{PixelSampler, TrackingRng, power_heuristic};
+use crate::scene::Scene;
+use crate::shapes::SurfaceHit;
+use glam::Vec3A;
+use kiln_scene::LightStrategy;
+
+/// The weight of emission found by BSDF or phase sampling (with density `scatter_pdf`)
+/// that light sampling could also have found with density `light_pdf()`.
+pub(super) fn emission_weight(
+    settings: &PathSettings,
+    first_or_specular: bool,
+    scatter_pdf: f32,
+    light_pdf: impl FnOnce() -> f32,
+) -> f32 {
+    if first_or_specular {
+        return 1.0;
+    }
+    match settings.strategy {
+        LightStrategy::BsdfOnly => 1.0,
+        LightStrategy::LightOnly => 0.0,
+        LightStrategy::Mis => power_heuristic(scatter_pdf, light_pdf()),
+    }
+}
+
+/// Russian roulette from `settings.rr_depth` on, on the throughput with the radiance scaling
+/// of refraction undone; false ends the path, and a survivor's throughput is scaled up.
+pub(super) fn survives_roulette(
+    beta: &mut Color,
+    eta_scale: f32,
+    depth: u32,
+    settings: &PathSettings,
+    sampler: &mut PixelSampler,
+) -> bool {
+    let rr = (*beta * eta_scale).max_element();
+    if rr < 1.0 && depth >= settings.rr_depth {
+        let q = (1.0 - rr).max(0.05);
+        if sampler.get_1d() < q {
+            return false;
+        }
+        *beta /= 1.0 - q;
+    }
+    true
+}
+
+/// Where next-event estimation starts: a point, the surface it lies on (none inside a
+/// medium), and the medium the path is in there.
+pub(super) struct Vertex<'a> {
+    pub p: Vec3A,
+    pub surface: Option<&'a SurfaceHit>,
+    pub medium: Option<u32>,
+}
+
+impl Vertex<'_> {
+    fn medium_towards(&self, dir: Vec3A) -> Option<u32> {
+        match self.surface {
+            Some(h) => h.surface.medium_towards(dir, h.ng).unwrap_or(self.medium),
+            None => self.medium,
+        }
+    }
+}
+
+/// One light sample for next-event estimation from `v`; `f` is the scattering function
+/// (times the cosine at surfaces) and `pdf` the density of sampling `wi` by it.
+pub(super) fn sample_direct(
+    scene: &Scene,
+    settings: &PathSettings,
+    v: &Vertex,
+    f: impl Fn(Vec3A) -> Color,
+    pdf: impl Fn(Vec3A) -> f32,
+    sampler: &mut PixelSampler,
+    rays: &mut u64,
+) -> Color {
+    let u_light = sampler.get_1d();
+    let u = sampler.get_2d();
+    let Some((index, pmf)) = scene.light_sampler.sample(u_light) else {
+        return Color::ZERO;
+    };
+    let (sample, traced) = scene.lights[index].sample(&scene.light_context(), v.p, u);
+    *rays += traced;
+    let Some(ls) = sample else {
+        return Color::ZERO;
+    };
+    if ls.pdf <= 0.0 || ls.radiance == Color::ZERO {
+        return Color::ZERO;
+    }
+    let f = f(ls.wi);
+    if f == Color::ZERO {
+        return Color::ZERO;
+    }
+    let origin = v.surface.map_or(v.p, |h| offset_origin(v.p, h.ng, ls.wi));
+    let medium = v.medium_towards(ls.wi);
+    let mut rng = TrackingRng::from_values(&[u_light, u.x, u.y], 2);
+    let tr = if ls.distance.is_finite() {
+        // Aim at the light's point moved off its surface towards us, and stop short of it:
+        // following ls.wi for the full distance would graze the light's own surface.
+        let target = if ls.n == Vec3A::ZERO {
+            v.p + ls.wi * ls.distance
+        } else {
+            offset_origin(v.p + ls.wi * ls.distance, ls.n, -ls.wi)
+        };
+        let d = target - origin;
+        let len = d.length();
+        if len > 0.0 {
+            scene.transmittance(origin, d / len, len * (1.0 - 1e-4), medium, &mut rng, rays)
+        } else {
+            (Color::ZERO, medium)
+        }
+    } else {
+        scene.transmittance(origin, ls.wi, f32::INFINITY, medium, &mut rng, rays)
+    };
+    let (tr, end_medium) = tr;
+    if tr == Color::ZERO {
+        return Color::ZERO;
+    }
+    // A point sampled in a medium emits only if the shadow ray arrives in that medium.
+    if ls.medium.is_some() && end_medium != ls.medium {
+        return Color::ZERO;
+    }
+    let light_pdf = pmf * ls.pdf;
+    if ls.delta {
+        return f * tr * ls.radiance / light_pdf;
+    }
+    let w = match settings.strategy {
+        LightStrategy::Mis => power_heuristic(light_pdf, pdf(ls.wi) * ls.scatter_rate),
+        _ => 1.0,
+    };
+    f * tr * ls.radiance * (w / light_pdf)
+}

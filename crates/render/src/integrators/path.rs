@@ -1,0 +1,393 @@
+//! The (volumetric) path tracer: next-event estimation with multiple importance sampling,
+//! Russian roulette, free-flight sampling through media, VolumeLight interiors, and the
+//! caustic photon maps' gathers.
+//!
+//! A path is a small state ([`PathState`]) advanced by one step per segment: through the
+//! medium the segment crosses ([`medium_step`]), along a VolumeLight's interior, to the
+//! surface it reaches ([`surface_emission`], then [`surface_step`]) or off to the lights at
+//! infinity ([`escape`]).
+
+use super::direct::{Vertex, emission_weight, sample_direct, survives_roulette};
+use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, Prepass};
+use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::media::{Emitted, MediumEvent};
+use crate::sampling::{PixelSampler, TrackingRng};
+use crate::scene::Scene;
+use crate::shapes::SurfaceHit;
+use glam::Vec3A;
+use kiln_scene::LightStrategy;
+
+/// What a path tracer step needs besides the path.
+pub(super) struct PathContext<'a> {
+    pub scene: &'a Scene,
+    pub settings: &'a PathSettings,
+    pub prepass: &'a Prepass,
+}
+
+/// Everything a path carries from one segment to the next.
+struct PathState {
+    /// Radiance gathered so far.
+    l: Color,
+    /// Throughput.
+    beta: Color,
+    /// The radiance scaling of refractions so far, which Russian roulette undoes.
+    eta_scale: f32,
+    depth: u32,
+    /// What the previous scattering vertex knew, for weighting emission found by BSDF or
+    /// phase sampling: whether it was the camera or specular, where it was, and the
+    /// density it sampled the current direction with.
+    first_or_specular: bool,
+    prev_p: Vec3A,
+    prev_pdf: f32,
+    /// Interface surfaces crossed without scattering.
+    pass_throughs: u32,
+    /// The VolumeLight whose interior the path is in, and whether the current segment's
+    /// emission is still to be counted (it is not on the first segment after entering: the
+    /// entry hit already counted it as the light's surface emission).
+    inside: Option<(u32, bool)>,
+    /// The participating medium the ray travels in, and how many medium segments so far
+    /// (each gets its own tracking numbers).
+    medium: Option<u32>,
+    segments: u32,
+    /// With caustic photon maps: specular bounces since the last vertex that gathered
+    /// photons (None before the first).
+    specular_since_gather: Option<u32>,
+}
+
+/// What the path does after a step.
+enum Next {
+    /// Trace the next segment.
+    Continue,
+    /// Go on to the surface the segment reached.
+    Surface,
+    /// The path ends.
+    Stop,
+}
+
+/// Radiance arriving along `ray`; `rays` counts the rays traced.
+pub(super) fn path_li(
+    ctx: &PathContext,
+    mut ray: Ray,
+    sampler: &mut PixelSampler,
+    rays: &mut u64,
+) -> Color {
+    let mut state = PathState {
+        l: Color::ZERO,
+        beta: Color::ONE,
+        eta_scale: 1.0,
+        depth: 0,
+        first_or_specular: true,
+        prev_p: ray.origin,
+        prev_pdf: 0.0,
+        pass_throughs: 0,
+        inside: None,
+        medium: ctx.scene.camera_medium,
+        segments: 0,
+        specular_since_gather: None,
+    };
+    loop {
+        *rays += 1;
+        let found = ctx.scene.geometry.intersect(&ray, f32::INFINITY);
+        if state.medium.is_some() {
+            match medium_step(ctx, &mut state, &mut ray, found.as_ref(), sampler, rays) {
+                Next::Continue => continue,
+                Next::Stop => break,
+                Next::Surface => {}
+            }
+        }
+        interior_segment(ctx.scene, &mut state, &ray, found.as_ref());
+        let Some(hit) = found else {
+            escape(ctx, &mut state, &ray);
+            break;
+        };
+        surface_emission(ctx, &mut state, &ray, &hit, rays);
+        match surface_step(ctx, &mut state, &mut ray, &hit, sampler, rays) {
+            Next::Continue | Next::Surface => {}
+            Next::Stop => break,
+        }
+    }
+    state.l
+}
+
+/// Free-flight sampling through the medium the ray is in, up to the surface `found` (or
+/// infinity): the medium's emission on the way, and a scattering event if one happens.
+fn medium_step(
+    ctx: &PathContext,
+    state: &mut PathState,
+    ray: &mut Ray,
+    found: Option<&SurfaceHit>,
+    sampler: &mut PixelSampler,
+    rays: &mut u64,
+) -> Next {
+    let (scene, settings) = (ctx.scene, ctx.settings);
+    let Some(m) = state.medium else {
+        return Next::Surface;
+    };
+    let med = &scene.media[m as usize];
+    let t_max = found.map_or(f32::INFINITY, |h| h.t);
+    // Each bounce's tracking numbers are seeded from its unused eighth dimension.
+    let seed_dim = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * state.depth + 7;
+    state.segments += 1;
+    let mut rng = TrackingRng::new(
+        ((sampler.value(seed_dim).to_bits() as u64) << 32) | state.segments as u64,
+    );
+    // Emission met at a tentative collision could also have been found by sampling the
+    // medium as a light from the previous vertex.
+    let light = scene.medium_lights[m as usize];
+    let (first_or_specular, prev_p, prev_pdf) =
+        (state.first_or_specular, state.prev_p, state.prev_pdf);
+    let l = &mut state.l;
+    let event = med.sample_interaction(ray, t_max, &mut rng, &mut state.beta, |e| match e {
+        Emitted::Segment(c) => *l += c,
+        Emitted::Collision {
+            t,
+            sigma_maj,
+            radiance,
+        } => {
+            let x = ray.at(t);
+            let w = match light {
+                None => 1.0,
+                Some(light) => {
+                    emission_weight(settings, first_or_specular, prev_pdf * sigma_maj, || {
+                        scene.light_pdf(light, prev_p, ray.dir, x, Vec3A::ZERO)
+                    })
+                }
+            };
+            *l += radiance * (w / sigma_maj);
+        }
+    });
+    let t = match event {
+        MediumEvent::Crossed => return Next::Surface,
+        MediumEvent::Absorbed => return Next::Stop,
+        MediumEvent::Scattered(t) => t,
+    };
+    if state.depth == settings.max_depth {
+        return Next::Stop;
+    }
+    state.depth += 1;
+    let p = ray.at(t);
+    let phase = med.phase();
+    let wo = -ray.dir;
+    if let Some(maps) = &ctx.prepass.caustics {
+        // Caustic light scattered here, from the volume photon map; the throughput already
+        // holds sigma_s, the estimate divides it out.
+        let sigma_s = med.sigma_s_at(p);
+        let lv = maps.volume_radiance(p, wo, |a, b| phase.p(a, b));
+        let inv = Color::select(
+            sigma_s.cmpgt(Color::ZERO),
+            Color::ONE / sigma_s,
+            Color::ZERO,
+        );
+        state.l += state.beta * lv * inv;
+        state.specular_since_gather = Some(0);
+    }
+    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.depth - 1);
+    sampler.set_dimension(base);
+    if settings.strategy != LightStrategy::BsdfOnly && !scene.light_sampler.is_empty() {
+        let v = Vertex {
+            p,
+            surface: None,
+            medium: state.medium,
+        };
+        state.l += state.beta
+            * sample_direct(
+                scene,
+                settings,
+                &v,
+                |wi| Color::splat(phase.p(wo, wi)),
+                |wi| phase.p(wo, wi),
+                sampler,
+                rays,
+            );
+    }
+    sampler.set_dimension(base + 4);
+    let (wi, pdf) = phase.sample(wo, sampler.get_2d());
+    // Phase functions are sampled exactly: the value over the pdf is 1.
+    state.first_or_specular = false;
+    state.prev_pdf = pdf;
+    state.prev_p = p;
+    *ray = Ray::new(p, wi);
+    if let Some((volume, _)) = state.inside {
+        state.inside = Some((volume, true));
+    }
+    if !survives_roulette(
+        &mut state.beta,
+        state.eta_scale,
+        state.depth,
+        settings,
+        sampler,
+    ) {
+        return Next::Stop;
+    }
+    Next::Continue
+}
+
+/// Inside a VolumeLight: the interior's emission along the segment (unless the entry hit
+/// counted it) and its absorption.
+fn interior_segment(scene: &Scene, state: &mut PathState, ray: &Ray, found: Option<&SurfaceHit>) {
+    let Some((volume, count)) = state.inside else {
+        return;
+    };
+    let interior = &scene.volumes[volume as usize];
+    let t = found.map_or(0.0, |h| h.t);
+    if count {
+        state.l += state.beta * interior.segment(ray.origin, ray.dir, t);
+    }
+    state.beta *= interior.transmittance(t);
+    if found.is_none() {
+        // Only rounding lets a ray out of a closed shape without a hit.
+        state.inside = None;
+    }
+}
+
+/// A ray that left the scene: the lights at infinity.
+fn escape(ctx: &PathContext, state: &mut PathState, ray: &Ray) {
+    let scene = ctx.scene;
+    for &i in &scene.infinite_lights {
+        let le = scene.lights[i as usize].infinite_le(ray.dir);
+        if le != Color::ZERO {
+            let w = emission_weight(
+                ctx.settings,
+                state.first_or_specular,
+                state.prev_pdf,
+                || scene.light_pdf(i, state.prev_p, ray.dir, Vec3A::ZERO, Vec3A::ZERO),
+            );
+            state.l += state.beta * le * w;
+        }
+    }
+}
+
+/// Emission of the light whose surface the ray reached, weighted against light sampling.
+fn surface_emission(
+    ctx: &PathContext,
+    state: &mut PathState,
+    ray: &Ray,
+    hit: &SurfaceHit,
+    rays: &mut u64,
+) {
+    let scene = ctx.scene;
+    let Some(light_id) = hit.light else {
+        return;
+    };
+    let light = &scene.lights[light_id as usize];
+    // Reached through specular bounces from a vertex that gathered caustic photons: the
+    // photon map has already counted the lights that shoot photons.
+    if light.shoots_photons() && matches!(state.specular_since_gather, Some(k) if k > 0) {
+        return;
+    }
+    let (le, traced) = light.le(&scene.light_context(), hit.p, hit.ng, hit.ns, -ray.dir);
+    *rays += traced;
+    if le != Color::ZERO {
+        let w = emission_weight(
+            ctx.settings,
+            state.first_or_specular,
+            state.prev_pdf,
+            || scene.light_pdf(light_id, state.prev_p, ray.dir, hit.p, hit.ng),
+        );
+        state.l += state.beta * le * w;
+    }
+}
+
+/// Scattering at a surface: caustic photons, a light sample, and the next direction by
+/// BSDF sampling; or straight on through an interface.
+fn surface_step(
+    ctx: &PathContext,
+    state: &mut PathState,
+    ray: &mut Ray,
+    hit: &SurfaceHit,
+    sampler: &mut PixelSampler,
+    rays: &mut u64,
+) -> Next {
+    let (scene, settings) = (ctx.scene, ctx.settings);
+    let Some(bsdf) = scene.materials[hit.surface.material as usize].bsdf() else {
+        // An interface: continue straight through without counting a bounce.
+        state.pass_throughs += 1;
+        if state.pass_throughs > 256 {
+            return Next::Stop;
+        }
+        if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
+            state.medium = next;
+        }
+        *ray = Ray::new(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+        return Next::Continue;
+    };
+    if state.depth == settings.max_depth || bsdf.is_black() {
+        return Next::Stop;
+    }
+    state.depth += 1;
+    let frame = Frame::new(hit.ns, hit.dpdu);
+    let wo = frame.to_local(-ray.dir);
+    if let Some(maps) = &ctx.prepass.caustics {
+        if bsdf.is_specular() {
+            state.specular_since_gather = state.specular_since_gather.map(|k| k + 1);
+        } else {
+            // Caustic light reflected here, from the surface photon map.
+            let side = if ray.dir.dot(hit.ns) < 0.0 {
+                hit.ns
+            } else {
+                -hit.ns
+            };
+            state.l += state.beta
+                * maps.surface_radiance(hit.p, side, |wi| bsdf.f(wo, frame.to_local(wi)));
+            state.specular_since_gather = Some(0);
+        }
+    }
+    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.depth - 1);
+    sampler.set_dimension(base);
+    if !bsdf.is_specular()
+        && settings.strategy != LightStrategy::BsdfOnly
+        && !scene.light_sampler.is_empty()
+    {
+        let v = Vertex {
+            p: hit.p,
+            surface: Some(hit),
+            medium: state.medium,
+        };
+        let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
+        let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
+        state.l += state.beta * sample_direct(scene, settings, &v, f, pdf, sampler, rays);
+    }
+    sampler.set_dimension(base + 3);
+    let uc = sampler.get_1d();
+    let u = sampler.get_2d();
+    let Some(bs) = bsdf.sample(wo, uc, u) else {
+        return Next::Stop;
+    };
+    let wi = frame.to_world(bs.wi);
+    state.beta *= bs.f * wi.dot(hit.ns).abs() / bs.pdf;
+    if !state.beta.is_finite() || state.beta == Color::ZERO {
+        return Next::Stop;
+    }
+    state.first_or_specular = bs.specular;
+    state.prev_pdf = bs.pdf;
+    state.prev_p = hit.p;
+    if bs.eta != 1.0 {
+        state.eta_scale *= bs.eta * bs.eta;
+    }
+    *ray = Ray::new(offset_origin(hit.p, hit.ng, wi), wi);
+    if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
+        state.medium = next;
+    }
+    if let Some(volume) = hit.surface.volume {
+        state.inside = if wi.dot(hit.ng) < 0.0 {
+            // Entering (not counted again) or reflecting inside (counted).
+            let entering = state.inside.is_none();
+            Some((volume, !entering))
+        } else {
+            None
+        };
+    } else if let Some((volume, _)) = state.inside {
+        // Scattered off something inside the shape: the next segment emits too.
+        state.inside = Some((volume, true));
+    }
+    if !survives_roulette(
+        &mut state.beta,
+        state.eta_scale,
+        state.depth,
+        settings,
+        sampler,
+    ) {
+        return Next::Stop;
+    }
+    Next::Continue
+}

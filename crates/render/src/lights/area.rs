@@ -1,0 +1,206 @@
+//! Diffuse area lights: a shape that emits constant radiance from its surface, one light per
+//! emitting triangle (so the light sampler chooses faces by power) or per sphere.
+
+use super::LightSample;
+use crate::math::{Color, luminance};
+use crate::sampling::{uniform_sphere, uniform_triangle};
+use crate::shapes::sphere::{sample_sphere, sphere_pdf};
+use crate::shapes::triangle::{sample_triangle, triangle_pdf};
+use glam::{Vec2, Vec3A};
+use std::f32::consts::PI;
+
+/// One emitting triangle; `n` is its emitting side.
+#[derive(Debug, Clone)]
+pub struct TriangleLight {
+    pub p: [Vec3A; 3],
+    pub n: Vec3A,
+    pub area: f32,
+    pub radiance: Color,
+    pub two_sided: bool,
+}
+
+/// An emitting sphere; `inward` when ReverseOrientation turned its emitting side inwards.
+#[derive(Debug, Clone)]
+pub struct SphereLight {
+    pub center: Vec3A,
+    pub radius: f32,
+    pub radiance: Color,
+    pub two_sided: bool,
+    pub inward: bool,
+}
+
+/// A point on an area light from which photons leave: position, emitting normal, radiance,
+/// the light's whole area and whether it emits on both sides.
+pub struct EmissionPoint {
+    pub p: Vec3A,
+    pub n: Vec3A,
+    pub radiance: Color,
+    pub area: f32,
+    pub two_sided: bool,
+}
+
+/// Radiance leaving a diffuse emitter's point with normal `n` in direction `w`.
+fn diffuse_le(radiance: Color, two_sided: bool, n: Vec3A, w: Vec3A) -> Color {
+    if two_sided || n.dot(w) > 0.0 {
+        radiance
+    } else {
+        Color::ZERO
+    }
+}
+
+fn sides(two_sided: bool) -> f32 {
+    if two_sided { 2.0 } else { 1.0 }
+}
+
+impl TriangleLight {
+    pub fn power(&self) -> f32 {
+        PI * self.area * luminance(self.radiance) * sides(self.two_sided)
+    }
+
+    pub fn le(&self, n: Vec3A, w: Vec3A) -> Color {
+        diffuse_le(self.radiance, self.two_sided, n, w)
+    }
+
+    pub fn sample(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
+        let (point, _) = sample_triangle(&self.p, self.n, self.area, p, u)?;
+        let radiance = self.le(self.n, -point.wi);
+        (radiance != Color::ZERO).then(|| LightSample::on_surface(point, radiance))
+    }
+
+    pub fn pdf(&self, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
+        triangle_pdf(self.area, p, wi, q, n)
+    }
+
+    pub fn emission_point(&self, u: Vec2) -> EmissionPoint {
+        let b = uniform_triangle(u);
+        EmissionPoint {
+            p: self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2],
+            n: self.n,
+            radiance: self.radiance,
+            area: self.area,
+            two_sided: self.two_sided,
+        }
+    }
+}
+
+impl SphereLight {
+    pub fn power(&self) -> f32 {
+        PI * 4.0 * PI * self.radius * self.radius * luminance(self.radiance) * sides(self.two_sided)
+    }
+
+    pub fn le(&self, n: Vec3A, w: Vec3A) -> Color {
+        diffuse_le(self.radiance, self.two_sided, n, w)
+    }
+
+    pub fn sample(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
+        let mut point = sample_sphere(self.center, self.radius, p, u)?;
+        if self.inward {
+            point.n = -point.n;
+        }
+        let radiance = self.le(point.n, -point.wi);
+        (radiance != Color::ZERO).then(|| LightSample::on_surface(point, radiance))
+    }
+
+    pub fn pdf(&self, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
+        sphere_pdf(self.center, self.radius, p, wi, q, n)
+    }
+
+    pub fn emission_point(&self, u: Vec2) -> EmissionPoint {
+        let d = uniform_sphere(u);
+        EmissionPoint {
+            p: self.center + d * self.radius,
+            n: if self.inward { -d } else { d },
+            radiance: self.radiance,
+            area: 4.0 * PI * self.radius * self.radius,
+            two_sided: self.two_sided,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::PixelSampler;
+
+    /// The pdf a light reports for a direction must be the density its sampler produces:
+    /// integrating 1/pdf over samples estimates the subtended solid angle.
+    #[test]
+    fn sphere_and_triangle_pdfs_integrate_to_their_solid_angle() {
+        let sphere = SphereLight {
+            center: Vec3A::new(0.0, 0.0, 5.0),
+            radius: 1.0,
+            radiance: Color::ONE,
+            two_sided: false,
+            inward: false,
+        };
+        let n = 4096;
+        let mut sum = 0.0f64;
+        for i in 0..n {
+            let s = PixelSampler::new(0, 0, i, 2);
+            let ls = sphere
+                .sample(Vec3A::ZERO, Vec2::new(s.value(0), s.value(1)))
+                .unwrap();
+            let q = ls.wi * ls.distance;
+            let pdf = sphere.pdf(Vec3A::ZERO, ls.wi, q, ls.n);
+            assert!((pdf - ls.pdf).abs() < 1e-3 * pdf);
+            sum += 1.0 / ls.pdf as f64;
+        }
+        let expected = 2.0 * std::f64::consts::PI * (1.0 - (1.0f64 - 1.0 / 25.0).sqrt());
+        assert!(((sum / n as f64) - expected).abs() < 1e-4 * expected.max(1.0));
+
+        let tri = TriangleLight {
+            p: [
+                Vec3A::new(-1.0, -1.0, 2.0),
+                Vec3A::new(1.0, -1.0, 2.0),
+                Vec3A::new(0.0, 1.0, 2.0),
+            ],
+            n: -Vec3A::Z,
+            area: 2.0,
+            radiance: Color::ONE,
+            two_sided: false,
+        };
+        let mut sum = 0.0f64;
+        for i in 0..n {
+            let s = PixelSampler::new(1, 0, i, 2);
+            let ls = tri
+                .sample(Vec3A::ZERO, Vec2::new(s.value(0), s.value(1)))
+                .unwrap();
+            sum += 1.0 / ls.pdf as f64;
+        }
+        // Solid angle of the triangle by a fine numerical integral over its area.
+        let mut omega = 0.0f64;
+        let m = 400;
+        for i in 0..m {
+            for j in 0..m {
+                let u = Vec2::new((i as f32 + 0.5) / m as f32, (j as f32 + 0.5) / m as f32);
+                let b = uniform_triangle(u);
+                let q = Vec3A::new(-1.0, -1.0, 2.0) * b[0]
+                    + Vec3A::new(1.0, -1.0, 2.0) * b[1]
+                    + Vec3A::new(0.0, 1.0, 2.0) * b[2];
+                omega += (2.0 * q.z / q.length().powi(3)) as f64 / (m * m) as f64;
+            }
+        }
+        assert!(
+            ((sum / n as f64) - omega).abs() < 0.01 * omega,
+            "{} vs {omega}",
+            sum / n as f64
+        );
+    }
+
+    #[test]
+    fn one_sided_area_lights_emit_on_their_normal_side() {
+        let tri = TriangleLight {
+            p: [Vec3A::ZERO, Vec3A::X, Vec3A::Y],
+            n: Vec3A::Z,
+            area: 0.5,
+            radiance: Color::ONE,
+            two_sided: false,
+        };
+        assert_eq!(tri.le(Vec3A::Z, Vec3A::Z), Color::ONE);
+        assert_eq!(tri.le(Vec3A::Z, -Vec3A::Z), Color::ZERO);
+        assert!(
+            tri.sample(Vec3A::new(0.2, 0.2, -1.0), Vec2::splat(0.3))
+                .is_none()
+        );
+    }
+}

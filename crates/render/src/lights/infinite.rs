@@ -1,0 +1,253 @@
+//! Lights at infinity: uniform skies, environment maps and domes. Rays that escape the
+//! scene collect their radiance ([`Light::infinite_le`](super::Light::infinite_le)).
+
+use super::LightSample;
+use crate::math::{Color, Frame, luminance};
+use crate::sampling::{Distribution2D, uniform_hemisphere, uniform_sphere};
+use glam::{Affine3A, Vec2, Vec3A};
+use std::f32::consts::PI;
+
+/// Constant radiance from every direction.
+#[derive(Debug, Clone)]
+pub struct UniformInfiniteLight {
+    pub radiance: Color,
+}
+
+impl UniformInfiniteLight {
+    pub fn power(&self, scene_radius: f32) -> f32 {
+        4.0 * PI * disk(scene_radius) * luminance(self.radiance)
+    }
+
+    pub fn sample(&self, u: Vec2) -> Option<LightSample> {
+        Some(LightSample::at_infinity(
+            self.radiance,
+            uniform_sphere(u),
+            1.0 / (4.0 * PI),
+        ))
+    }
+
+    pub fn pdf(&self) -> f32 {
+        1.0 / (4.0 * PI)
+    }
+}
+
+/// Constant radiance from the hemisphere around `frame.z` only.
+#[derive(Debug, Clone)]
+pub struct DomeLight {
+    pub frame: Frame,
+    pub radiance: Color,
+}
+
+impl DomeLight {
+    pub fn power(&self, scene_radius: f32) -> f32 {
+        2.0 * PI * disk(scene_radius) * luminance(self.radiance)
+    }
+
+    pub fn le(&self, w: Vec3A) -> Color {
+        if w.dot(self.frame.z) > 0.0 {
+            self.radiance
+        } else {
+            Color::ZERO
+        }
+    }
+
+    pub fn sample(&self, u: Vec2) -> Option<LightSample> {
+        Some(LightSample::at_infinity(
+            self.radiance,
+            self.frame.to_world(uniform_hemisphere(u)),
+            1.0 / (2.0 * PI),
+        ))
+    }
+
+    pub fn pdf(&self, wi: Vec3A) -> f32 {
+        if wi.dot(self.frame.z) > 0.0 {
+            1.0 / (2.0 * PI)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The area of a disk as wide as the scene: what a light at infinity shines on.
+fn disk(scene_radius: f32) -> f32 {
+    PI * scene_radius * scene_radius
+}
+
+/// An environment map in the equal-area octahedral layout or lat-long, importance-sampled
+/// by its luminance.
+#[derive(Debug, Clone)]
+pub struct ImageInfiniteLight {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<Color>,
+    pub equal_area: bool,
+    pub light_to_world: Affine3A,
+    pub world_to_light: Affine3A,
+    pub distribution: Distribution2D,
+}
+
+impl ImageInfiniteLight {
+    pub fn new(
+        width: usize,
+        height: usize,
+        pixels: Vec<Color>,
+        equal_area: bool,
+        light_to_world: Affine3A,
+    ) -> ImageInfiniteLight {
+        let mut func = Vec::with_capacity(width * height);
+        for y in 0..height {
+            // Lat-long rows near the poles cover less solid angle.
+            let row_weight = if equal_area {
+                1.0
+            } else {
+                (PI * (y as f32 + 0.5) / height as f32).sin()
+            };
+            for x in 0..width {
+                func.push(luminance(pixels[y * width + x]).max(0.0) * row_weight);
+            }
+        }
+        ImageInfiniteLight {
+            width,
+            height,
+            distribution: Distribution2D::new(&func, width, height),
+            pixels,
+            equal_area,
+            light_to_world,
+            world_to_light: light_to_world.inverse(),
+        }
+    }
+
+    fn lookup(&self, uv: Vec2) -> Color {
+        let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
+        let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
+        self.pixels[y * self.width + x]
+    }
+
+    fn dir_to_uv(&self, w: Vec3A) -> Vec2 {
+        let wl = self.world_to_light.transform_vector3a(w).normalize();
+        if self.equal_area {
+            equal_area_sphere_to_square(wl)
+        } else {
+            let theta = wl.z.clamp(-1.0, 1.0).acos();
+            let phi = wl.y.atan2(wl.x).rem_euclid(2.0 * PI);
+            Vec2::new(phi / (2.0 * PI), theta / PI)
+        }
+    }
+
+    fn uv_to_dir(&self, uv: Vec2) -> (Vec3A, f32) {
+        let (wl, jacobian) = if self.equal_area {
+            (equal_area_square_to_sphere(uv), 4.0 * PI)
+        } else {
+            let theta = uv.y * PI;
+            let phi = uv.x * 2.0 * PI;
+            let s = theta.sin();
+            (
+                Vec3A::new(s * phi.cos(), s * phi.sin(), theta.cos()),
+                2.0 * PI * PI * s,
+            )
+        };
+        (
+            self.light_to_world.transform_vector3a(wl).normalize(),
+            jacobian,
+        )
+    }
+
+    pub fn power(&self, scene_radius: f32) -> f32 {
+        let mean: f32 = self.pixels.iter().map(|p| luminance(*p)).sum::<f32>()
+            / self.pixels.len().max(1) as f32;
+        4.0 * PI * disk(scene_radius) * mean
+    }
+
+    pub fn sample(&self, u: Vec2) -> Option<LightSample> {
+        let (uv, pdf_uv) = self.distribution.sample(u);
+        if pdf_uv == 0.0 {
+            return None;
+        }
+        let (wi, jacobian) = self.uv_to_dir(uv);
+        if jacobian == 0.0 {
+            return None;
+        }
+        Some(LightSample::at_infinity(
+            self.lookup(uv),
+            wi,
+            pdf_uv / jacobian,
+        ))
+    }
+
+    pub fn le(&self, w: Vec3A) -> Color {
+        self.lookup(self.dir_to_uv(w))
+    }
+
+    pub fn pdf(&self, w: Vec3A) -> f32 {
+        let uv = self.dir_to_uv(w);
+        let jacobian = if self.equal_area {
+            4.0 * PI
+        } else {
+            2.0 * PI * PI * (uv.y * PI).sin()
+        };
+        if jacobian == 0.0 {
+            0.0
+        } else {
+            self.distribution.pdf(uv) / jacobian
+        }
+    }
+}
+
+/// Clarberg's equal-area map from the unit square to the sphere, as pbrt-v4 uses for environment maps.
+pub fn equal_area_square_to_sphere(p: Vec2) -> Vec3A {
+    let u = 2.0 * p.x - 1.0;
+    let v = 2.0 * p.y - 1.0;
+    let up = u.abs();
+    let vp = v.abs();
+    let signed_distance = 1.0 - (up + vp);
+    let d = signed_distance.abs();
+    let r = 1.0 - d;
+    let phi = if r == 0.0 { 1.0 } else { (vp - up) / r + 1.0 } * PI / 4.0;
+    let z = (1.0 - r * r).copysign(signed_distance);
+    let cos_phi = phi.cos().copysign(u);
+    let sin_phi = phi.sin().copysign(v);
+    let s = r * (2.0 - r * r).max(0.0).sqrt();
+    Vec3A::new(cos_phi * s, sin_phi * s, z)
+}
+
+/// The inverse of [`equal_area_square_to_sphere`].
+pub fn equal_area_sphere_to_square(d: Vec3A) -> Vec2 {
+    let (x, y, z) = (d.x.abs(), d.y.abs(), d.z.abs());
+    let r = (1.0 - z).max(0.0).sqrt();
+    let a = x.max(y);
+    let b = x.min(y);
+    let b = if a == 0.0 { 0.0 } else { b / a };
+    let mut phi = b.atan() * 2.0 / PI;
+    if x < y {
+        phi = 1.0 - phi;
+    }
+    let mut v = phi * r;
+    let mut u = r - v;
+    if d.z < 0.0 {
+        std::mem::swap(&mut u, &mut v);
+        u = 1.0 - u;
+        v = 1.0 - v;
+    }
+    u = u.copysign(d.x);
+    v = v.copysign(d.y);
+    Vec2::new((u + 1.0) / 2.0, (v + 1.0) / 2.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn equal_area_map_round_trips() {
+        for i in 0..400 {
+            let uv = Vec2::new(
+                (i % 20) as f32 / 20.0 + 0.025,
+                (i / 20) as f32 / 20.0 + 0.025,
+            );
+            let d = equal_area_square_to_sphere(uv);
+            assert!((d.length() - 1.0).abs() < 1e-4);
+            let back = equal_area_sphere_to_square(d);
+            assert!((back - uv).length() < 1e-4, "{uv} -> {d} -> {back}");
+        }
+    }
+}

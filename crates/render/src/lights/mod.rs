@@ -1,0 +1,321 @@
+//! Lights: what emits, how to sample a point or direction on it, and its density.
+//!
+//! [`Light`] is the closed set of light kinds and its dispatch; each kind lives in its own
+//! file. Every kind answers every question itself ([`Light::sample`], [`Light::pdf`],
+//! [`Light::le`], [`Light::power`]), given a [`LightContext`] with the parts of the scene
+//! some kinds need (VolumeLights trace their interior chord through the geometry; a medium
+//! light samples its medium's emission), so adding a kind makes the compiler list every
+//! place that must learn it.
+//!
+//! Lights know nothing of integrators: they never see a path, only a reference point.
+
+mod area;
+mod distant;
+mod infinite;
+mod medium;
+mod point;
+mod spot;
+pub mod volume;
+
+pub use area::{EmissionPoint, SphereLight, TriangleLight};
+pub use distant::DistantLight;
+pub use infinite::{
+    DomeLight, ImageInfiniteLight, UniformInfiniteLight, equal_area_sphere_to_square,
+    equal_area_square_to_sphere,
+};
+pub use medium::MediumLight;
+pub use point::PointLight;
+pub use spot::SpotLight;
+pub use volume::{VolumeInterior, VolumeSphereLight, VolumeTriangleLight};
+
+use crate::math::{Color, Frame, rgb};
+use crate::media::Medium;
+use crate::shapes::{Geometry, ShapeSample};
+use glam::{Affine3A, Vec2, Vec3A};
+use kiln_scene::{EnvironmentLayout, LightKind};
+
+/// The parts of a scene that sampling and evaluating some lights needs.
+#[derive(Clone, Copy)]
+pub struct LightContext<'a> {
+    pub geometry: &'a Geometry,
+    /// VolumeLight interiors, by `volume` index.
+    pub volumes: &'a [VolumeInterior],
+    pub media: &'a [Medium],
+}
+
+#[derive(Debug, Clone)]
+pub enum Light {
+    Point(PointLight),
+    Spot(SpotLight),
+    Distant(DistantLight),
+    Triangle(TriangleLight),
+    Sphere(SphereLight),
+    VolumeTriangle(VolumeTriangleLight),
+    VolumeSphere(VolumeSphereLight),
+    Medium(MediumLight),
+    UniformInfinite(UniformInfiniteLight),
+    ImageInfinite(Box<ImageInfiniteLight>),
+    Dome(DomeLight),
+}
+
+/// A sampled point or direction on a light, seen from a reference point.
+#[derive(Debug, Clone, Copy)]
+pub struct LightSample {
+    pub radiance: Color,
+    pub wi: Vec3A,
+    /// Solid-angle pdf (1 for delta lights; per unit solid angle and length for points in
+    /// a medium).
+    pub pdf: f32,
+    /// Distance to the sampled point (infinite for lights at infinity).
+    pub distance: f32,
+    /// The sampled point's normal, for offsetting the shadow ray's far end (zero for
+    /// points not on a surface).
+    pub n: Vec3A,
+    pub delta: bool,
+    /// For a point in a medium: the medium the shadow ray must arrive in for it to emit.
+    pub medium: Option<u32>,
+    /// The rate at which scattering finds this point: what the scattering pdf is multiplied
+    /// by in MIS weights (the majorant at a point in a medium; 1 on surfaces).
+    pub scatter_rate: f32,
+}
+
+impl LightSample {
+    /// A sample of a delta light: one direction, no density.
+    pub fn delta(radiance: Color, wi: Vec3A, distance: f32) -> LightSample {
+        LightSample {
+            radiance,
+            wi,
+            pdf: 1.0,
+            distance,
+            n: Vec3A::ZERO,
+            delta: true,
+            medium: None,
+            scatter_rate: 1.0,
+        }
+    }
+
+    /// A point sampled on a shape.
+    pub fn on_surface(point: ShapeSample, radiance: Color) -> LightSample {
+        LightSample {
+            radiance,
+            wi: point.wi,
+            pdf: point.pdf,
+            distance: point.distance,
+            n: point.n,
+            delta: false,
+            medium: None,
+            scatter_rate: 1.0,
+        }
+    }
+
+    /// A direction towards a light at infinity.
+    pub fn at_infinity(radiance: Color, wi: Vec3A, pdf: f32) -> LightSample {
+        LightSample {
+            radiance,
+            wi,
+            pdf,
+            distance: f32::INFINITY,
+            n: Vec3A::ZERO,
+            delta: false,
+            medium: None,
+            scatter_rate: 1.0,
+        }
+    }
+}
+
+impl Light {
+    /// The light a scene description's LightSource makes.
+    pub fn from_description(kind: &LightKind) -> Light {
+        match kind {
+            LightKind::Point {
+                position,
+                intensity,
+            } => Light::Point(PointLight {
+                position: position.as_vec3().into(),
+                intensity: rgb(*intensity),
+            }),
+            LightKind::Spot {
+                position,
+                direction,
+                intensity,
+                cos_falloff_start,
+                cos_falloff_end,
+            } => Light::Spot(SpotLight {
+                position: position.as_vec3().into(),
+                frame: Frame::from_z(Vec3A::from(direction.as_vec3()).normalize()),
+                intensity: rgb(*intensity),
+                cos_start: *cos_falloff_start as f32,
+                cos_end: *cos_falloff_end as f32,
+            }),
+            LightKind::Distant {
+                direction,
+                radiance,
+            } => Light::Distant(DistantLight {
+                direction: Vec3A::from(direction.as_vec3()).normalize(),
+                radiance: rgb(*radiance),
+            }),
+            LightKind::UniformInfinite { radiance } => {
+                Light::UniformInfinite(UniformInfiniteLight {
+                    radiance: rgb(*radiance),
+                })
+            }
+            LightKind::ImageInfinite {
+                image,
+                layout,
+                scale,
+                light_to_world,
+            } => {
+                let pixels = image.pixels.iter().map(|p| rgb(*p) * *scale).collect();
+                Light::ImageInfinite(Box::new(ImageInfiniteLight::new(
+                    image.width as usize,
+                    image.height as usize,
+                    pixels,
+                    *layout == EnvironmentLayout::EqualArea,
+                    Affine3A::from_mat4(light_to_world.as_mat4()),
+                )))
+            }
+            LightKind::Dome { radiance, up } => Light::Dome(DomeLight {
+                frame: Frame::from_z(Vec3A::from(up.as_vec3()).normalize()),
+                radiance: rgb(*radiance),
+            }),
+        }
+    }
+
+    /// Lights at infinity, whose radiance escaped rays collect.
+    pub fn is_infinite(&self) -> bool {
+        match self {
+            Light::UniformInfinite(_) | Light::ImageInfinite(_) | Light::Dome(_) => true,
+            Light::Point(_)
+            | Light::Spot(_)
+            | Light::Distant(_)
+            | Light::Triangle(_)
+            | Light::Sphere(_)
+            | Light::VolumeTriangle(_)
+            | Light::VolumeSphere(_)
+            | Light::Medium(_) => false,
+        }
+    }
+
+    /// Emitted power (luminance), used to choose lights in proportion to it.
+    pub fn power(&self, scene_radius: f32) -> f32 {
+        match self {
+            Light::Point(l) => l.power(),
+            Light::Spot(l) => l.power(),
+            Light::Distant(l) => l.power(scene_radius),
+            Light::Triangle(l) => l.power(),
+            Light::Sphere(l) => l.power(),
+            Light::VolumeTriangle(l) => l.power,
+            Light::VolumeSphere(l) => l.power,
+            Light::Medium(l) => l.power,
+            Light::UniformInfinite(l) => l.power(scene_radius),
+            Light::ImageInfinite(l) => l.power(scene_radius),
+            Light::Dome(l) => l.power(scene_radius),
+        }
+    }
+
+    /// Radiance leaving the light's surface point `p` (geometric and shading normals `ng`,
+    /// `ns`, oriented as hits are) in direction `w`, with the rays traced to find it.
+    pub fn le(&self, ctx: &LightContext, p: Vec3A, ng: Vec3A, ns: Vec3A, w: Vec3A) -> (Color, u64) {
+        match self {
+            Light::Triangle(l) => (l.le(ng, w), 0),
+            Light::Sphere(l) => (l.le(ng, w), 0),
+            Light::VolumeTriangle(l) => l.le(ctx, p, ng, ns, w),
+            Light::VolumeSphere(l) => l.le(ctx, p, ng, ns, w),
+            Light::Point(_)
+            | Light::Spot(_)
+            | Light::Distant(_)
+            | Light::Medium(_)
+            | Light::UniformInfinite(_)
+            | Light::ImageInfinite(_)
+            | Light::Dome(_) => (Color::ZERO, 0),
+        }
+    }
+
+    /// Radiance arriving along a ray that escaped the scene in direction `w`.
+    pub fn infinite_le(&self, w: Vec3A) -> Color {
+        match self {
+            Light::UniformInfinite(l) => l.radiance,
+            Light::ImageInfinite(l) => l.le(w),
+            Light::Dome(l) => l.le(w),
+            Light::Point(_)
+            | Light::Spot(_)
+            | Light::Distant(_)
+            | Light::Triangle(_)
+            | Light::Sphere(_)
+            | Light::VolumeTriangle(_)
+            | Light::VolumeSphere(_)
+            | Light::Medium(_) => Color::ZERO,
+        }
+    }
+
+    /// Samples a point or direction on the light from `p`; returns the sample (None where
+    /// the light sends nothing towards `p`) and the rays traced to find it.
+    pub fn sample(&self, ctx: &LightContext, p: Vec3A, u: Vec2) -> (Option<LightSample>, u64) {
+        match self {
+            Light::Point(l) => (l.sample(p), 0),
+            Light::Spot(l) => (l.sample(p), 0),
+            Light::Distant(l) => (l.sample(), 0),
+            Light::Triangle(l) => (l.sample(p, u), 0),
+            Light::Sphere(l) => (l.sample(p, u), 0),
+            Light::VolumeTriangle(l) => l.sample(ctx, p, u),
+            Light::VolumeSphere(l) => l.sample(ctx, p, u),
+            Light::Medium(l) => (l.sample(ctx, p, u), 0),
+            Light::UniformInfinite(l) => (l.sample(u), 0),
+            Light::ImageInfinite(l) => (l.sample(u), 0),
+            Light::Dome(l) => (l.sample(u), 0),
+        }
+    }
+
+    /// The density with which choosing this light with probability `pmf` and sampling it
+    /// from `p` gives direction `wi` towards the point `q` (normal `n`) on it: per unit
+    /// solid angle (and length, for a medium); 0 for delta lights; `q` and `n` are unused
+    /// for lights at infinity.
+    pub fn pdf(
+        &self,
+        ctx: &LightContext,
+        pmf: f32,
+        p: Vec3A,
+        wi: Vec3A,
+        q: Vec3A,
+        n: Vec3A,
+    ) -> f32 {
+        match self {
+            Light::Point(_) | Light::Spot(_) | Light::Distant(_) => 0.0,
+            Light::Triangle(l) => pmf * l.pdf(p, wi, q, n),
+            Light::Sphere(l) => pmf * l.pdf(p, wi, q, n),
+            Light::VolumeTriangle(l) => pmf * l.pdf(p, wi, q, n),
+            Light::VolumeSphere(l) => pmf * l.pdf(p, wi, q, n),
+            Light::Medium(l) => l.pdf(ctx, pmf, p, q),
+            Light::UniformInfinite(l) => pmf * l.pdf(),
+            Light::ImageInfinite(l) => pmf * l.pdf(wi),
+            Light::Dome(l) => pmf * l.pdf(wi),
+        }
+    }
+
+    /// Whether photons leave this light (the caustic photon maps trace them from diffuse
+    /// area lights only; the path tracer keeps counting the caustics of the others).
+    pub fn shoots_photons(&self) -> bool {
+        match self {
+            Light::Triangle(_) | Light::Sphere(_) => true,
+            Light::Point(_)
+            | Light::Spot(_)
+            | Light::Distant(_)
+            | Light::VolumeTriangle(_)
+            | Light::VolumeSphere(_)
+            | Light::Medium(_)
+            | Light::UniformInfinite(_)
+            | Light::ImageInfinite(_)
+            | Light::Dome(_) => false,
+        }
+    }
+
+    /// A point from which a photon leaves the light, from a 2D sample (None for the lights
+    /// that do not [shoot photons](Light::shoots_photons)).
+    pub fn emission_point(&self, u: Vec2) -> Option<EmissionPoint> {
+        match self {
+            Light::Triangle(l) => Some(l.emission_point(u)),
+            Light::Sphere(l) => Some(l.emission_point(u)),
+            _ => None,
+        }
+    }
+}

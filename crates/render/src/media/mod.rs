@@ -1,0 +1,117 @@
+//! Participating media: what fills the space between surfaces.
+//!
+//! [`Medium`] is the closed set of kinds and its dispatch; each kind lives in its own file
+//! ([`homogeneous`], [`grid`]), beside the phase functions ([`phase`]) and the one
+//! voxel-grid type ([`voxel_grid`]) that grid media and VolumeLight interiors share.
+//! Free-flight sampling, transmittance and the scattering coefficient are asked of a
+//! `Medium`, never of a kind: a new kind is added here and the compiler lists the rest.
+//!
+//! Media know nothing of the scene, its lights or the integrators.
+
+pub mod grid;
+pub mod homogeneous;
+pub mod phase;
+pub mod voxel_grid;
+
+pub use grid::GridMedium;
+pub use homogeneous::HomogeneousMedium;
+pub use phase::Phase;
+pub use voxel_grid::SampledGrid;
+
+use crate::math::{Color, Ray};
+use crate::sampling::TrackingRng;
+use glam::Vec3A;
+
+/// A medium: what fills the space between surfaces.
+#[derive(Debug, Clone)]
+pub enum Medium {
+    Homogeneous(HomogeneousMedium),
+    /// Coefficients scaled by a density grid, with optional emission (a heterogeneous medium).
+    Grid(Box<GridMedium>),
+}
+
+/// What free-flight sampling through a medium segment found.
+pub enum MediumEvent {
+    /// The segment was crossed: the ray reaches its surface (or escapes).
+    Crossed,
+    /// Absorbed: the path ends.
+    Absorbed,
+    /// Scattered at this distance along the ray.
+    Scattered(f32),
+}
+
+/// Emission met by free-flight sampling, handed to the caller to weight and add.
+pub enum Emitted {
+    /// A whole segment's emission in closed form, already times the throughput. No other
+    /// strategy finds it (a homogeneous medium is not sampled as a light).
+    Segment(Color),
+    /// Emission at a tentative collision at distance `t`, where the majorant is
+    /// `sigma_maj`: `radiance` is beta * sigma_a * Le, to be divided by `sigma_maj`. Sampling
+    /// the medium as a light could also have found it.
+    Collision {
+        t: f32,
+        sigma_maj: f32,
+        radiance: Color,
+    },
+}
+
+impl Medium {
+    pub fn phase(&self) -> Phase {
+        match self {
+            Medium::Homogeneous(h) => h.phase,
+            Medium::Grid(g) => g.phase,
+        }
+    }
+
+    /// The scattering coefficient at world point `p`.
+    pub fn sigma_s_at(&self, p: Vec3A) -> Color {
+        match self {
+            Medium::Homogeneous(h) => h.sigma_s,
+            Medium::Grid(g) => g.sigma_s * g.density(g.to_box(p)),
+        }
+    }
+
+    /// Transmittance along the segment from `o` in unit direction `d` over (0, `t`); grid
+    /// media estimate it by ratio tracking with numbers from `rng`.
+    pub fn transmittance(&self, o: Vec3A, d: Vec3A, t: f32, rng: &mut TrackingRng) -> Color {
+        match self {
+            Medium::Homogeneous(h) => h.transmittance(t),
+            Medium::Grid(g) => g.transmittance(o, d, t, rng),
+        }
+    }
+
+    /// Free-flight sampling along `ray` over (0, `t_max`), updating the throughput `beta`.
+    /// Emission met on the way goes to `emitted` (see [`Emitted`]) before the event it
+    /// precedes is chosen. The path tracer and the photon tracer share this.
+    pub fn sample_interaction(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        rng: &mut TrackingRng,
+        beta: &mut Color,
+        mut emitted: impl FnMut(Emitted),
+    ) -> MediumEvent {
+        match self {
+            Medium::Homogeneous(h) => {
+                emitted(Emitted::Segment(*beta * h.segment_emission(t_max)));
+                h.sample_interaction(t_max, rng, beta)
+            }
+            Medium::Grid(g) => g.track(ray, t_max, rng, beta, |t, sigma_maj, radiance| {
+                emitted(Emitted::Collision {
+                    t,
+                    sigma_maj,
+                    radiance,
+                })
+            }),
+        }
+    }
+
+    /// The medium as a light: its emitted power (luminance times 4 pi), when it is an
+    /// emissive grid with a distribution to sample its emission by.
+    pub fn light_power(&self) -> Option<f32> {
+        match self {
+            Medium::Homogeneous(_) => None,
+            Medium::Grid(g) => g.emission_distribution.is_some().then(|| g.emitted_power()),
+        }
+    }
+}

@@ -1,0 +1,440 @@
+//! Building a [`Scene`] from a description: instances flattened into world space, one
+//! light per emitting triangle, VolumeLight interiors, media, the power-proportional light
+//! sampler and the VolumeLights' power estimates.
+
+use super::Scene;
+use crate::bsdfs::{Bsdf, DielectricBxdf, TrowbridgeReitz};
+use crate::camera::{Camera, Filter};
+use crate::lights::volume::{VOLUME_POWER_SEED, power_estimates};
+use crate::lights::{
+    Light, MediumLight, SphereLight, TriangleLight, VolumeInterior, VolumeSphereLight,
+    VolumeTriangleLight,
+};
+use crate::materials::Material;
+use crate::math::rgb;
+use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
+use crate::sampling::AliasTable;
+use crate::shapes::{Geometry, MeshInfo, NO_MEDIUM, Sphere, SurfaceInfo};
+use glam::{Affine3A, DMat4, Vec2, Vec3A};
+use kiln_scene::{
+    AreaLightDesc, MaterialKind, MediumKind, SceneDescription, ShapeDesc, ShapeKind,
+    VolumeLightDesc,
+};
+
+/// Why a description cannot be turned into a renderable scene.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    #[error("{loc}: {message}")]
+    Unsupported {
+        loc: kiln_scene::Loc,
+        message: String,
+    },
+}
+
+/// Whether a scene is built with its participating media. pbrt-v4's "path" integrator
+/// ignores them (interfaces vanish, media-bounded shapes keep only their materials).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MediaPolicy {
+    Render,
+    Ignore,
+}
+
+struct Builder {
+    positions: Vec<Vec3A>,
+    normals: Vec<Vec3A>,
+    uvs: Vec<Vec2>,
+    meshes: Vec<MeshInfo>,
+    triangle_vertices: Vec<[u32; 3]>,
+    triangle_mesh: Vec<u32>,
+    spheres: Vec<Sphere>,
+    lights: Vec<Light>,
+    materials: Vec<Material>,
+    interface_materials: Vec<bool>,
+    volumes: Vec<VolumeInterior>,
+    /// False for Integrator "path", which (as pbrt-v4's) ignores participating media.
+    use_media: bool,
+    /// The media on either side of each area light's surface (by light index).
+    light_media: Vec<Option<[u32; 2]>>,
+}
+
+impl Builder {
+    /// A triangle's geometric normal, oriented as hits on it are (see Geometry::triangle_hit).
+    fn face_normal(&self, p: [Vec3A; 3], flip: bool, has_normals: bool, v: [u32; 3]) -> Vec3A {
+        let mut n = (p[0] - p[2]).cross(p[1] - p[2]).normalize_or_zero();
+        if flip {
+            n = -n;
+        }
+        if has_normals {
+            let ns: Vec3A = v.iter().map(|&k| self.normals[k as usize]).sum();
+            if n.dot(ns) < 0.0 {
+                n = -n;
+            }
+        }
+        n
+    }
+
+    /// Registers a VolumeLight's interior; returns the material its surface uses and its index.
+    fn add_volume(
+        &mut self,
+        shape: &ShapeDesc,
+        v: &VolumeLightDesc,
+        to_world: DMat4,
+    ) -> Result<(u32, Option<u32>), BuildError> {
+        let unsupported = |message: String| BuildError::Unsupported {
+            loc: shape.loc.clone(),
+            message,
+        };
+        let material = shape.material.0;
+        let eta = match &self.materials[material as usize] {
+            Material::Uniform(Bsdf::Dielectric(d)) if d.distrib.effectively_smooth() => d.eta,
+            Material::Interface => 1.0,
+            _ => {
+                return Err(unsupported(
+                    "a VolumeLight (AreaLightSource \"volume\") needs a smooth \"dielectric\" or an \"interface\" material".into(),
+                ));
+            }
+        };
+        // An interface around a VolumeLight is a dielectric of eta 1: rays cross it unbent.
+        let material = if eta == 1.0 {
+            self.materials
+                .push(Material::Uniform(Bsdf::Dielectric(DielectricBxdf {
+                    eta: 1.0,
+                    distrib: TrowbridgeReitz::new(0.0, 0.0),
+                })));
+            self.interface_materials.push(false);
+            (self.materials.len() - 1) as u32
+        } else {
+            material
+        };
+        // The grid spans the shape's object-space bounding box.
+        let (lo, hi) = match &shape.kind {
+            ShapeKind::Mesh(mesh) => mesh.positions.iter().fold(
+                (
+                    glam::DVec3::splat(f64::INFINITY),
+                    glam::DVec3::splat(f64::NEG_INFINITY),
+                ),
+                |(lo, hi), p| {
+                    let p = glam::DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                    (lo.min(p), hi.max(p))
+                },
+            ),
+            ShapeKind::Sphere { radius } => {
+                (glam::DVec3::splat(-radius), glam::DVec3::splat(*radius))
+            }
+        };
+        let extent = (hi - lo).max(glam::DVec3::splat(1e-12));
+        let object_to_grid = DMat4::from_scale(extent.recip()) * DMat4::from_translation(-lo);
+        let world_to_grid = object_to_grid * to_world.inverse();
+        if !world_to_grid.is_finite() {
+            return Err(unsupported(
+                "the VolumeLight's transform cannot be inverted".into(),
+            ));
+        }
+        self.volumes.push(VolumeInterior {
+            le: rgb(v.le),
+            sigma_a: rgb(v.sigma_a),
+            grid: v.grid.as_deref().map(SampledGrid::new),
+            world_to_grid: Affine3A::from_mat4(world_to_grid.as_mat4()),
+            steps: v.steps,
+            eta,
+            power_samples: v.power_samples,
+        });
+        Ok((material, Some((self.volumes.len() - 1) as u32)))
+    }
+
+    fn add_shape(&mut self, shape: &ShapeDesc, to_world: DMat4) -> Result<(), BuildError> {
+        let material = shape.material.0;
+        let is_interface = self.interface_materials[material as usize];
+        // Without media an interface surface has no effect at all, unless it emits.
+        let shape_media = shape.media.filter(|_| self.use_media);
+        if is_interface && shape.area_light.is_none() && shape_media.is_none() {
+            return Ok(());
+        }
+        let swaps_handedness = to_world.determinant() < 0.0;
+        let (material, volume) = match &shape.area_light {
+            Some(AreaLightDesc::Volume(v)) => self.add_volume(shape, v, to_world)?,
+            _ => (material, None),
+        };
+        let media =
+            shape_media.map(|m| [m.inside, m.outside].map(|x| x.map_or(NO_MEDIUM, |id| id.0)));
+        let surface = |light| SurfaceInfo {
+            material,
+            light,
+            volume,
+            media,
+        };
+        match &shape.kind {
+            ShapeKind::Mesh(mesh) => {
+                let m = to_world.as_mat4();
+                let normal_m = to_world.inverse().transpose().as_mat4();
+                let base = self.positions.len() as u32;
+                self.positions.extend(
+                    mesh.positions
+                        .iter()
+                        .map(|p| Vec3A::from(m.transform_point3(glam::Vec3::from(*p)))),
+                );
+                let has_normals = mesh.normals.is_some();
+                if let Some(n) = &mesh.normals {
+                    // Normals transform by the inverse transpose.
+                    self.normals.resize(base as usize, Vec3A::Z);
+                    self.normals.extend(n.iter().map(|v| {
+                        Vec3A::from(normal_m.transform_vector3(glam::Vec3::from(*v)))
+                            .normalize_or_zero()
+                    }));
+                }
+                let has_uvs = mesh.uvs.is_some();
+                if let Some(uv) = &mesh.uvs {
+                    self.uvs.resize(base as usize, Vec2::ZERO);
+                    self.uvs.extend(uv.iter().map(|v| Vec2::from(*v)));
+                }
+                let mesh_id = self.meshes.len() as u32;
+                let flip = shape.reverse_orientation ^ swaps_handedness;
+                let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
+                let first_triangle = self.triangle_vertices.len() as u32;
+                for t in mesh.indices.chunks_exact(3) {
+                    self.triangle_vertices
+                        .push([base + t[0], base + t[1], base + t[2]]);
+                    self.triangle_mesh.push(mesh_id);
+                }
+                if let Some(AreaLightDesc::Diffuse {
+                    radiance,
+                    two_sided,
+                    ..
+                }) = &shape.area_light
+                {
+                    for t in mesh.indices.chunks_exact(3) {
+                        let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
+                        let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
+                        let n = self.face_normal(
+                            p,
+                            flip,
+                            has_normals,
+                            [base + t[0], base + t[1], base + t[2]],
+                        );
+                        self.light_media.resize(self.lights.len(), None);
+                        self.light_media.push(media);
+                        self.lights.push(Light::Triangle(TriangleLight {
+                            p,
+                            n,
+                            area,
+                            radiance: rgb(*radiance),
+                            two_sided: *two_sided,
+                        }));
+                    }
+                }
+                if let Some(volume) = volume {
+                    for (i, t) in mesh.indices.chunks_exact(3).enumerate() {
+                        let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
+                        let tri = first_triangle + i as u32;
+                        let cross = (p[0] - p[2]).cross(p[1] - p[2]);
+                        // The same orientation a hit on this face gets.
+                        let n = self.face_normal(
+                            p,
+                            flip,
+                            has_normals,
+                            [base + t[0], base + t[1], base + t[2]],
+                        );
+                        self.lights.push(Light::VolumeTriangle(VolumeTriangleLight {
+                            p,
+                            n,
+                            area: 0.5 * cross.length(),
+                            tri,
+                            volume,
+                            power: 0.0,
+                        }));
+                    }
+                }
+                self.meshes.push(MeshInfo {
+                    surface: surface(light),
+                    first_triangle,
+                    has_normals,
+                    has_uvs,
+                    flip,
+                });
+            }
+            ShapeKind::Sphere { radius } => {
+                let center = to_world.transform_point3(glam::DVec3::ZERO);
+                let axes = [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z]
+                    .map(|a| to_world.transform_vector3(a).length());
+                if (axes[0] - axes[1]).abs() > 1e-6 * axes[0]
+                    || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
+                {
+                    return Err(BuildError::Unsupported {
+                        loc: shape.loc.clone(),
+                        message:
+                            "a sphere under a non-uniform scale (an ellipsoid) is not supported yet"
+                                .into(),
+                    });
+                }
+                let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
+                let world_radius = (radius * axes[0]) as f32;
+                if let Some(AreaLightDesc::Diffuse {
+                    radiance,
+                    two_sided,
+                    ..
+                }) = &shape.area_light
+                {
+                    self.light_media.resize(self.lights.len(), None);
+                    self.light_media.push(media);
+                    self.lights.push(Light::Sphere(SphereLight {
+                        center: center.as_vec3().into(),
+                        radius: world_radius,
+                        radiance: rgb(*radiance),
+                        two_sided: *two_sided,
+                        inward: shape.reverse_orientation,
+                    }));
+                }
+                if let Some(volume) = volume {
+                    if shape.reverse_orientation {
+                        return Err(BuildError::Unsupported {
+                            loc: shape.loc.clone(),
+                            message: "a VolumeLight sphere cannot have ReverseOrientation: its inside is its inside".into(),
+                        });
+                    }
+                    self.lights.push(Light::VolumeSphere(VolumeSphereLight {
+                        center: center.as_vec3().into(),
+                        radius: world_radius,
+                        volume,
+                        power: 0.0,
+                    }));
+                }
+                self.spheres.push(Sphere {
+                    center: center.as_vec3().into(),
+                    radius: world_radius,
+                    surface: surface(light),
+                    flip: shape.reverse_orientation,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Scene {
+    /// Builds the scene `desc` describes, with or without its participating media.
+    pub fn build(desc: &SceneDescription, media: MediaPolicy) -> Result<Scene, BuildError> {
+        let materials: Vec<Material> = desc
+            .materials
+            .iter()
+            .map(|m| Material::from_desc(&m.kind))
+            .collect();
+        let interface_materials = desc
+            .materials
+            .iter()
+            .map(|m| matches!(m.kind, MaterialKind::Interface))
+            .collect();
+        let mut b = Builder {
+            positions: Vec::new(),
+            normals: Vec::new(),
+            uvs: Vec::new(),
+            meshes: Vec::new(),
+            triangle_vertices: Vec::new(),
+            triangle_mesh: Vec::new(),
+            spheres: Vec::new(),
+            lights: Vec::new(),
+            materials,
+            interface_materials,
+            volumes: Vec::new(),
+            use_media: media == MediaPolicy::Render,
+            light_media: Vec::new(),
+        };
+        for shape in &desc.shapes {
+            b.add_shape(shape, shape.object_to_world)?;
+        }
+        // Instances are flattened into world space: simple and as fast to trace as
+        // anything for the scene sizes Kiln renders today, at the cost of memory.
+        for instance in &desc.instances {
+            for shape in &desc.objects[instance.object].shapes {
+                b.add_shape(shape, instance.instance_to_world * shape.object_to_world)?;
+            }
+        }
+        let n_positions = b.positions.len();
+        if !b.normals.is_empty() {
+            b.normals.resize(n_positions, Vec3A::Z);
+        }
+        if !b.uvs.is_empty() {
+            b.uvs.resize(n_positions, Vec2::ZERO);
+        }
+        let geometry = Geometry::new(
+            b.positions,
+            b.normals,
+            b.uvs,
+            b.meshes,
+            b.triangle_vertices,
+            b.triangle_mesh,
+            b.spheres,
+        );
+        let (lo, hi) = geometry.bounds();
+        let radius = ((hi - lo).length() / 2.0).max(1e-3);
+        let mut lights = b.lights;
+        lights.extend(desc.lights.iter().map(|l| Light::from_description(&l.kind)));
+        let infinite_lights = lights
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.is_infinite())
+            .map(|(i, _)| i as u32)
+            .collect();
+        let film = &desc.film;
+        let mut scene = Scene {
+            geometry,
+            materials: b.materials,
+            light_sampler: AliasTable::default(),
+            lights,
+            infinite_lights,
+            camera: Camera::new(&desc.camera, film.xresolution, film.yresolution),
+            filter: Filter::new(&desc.filter),
+            resolution: (film.xresolution, film.yresolution),
+            radius,
+            volumes: b.volumes,
+            media: desc
+                .media
+                .iter()
+                .filter(|_| b.use_media)
+                .map(|m| match &m.kind {
+                    MediumKind::Homogeneous {
+                        sigma_a,
+                        sigma_s,
+                        le,
+                        phase,
+                    } => Medium::Homogeneous(HomogeneousMedium {
+                        sigma_a: rgb(*sigma_a),
+                        sigma_s: rgb(*sigma_s),
+                        le: rgb(*le),
+                        phase: Phase::new(*phase),
+                    }),
+                    MediumKind::Grid(g) => Medium::Grid(Box::new(GridMedium::new(g))),
+                })
+                .collect(),
+            camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
+            medium_lights: Vec::new(),
+            light_media: b.light_media,
+        };
+        scene.light_media.resize(scene.lights.len(), None);
+        // Each emissive grid medium is a light, sampled by its emission distribution.
+        scene.medium_lights = vec![None; scene.media.len()];
+        for (i, m) in scene.media.iter().enumerate() {
+            if let Some(power) = m.light_power() {
+                scene.medium_lights[i] = Some(scene.lights.len() as u32);
+                scene.lights.push(Light::Medium(MediumLight {
+                    medium: i as u32,
+                    power,
+                }));
+            }
+        }
+        let estimates = power_estimates(&scene.lights, &scene.light_context(), VOLUME_POWER_SEED);
+        for (light, estimate) in scene.lights.iter_mut().zip(estimates) {
+            if let (Light::VolumeTriangle(VolumeTriangleLight { power, .. }), Some(e))
+            | (Light::VolumeSphere(VolumeSphereLight { power, .. }), Some(e)) = (light, estimate)
+            {
+                *power = e;
+            }
+        }
+        let powers: Vec<f64> = scene
+            .lights
+            .iter()
+            .map(|l| l.power(radius).max(0.0) as f64)
+            .collect();
+        scene.light_sampler = AliasTable::new(&powers);
+        Ok(scene)
+    }
+}

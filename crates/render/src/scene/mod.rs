@@ -1,0 +1,115 @@
+//! A scene ready to render: world-space geometry in BVHs, materials, lights and the light
+//! sampler, media, camera and filter. [`Scene::build`] (in [`build`]) turns a
+//! [`kiln_scene::SceneDescription`] into one; integrators then only read it.
+//!
+//! The scene knows nothing of integrators or their pre-passes (photon maps live in the
+//! integrator's `Prepass`), and nothing of files.
+
+mod build;
+
+pub use build::{BuildError, MediaPolicy};
+
+use crate::camera::{Camera, Filter};
+use crate::lights::{Light, LightContext, VolumeInterior};
+use crate::materials::Material;
+use crate::math::{Color, Ray};
+use crate::media::Medium;
+use crate::sampling::{AliasTable, TrackingRng};
+use crate::shapes::Geometry;
+use glam::Vec3A;
+
+/// A scene ready to trace.
+pub struct Scene {
+    pub geometry: Geometry,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    /// Chooses lights in proportion to their power.
+    pub light_sampler: AliasTable,
+    /// Lights at infinity, whose radiance escaped rays collect.
+    pub infinite_lights: Vec<u32>,
+    pub camera: Camera,
+    pub filter: Filter,
+    pub resolution: (u32, u32),
+    /// Radius of the scene's bounding sphere.
+    pub radius: f32,
+    /// The interiors of VolumeLights, referred to by `SurfaceInfo::volume`.
+    pub volumes: Vec<VolumeInterior>,
+    /// Participating media, referred to by `SurfaceInfo::media`.
+    pub media: Vec<Medium>,
+    pub camera_medium: Option<u32>,
+    /// The light of each medium that is one (an emissive grid).
+    pub medium_lights: Vec<Option<u32>>,
+    /// The media on either side of each area light's surface (inside, outside), by light
+    /// index; for photons leaving it.
+    pub light_media: Vec<Option<[u32; 2]>>,
+}
+
+impl Scene {
+    /// What lights need of the scene to be sampled and evaluated.
+    pub fn light_context(&self) -> LightContext<'_> {
+        LightContext {
+            geometry: &self.geometry,
+            volumes: &self.volumes,
+            media: &self.media,
+        }
+    }
+
+    /// The density with which the light sampler chooses light `light` and samples direction
+    /// `wi` from `p` towards its point `q` (normal `n`): what multiple importance sampling
+    /// weighs emission found by BSDF or phase sampling against.
+    pub fn light_pdf(&self, light: u32, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
+        let pmf = self.light_sampler.pmf(light as usize);
+        self.lights[light as usize].pdf(&self.light_context(), pmf, p, wi, q, n)
+    }
+
+    /// Transmittance from `origin` along `dir` over `tmax`, starting in `medium`, through
+    /// media and the interface surfaces that bound them; zero if any other surface blocks it.
+    /// Also returns the medium the segment ends in. Grid media are crossed by ratio
+    /// tracking, with numbers from `rng`.
+    pub fn transmittance(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        mut medium: Option<u32>,
+        rng: &mut TrackingRng,
+        rays: &mut u64,
+    ) -> (Color, Option<u32>) {
+        if self.media.is_empty() {
+            *rays += 1;
+            let tr = if self.geometry.unoccluded(origin, dir, tmax) {
+                Color::ONE
+            } else {
+                Color::ZERO
+            };
+            return (tr, None);
+        }
+        let mut tr = Color::ONE;
+        let mut o = origin;
+        let mut remaining = tmax;
+        for _ in 0..64 {
+            *rays += 1;
+            let hit = self.geometry.intersect(&Ray::new(o, dir), remaining);
+            let seg = hit.as_ref().map_or(remaining, |h| h.t);
+            if let Some(m) = medium {
+                tr *= self.media[m as usize].transmittance(o, dir, seg, rng);
+                if tr == Color::ZERO {
+                    return (tr, medium);
+                }
+            }
+            let Some(h) = hit else {
+                return (tr, medium);
+            };
+            if self.materials[h.surface.material as usize].bsdf().is_some() {
+                return (Color::ZERO, medium);
+            }
+            // An interface: cross it into the medium on its other side.
+            if let Some(next) = h.surface.medium_towards(dir, h.ng) {
+                medium = next;
+            }
+            o = crate::math::offset_origin(h.p, h.ng, dir);
+            remaining -= h.t;
+        }
+        (Color::ZERO, medium)
+    }
+}
