@@ -1,81 +1,90 @@
-//! The image is a pure function of (scene, settings, seed): the same bytes for any
-//! tile split and thread count, and a different image for a different seed.
+//! The image is a pure function of (scene, settings, seed): the same bits for any tile
+//! split and thread count, and a different image for a different seed.
+//!
+//! The splits are checked in-process through `render_tile`, the function both `kiln render`
+//! and the farm's workers call: each scene is built once and rendered under every split.
+//! One cross-process check per property stays: `kiln render` writes the same EXR bytes for
+//! two splits and thread counts, twice in two processes, and those pixels are the ones the
+//! in-process renders give.
 
 use crate::util::{reference_scene, render, scene};
+use kiln_render::{Renderer, render_tile, split_into_tiles};
+use kiln_scene::Overrides;
+use rayon::prelude::*;
 use std::path::Path;
 
-fn assert_same_bytes_for_any_split(path: &Path, extra: &[&str]) {
-    let dir = tempfile::tempdir().unwrap();
-    let reference = render(
-        path,
-        dir.path(),
-        "whole",
-        &[&["--tile", "100000", "--threads", "2"], extra].concat(),
-    );
-    for (tile, threads) in [
-        ("16", "1"),
-        ("16", "2"),
-        ("37", "2"),
-        ("64", "1"),
-        ("64", "2"),
-        ("100000", "1"),
-    ] {
-        let name = format!("t{tile}-n{threads}");
-        let r = render(
-            path,
-            dir.path(),
-            &name,
-            &[&["--tile", tile, "--threads", threads], extra].concat(),
-        );
-        let same_pixels = r
-            .image
-            .pixels
-            .iter()
-            .zip(&reference.image.pixels)
-            .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits));
+/// The tile sizes and thread counts every scene is rendered with.
+const SPLITS: [(u32, usize); 6] = [(16, 1), (16, 2), (37, 2), (64, 1), (64, 2), (100_000, 1)];
+
+fn load(path: &Path, spp: u32, resolution: Option<(u32, u32)>) -> Renderer {
+    let mut desc = kiln_scene::load_file(path).unwrap();
+    desc.apply_overrides(&Overrides {
+        resolution,
+        spp: Some(spp),
+        seed: None,
+    })
+    .unwrap();
+    Renderer::build(&desc).unwrap()
+}
+
+/// The frame's pixels (as bits, row-major over the film's pixel bounds) rendered in
+/// `tile`-pixel tiles on a pool of `threads` threads, tiles taken in parallel.
+fn render_split(renderer: &Renderer, tile: u32, threads: usize) -> Vec<[u32; 3]> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let (w, h) = renderer.scene().resolution;
+    let tiles = split_into_tiles([0, w, 0, h], tile);
+    let results: Vec<_> = pool.install(|| {
+        tiles
+            .par_iter()
+            .map(|t| render_tile(renderer, *t))
+            .collect()
+    });
+    let mut frame = vec![[0u32; 3]; (w * h) as usize];
+    for r in &results {
+        for (i, p) in r.pixels.iter().enumerate() {
+            let (x, y) = (
+                r.rect.x0 + i as u32 % r.rect.width,
+                r.rect.y0 + i as u32 / r.rect.width,
+            );
+            frame[(y * w + x) as usize] = p.map(f32::to_bits);
+        }
+    }
+    frame
+}
+
+/// Renders `renderer`'s frame under every split of [`SPLITS`] and asserts the same bits;
+/// then with another seed, which must change the image. Returns the frame.
+fn assert_same_bits_for_any_split(name: &str, renderer: Renderer) -> Vec<[u32; 3]> {
+    let reference = render_split(&renderer, 100_000, 2);
+    for (tile, threads) in SPLITS {
         assert!(
-            same_pixels,
-            "{}: pixels differ for --tile {tile} --threads {threads}",
-            path.display()
-        );
-        assert_eq!(
-            r.bytes,
-            reference.bytes,
-            "{}: EXR bytes differ for --tile {tile} --threads {threads}",
-            path.display()
+            render_split(&renderer, tile, threads) == reference,
+            "{name}: pixels differ for tiles of {tile} on {threads} threads"
         );
     }
-    let other_seed = render(
-        path,
-        dir.path(),
-        "seed",
-        &[&["--seed", "7"], extra].concat(),
+    let mut settings = renderer.settings().clone();
+    settings.seed = settings.seed.wrapping_add(7);
+    let other_seed = render_split(&renderer.with_settings(settings), 64, 2);
+    assert!(
+        other_seed != reference,
+        "{name}: a different seed must change the image"
     );
-    assert_ne!(
-        other_seed.image.pixels, reference.image.pixels,
-        "a different --seed must change the image"
-    );
-    // Same seed again, in another process: the same bytes.
-    let again = render(
-        path,
-        dir.path(),
-        "again",
-        &[&["--tile", "100000", "--threads", "2"], extra].concat(),
-    );
-    assert_eq!(again.bytes, reference.bytes);
+    reference
 }
 
 #[test]
 fn every_material_and_light_is_bit_identical_across_tiles_and_threads() {
-    assert_same_bytes_for_any_split(&scene("materials/scene.pbrt"), &["--spp", "8"]);
+    let path = scene("materials/scene.pbrt");
+    assert_same_bits_for_any_split("materials", load(&path, 8, None));
 }
 
 #[test]
 fn mis_scene_is_bit_identical_across_tiles_and_threads() {
-    assert_same_bytes_for_any_split(
-        &scene("mis/scene.pbrt"),
-        &["--spp", "4", "--resolution", "80x45"],
-    );
+    let path = scene("mis/scene.pbrt");
+    assert_same_bits_for_any_split("mis", load(&path, 4, Some((80, 45))));
 }
 
 #[test]
@@ -83,7 +92,7 @@ fn cornell_box_is_bit_identical_across_tiles_and_threads() {
     let Some(path) = reference_scene("cornell-box") else {
         return;
     };
-    assert_same_bytes_for_any_split(&path, &["--spp", "4", "--resolution", "72x72"]);
+    assert_same_bits_for_any_split("cornell-box", load(&path, 4, Some((72, 72))));
 }
 
 #[test]
@@ -91,30 +100,83 @@ fn volume_lights_are_bit_identical_across_tiles_and_threads() {
     // A glass VolumeLight sphere with a voxel grid (Le evaluated at hits and by light
     // sampling); then a mesh VolumeLight, whose faces' powers are estimated in parallel
     // when the scene is built.
-    assert_same_bytes_for_any_split(
-        &scene("volume-light/voxel-grid.pbrt"),
-        &["--spp", "4", "--resolution", "60x45"],
-    );
-    assert_same_bytes_for_any_split(
-        &scene("volume-light/blue-volume.pbrt"),
-        &["--spp", "4", "--resolution", "60x45"],
-    );
+    for name in ["voxel-grid", "blue-volume"] {
+        let path = scene(&format!("volume-light/{name}.pbrt"));
+        assert_same_bits_for_any_split(name, load(&path, 4, Some((60, 45))));
+    }
 }
 
 #[test]
 fn media_are_bit_identical_across_tiles_and_threads() {
-    assert_same_bytes_for_any_split(
-        &scene("media/fog.pbrt"),
-        &["--spp", "4", "--resolution", "60x40"],
-    );
+    assert_same_bits_for_any_split("fog", load(&scene("media/fog.pbrt"), 4, Some((60, 40))));
     // Caustic photon maps: built once per render, the same for every tile.
-    assert_same_bytes_for_any_split(
-        &scene("media/lens.pbrt"),
-        &["--spp", "4", "--resolution", "40x40"],
-    );
+    assert_same_bits_for_any_split("lens", load(&scene("media/lens.pbrt"), 4, Some((40, 40))));
     // A grid medium: delta and ratio tracking, and a flame sampled as a light.
-    assert_same_bytes_for_any_split(
-        &scene("media/ember.pbrt"),
-        &["--spp", "4", "--resolution", "60x40"],
+    assert_same_bits_for_any_split("ember", load(&scene("media/ember.pbrt"), 4, Some((60, 40))));
+}
+
+/// The scene is built on every worker of a farm: building it twice (photon maps and
+/// VolumeLight power estimates included) must give the same image, whatever the number
+/// of threads the build ran on.
+#[test]
+fn building_the_scene_again_on_another_thread_count_gives_the_same_bits() {
+    for (path, resolution) in [
+        (scene("media/lens.pbrt"), (40, 40)),
+        (scene("volume-light/blue-volume.pbrt"), (60, 45)),
+    ] {
+        let build_on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| load(&path, 2, Some(resolution)))
+        };
+        assert!(
+            render_split(&build_on(1), 64, 2) == render_split(&build_on(2), 64, 2),
+            "{}: two builds differ",
+            path.display()
+        );
+    }
+}
+
+/// The cross-process check: `kiln render` writes the same bytes for two splits and thread
+/// counts and in two processes, and its pixels are those of `render_tile` in this process.
+#[test]
+fn kiln_render_writes_the_same_bytes_as_render_tile_for_any_split() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene("materials/scene.pbrt");
+    let whole = render(
+        &path,
+        dir.path(),
+        "whole",
+        &["--spp", "8", "--tile", "100000", "--threads", "2"],
+    );
+    let split = render(
+        &path,
+        dir.path(),
+        "split",
+        &["--spp", "8", "--tile", "16", "--threads", "1"],
+    );
+    assert_eq!(split.bytes, whole.bytes, "EXR bytes differ between splits");
+    let again = render(
+        &path,
+        dir.path(),
+        "again",
+        &["--spp", "8", "--tile", "100000", "--threads", "2"],
+    );
+    assert_eq!(
+        again.bytes, whole.bytes,
+        "EXR bytes differ between processes"
+    );
+    let in_process = render_split(&load(&path, 8, None), 37, 2);
+    let written: Vec<[u32; 3]> = whole
+        .image
+        .pixels
+        .iter()
+        .map(|p| p.map(f32::to_bits))
+        .collect();
+    assert!(
+        written == in_process,
+        "kiln render's pixels differ from render_tile's"
     );
 }

@@ -588,24 +588,26 @@ fn sigterm_lets_a_worker_finish_its_tile_and_leave() {
     assert_eq!(s.tiles_done as usize, rendered_lines(&log), "{text}");
 }
 
-/// The headline frame: scenes/molten-glass at its full 2880x1920 (130k-face VolumeLight),
-/// one sample per pixel, through a local farm of two workers and through `kiln render`:
-/// the same bytes.
+/// The headline scene, scenes/molten-glass (a 130k-face VolumeLight with a voxel grid),
+/// through a local farm of two workers and through `kiln render`: the same bytes.
+///
+/// It renders a fifth of the 2880x1920 frame on each axis (18 x 12 tiles of 32 pixels):
+/// the full frame would prove nothing more, since every tile is a pure function of
+/// (scene, settings, pixel) whatever the split (determinism.rs), and the coordinator
+/// assembles and encodes a frame of any size with the same code. The README's first
+/// command renders the full frame.
 #[test]
-fn molten_glass_full_frame_through_the_farm_is_bit_identical() {
+fn molten_glass_through_the_farm_is_bit_identical() {
     let dir = tempfile::tempdir().unwrap();
     let path = scene("molten-glass/scene.pbrt");
-    let direct = render(&path, dir.path(), "direct", &["--spp", "1"]);
-    assert_eq!(
-        (direct.image.width, direct.image.height),
-        (2880, 1920),
-        "the scene asks for 2880x1920"
-    );
+    let args = ["--spp", "1", "--resolution", "576x384", "--tile", "32"];
+    let direct = render(&path, dir.path(), "direct", &args);
+    assert_eq!((direct.image.width, direct.image.height), (576, 384));
     let merged = farm(
         &path,
         dir.path(),
         "farm",
-        &["--spp", "1", "--workers", "2", "--threads-per-worker", "1"],
+        &[&args[..], &["--workers", "2", "--threads-per-worker", "1"]].concat(),
     );
     assert!(
         merged == direct.bytes,
