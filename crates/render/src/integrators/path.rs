@@ -14,6 +14,7 @@ use crate::media::{Emitted, MediumEvent};
 use crate::sampling::{PixelSampler, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
+use crate::textures::TextureEvalContext;
 use glam::Vec3A;
 use kiln_scene::LightStrategy;
 
@@ -299,7 +300,9 @@ fn surface_step(
     rays: &mut u64,
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
-    let Some(bsdf) = scene.materials[hit.surface.material as usize].bsdf() else {
+    let Some(bsdf) =
+        scene.materials[hit.surface.material as usize].bsdf(&TextureEvalContext::at(&hit))
+    else {
         // An interface: continue straight through without counting a bounce.
         state.pass_throughs += 1;
         if state.pass_throughs > 256 {

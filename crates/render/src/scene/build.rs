@@ -3,21 +3,20 @@
 //! sampler and the VolumeLights' power estimates.
 
 use super::Scene;
-use crate::bsdfs::{Bsdf, DielectricBxdf, TrowbridgeReitz};
 use crate::camera::{Camera, Filter};
 use crate::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use crate::lights::{
     Light, MediumLight, SphereLight, TriangleLight, VolumeInterior, VolumeSphereLight,
     VolumeTriangleLight,
 };
-use crate::materials::Material;
+use crate::materials::{DielectricMaterial, Material};
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::sampling::AliasTable;
 use crate::shapes::{Geometry, MeshInfo, NO_MEDIUM, Sphere, SurfaceInfo};
 use glam::{Affine3A, DMat4, Vec2, Vec3A};
 use kiln_scene::{
-    AreaLightDesc, MaterialKind, MediumKind, SceneDescription, ShapeDesc, ShapeKind,
+    AreaLightDesc, MediumKind, Roughness, SceneDescription, ShapeDesc, ShapeKind, TriangleMeshData,
     VolumeLightDesc,
 };
 
@@ -49,7 +48,6 @@ struct Builder {
     spheres: Vec<Sphere>,
     lights: Vec<Light>,
     materials: Vec<Material>,
-    interface_materials: Vec<bool>,
     volumes: Vec<VolumeInterior>,
     /// False for Integrator "path", which (as pbrt-v4's) ignores participating media.
     use_media: bool,
@@ -86,7 +84,7 @@ impl Builder {
         };
         let material = shape.material.0;
         let eta = match &self.materials[material as usize] {
-            Material::Uniform(Bsdf::Dielectric(d)) if d.distrib.effectively_smooth() => d.eta,
+            Material::Dielectric(d) if d.is_smooth() => d.eta,
             Material::Interface => 1.0,
             _ => {
                 return Err(unsupported(
@@ -96,12 +94,9 @@ impl Builder {
         };
         // An interface around a VolumeLight is a dielectric of eta 1: rays cross it unbent.
         let material = if eta == 1.0 {
+            let smooth = Roughness { u: 0.0, v: 0.0 };
             self.materials
-                .push(Material::Uniform(Bsdf::Dielectric(DielectricBxdf {
-                    eta: 1.0,
-                    distrib: TrowbridgeReitz::new(0.0, 0.0),
-                })));
-            self.interface_materials.push(false);
+                .push(Material::Dielectric(DielectricMaterial::new(1.0, &smooth)));
             (self.materials.len() - 1) as u32
         } else {
             material
@@ -144,168 +139,188 @@ impl Builder {
 
     fn add_shape(&mut self, shape: &ShapeDesc, to_world: DMat4) -> Result<(), BuildError> {
         let material = shape.material.0;
-        let is_interface = self.interface_materials[material as usize];
+        let is_interface = self.materials[material as usize].is_interface();
         // Without media an interface surface has no effect at all, unless it emits.
         let shape_media = shape.media.filter(|_| self.use_media);
         if is_interface && shape.area_light.is_none() && shape_media.is_none() {
             return Ok(());
         }
-        let swaps_handedness = to_world.determinant() < 0.0;
         let (material, volume) = match &shape.area_light {
             Some(AreaLightDesc::Volume(v)) => self.add_volume(shape, v, to_world)?,
             _ => (material, None),
         };
         let media =
             shape_media.map(|m| [m.inside, m.outside].map(|x| x.map_or(NO_MEDIUM, |id| id.0)));
-        let surface = |light| SurfaceInfo {
+        let surface = SurfaceInfo {
             material,
-            light,
+            light: None,
             volume,
             media,
         };
         match &shape.kind {
-            ShapeKind::Mesh(mesh) => {
-                let m = to_world.as_mat4();
-                let normal_m = to_world.inverse().transpose().as_mat4();
-                let base = self.positions.len() as u32;
-                self.positions.extend(
-                    mesh.positions
-                        .iter()
-                        .map(|p| Vec3A::from(m.transform_point3(glam::Vec3::from(*p)))),
-                );
-                let has_normals = mesh.normals.is_some();
-                if let Some(n) = &mesh.normals {
-                    // Normals transform by the inverse transpose.
-                    self.normals.resize(base as usize, Vec3A::Z);
-                    self.normals.extend(n.iter().map(|v| {
-                        Vec3A::from(normal_m.transform_vector3(glam::Vec3::from(*v)))
-                            .normalize_or_zero()
-                    }));
-                }
-                let has_uvs = mesh.uvs.is_some();
-                if let Some(uv) = &mesh.uvs {
-                    self.uvs.resize(base as usize, Vec2::ZERO);
-                    self.uvs.extend(uv.iter().map(|v| Vec2::from(*v)));
-                }
-                let mesh_id = self.meshes.len() as u32;
-                let flip = shape.reverse_orientation ^ swaps_handedness;
-                let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
-                let first_triangle = self.triangle_vertices.len() as u32;
-                for t in mesh.indices.chunks_exact(3) {
-                    self.triangle_vertices
-                        .push([base + t[0], base + t[1], base + t[2]]);
-                    self.triangle_mesh.push(mesh_id);
-                }
-                if let Some(AreaLightDesc::Diffuse {
-                    radiance,
-                    two_sided,
-                    ..
-                }) = &shape.area_light
-                {
-                    for t in mesh.indices.chunks_exact(3) {
-                        let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
-                        let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
-                        let n = self.face_normal(
-                            p,
-                            flip,
-                            has_normals,
-                            [base + t[0], base + t[1], base + t[2]],
-                        );
-                        self.light_media.resize(self.lights.len(), None);
-                        self.light_media.push(media);
-                        self.lights.push(Light::Triangle(TriangleLight {
-                            p,
-                            n,
-                            area,
-                            radiance: rgb(*radiance),
-                            two_sided: *two_sided,
-                        }));
-                    }
-                }
-                if let Some(volume) = volume {
-                    for (i, t) in mesh.indices.chunks_exact(3).enumerate() {
-                        let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
-                        let tri = first_triangle + i as u32;
-                        let cross = (p[0] - p[2]).cross(p[1] - p[2]);
-                        // The same orientation a hit on this face gets.
-                        let n = self.face_normal(
-                            p,
-                            flip,
-                            has_normals,
-                            [base + t[0], base + t[1], base + t[2]],
-                        );
-                        self.lights.push(Light::VolumeTriangle(VolumeTriangleLight {
-                            p,
-                            n,
-                            area: 0.5 * cross.length(),
-                            tri,
-                            volume,
-                            power: 0.0,
-                        }));
-                    }
-                }
-                self.meshes.push(MeshInfo {
-                    surface: surface(light),
-                    first_triangle,
-                    has_normals,
-                    has_uvs,
+            ShapeKind::Mesh(mesh) => self.add_mesh(shape, mesh, to_world, surface),
+            ShapeKind::Sphere { radius } => self.add_sphere(shape, *radius, to_world, surface),
+        }
+    }
+
+    /// A triangle mesh in world space; one light per face if it emits.
+    fn add_mesh(
+        &mut self,
+        shape: &ShapeDesc,
+        mesh: &TriangleMeshData,
+        to_world: DMat4,
+        surface: SurfaceInfo,
+    ) -> Result<(), BuildError> {
+        let (volume, media) = (surface.volume, surface.media);
+        let swaps_handedness = to_world.determinant() < 0.0;
+        let surface = |light| SurfaceInfo { light, ..surface };
+        let m = to_world.as_mat4();
+        let normal_m = to_world.inverse().transpose().as_mat4();
+        let base = self.positions.len() as u32;
+        self.positions.extend(
+            mesh.positions
+                .iter()
+                .map(|p| Vec3A::from(m.transform_point3(glam::Vec3::from(*p)))),
+        );
+        let has_normals = mesh.normals.is_some();
+        if let Some(n) = &mesh.normals {
+            // Normals transform by the inverse transpose.
+            self.normals.resize(base as usize, Vec3A::Z);
+            self.normals.extend(n.iter().map(|v| {
+                Vec3A::from(normal_m.transform_vector3(glam::Vec3::from(*v))).normalize_or_zero()
+            }));
+        }
+        let has_uvs = mesh.uvs.is_some();
+        if let Some(uv) = &mesh.uvs {
+            self.uvs.resize(base as usize, Vec2::ZERO);
+            self.uvs.extend(uv.iter().map(|v| Vec2::from(*v)));
+        }
+        let mesh_id = self.meshes.len() as u32;
+        let flip = shape.reverse_orientation ^ swaps_handedness;
+        let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
+        let first_triangle = self.triangle_vertices.len() as u32;
+        for t in mesh.indices.chunks_exact(3) {
+            self.triangle_vertices
+                .push([base + t[0], base + t[1], base + t[2]]);
+            self.triangle_mesh.push(mesh_id);
+        }
+        if let Some(AreaLightDesc::Diffuse {
+            radiance,
+            two_sided,
+            ..
+        }) = &shape.area_light
+        {
+            for t in mesh.indices.chunks_exact(3) {
+                let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
+                let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
+                let n = self.face_normal(
+                    p,
                     flip,
-                });
-            }
-            ShapeKind::Sphere { radius } => {
-                let center = to_world.transform_point3(glam::DVec3::ZERO);
-                let axes = [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z]
-                    .map(|a| to_world.transform_vector3(a).length());
-                if (axes[0] - axes[1]).abs() > 1e-6 * axes[0]
-                    || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
-                {
-                    return Err(BuildError::Unsupported {
-                        loc: shape.loc.clone(),
-                        message:
-                            "a sphere under a non-uniform scale (an ellipsoid) is not supported yet"
-                                .into(),
-                    });
-                }
-                let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
-                let world_radius = (radius * axes[0]) as f32;
-                if let Some(AreaLightDesc::Diffuse {
-                    radiance,
-                    two_sided,
-                    ..
-                }) = &shape.area_light
-                {
-                    self.light_media.resize(self.lights.len(), None);
-                    self.light_media.push(media);
-                    self.lights.push(Light::Sphere(SphereLight {
-                        center: center.as_vec3().into(),
-                        radius: world_radius,
-                        radiance: rgb(*radiance),
-                        two_sided: *two_sided,
-                        inward: shape.reverse_orientation,
-                    }));
-                }
-                if let Some(volume) = volume {
-                    if shape.reverse_orientation {
-                        return Err(BuildError::Unsupported {
-                            loc: shape.loc.clone(),
-                            message: "a VolumeLight sphere cannot have ReverseOrientation: its inside is its inside".into(),
-                        });
-                    }
-                    self.lights.push(Light::VolumeSphere(VolumeSphereLight {
-                        center: center.as_vec3().into(),
-                        radius: world_radius,
-                        volume,
-                        power: 0.0,
-                    }));
-                }
-                self.spheres.push(Sphere {
-                    center: center.as_vec3().into(),
-                    radius: world_radius,
-                    surface: surface(light),
-                    flip: shape.reverse_orientation,
-                });
+                    has_normals,
+                    [base + t[0], base + t[1], base + t[2]],
+                );
+                self.light_media.resize(self.lights.len(), None);
+                self.light_media.push(media);
+                self.lights.push(Light::Triangle(TriangleLight {
+                    p,
+                    n,
+                    area,
+                    radiance: rgb(*radiance),
+                    two_sided: *two_sided,
+                }));
             }
         }
+        if let Some(volume) = volume {
+            for (i, t) in mesh.indices.chunks_exact(3).enumerate() {
+                let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
+                let tri = first_triangle + i as u32;
+                let cross = (p[0] - p[2]).cross(p[1] - p[2]);
+                // The same orientation a hit on this face gets.
+                let n = self.face_normal(
+                    p,
+                    flip,
+                    has_normals,
+                    [base + t[0], base + t[1], base + t[2]],
+                );
+                self.lights.push(Light::VolumeTriangle(VolumeTriangleLight {
+                    p,
+                    n,
+                    area: 0.5 * cross.length(),
+                    tri,
+                    volume,
+                    power: 0.0,
+                }));
+            }
+        }
+        self.meshes.push(MeshInfo {
+            surface: surface(light),
+            first_triangle,
+            has_normals,
+            has_uvs,
+            flip,
+        });
+        Ok(())
+    }
+
+    /// A sphere in world space (uniform scales only); one light if it emits.
+    fn add_sphere(
+        &mut self,
+        shape: &ShapeDesc,
+        radius: f64,
+        to_world: DMat4,
+        surface: SurfaceInfo,
+    ) -> Result<(), BuildError> {
+        let (volume, media) = (surface.volume, surface.media);
+        let surface = |light| SurfaceInfo { light, ..surface };
+        let center = to_world.transform_point3(glam::DVec3::ZERO);
+        let axes = [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z]
+            .map(|a| to_world.transform_vector3(a).length());
+        if (axes[0] - axes[1]).abs() > 1e-6 * axes[0] || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
+        {
+            return Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: "a sphere under a non-uniform scale (an ellipsoid) is not supported yet"
+                    .into(),
+            });
+        }
+        let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
+        let world_radius = (radius * axes[0]) as f32;
+        if let Some(AreaLightDesc::Diffuse {
+            radiance,
+            two_sided,
+            ..
+        }) = &shape.area_light
+        {
+            self.light_media.resize(self.lights.len(), None);
+            self.light_media.push(media);
+            self.lights.push(Light::Sphere(SphereLight {
+                center: center.as_vec3().into(),
+                radius: world_radius,
+                radiance: rgb(*radiance),
+                two_sided: *two_sided,
+                inward: shape.reverse_orientation,
+            }));
+        }
+        if let Some(volume) = volume {
+            if shape.reverse_orientation {
+                return Err(BuildError::Unsupported {
+                    loc: shape.loc.clone(),
+                    message: "a VolumeLight sphere cannot have ReverseOrientation: its inside is its inside".into(),
+                });
+            }
+            self.lights.push(Light::VolumeSphere(VolumeSphereLight {
+                center: center.as_vec3().into(),
+                radius: world_radius,
+                volume,
+                power: 0.0,
+            }));
+        }
+        self.spheres.push(Sphere {
+            center: center.as_vec3().into(),
+            radius: world_radius,
+            surface: surface(light),
+            flip: shape.reverse_orientation,
+        });
         Ok(())
     }
 }
@@ -316,12 +331,7 @@ impl Scene {
         let materials: Vec<Material> = desc
             .materials
             .iter()
-            .map(|m| Material::from_desc(&m.kind))
-            .collect();
-        let interface_materials = desc
-            .materials
-            .iter()
-            .map(|m| matches!(m.kind, MaterialKind::Interface))
+            .map(|m| Material::from_description(&m.kind))
             .collect();
         let mut b = Builder {
             positions: Vec::new(),
@@ -333,7 +343,6 @@ impl Scene {
             spheres: Vec::new(),
             lights: Vec::new(),
             materials,
-            interface_materials,
             volumes: Vec::new(),
             use_media: media == MediaPolicy::Render,
             light_media: Vec::new(),

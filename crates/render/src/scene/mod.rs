@@ -100,7 +100,7 @@ impl Scene {
             let Some(h) = hit else {
                 return (tr, medium);
             };
-            if self.materials[h.surface.material as usize].bsdf().is_some() {
+            if !self.materials[h.surface.material as usize].is_interface() {
                 return (Color::ZERO, medium);
             }
             // An interface: cross it into the medium on its other side.

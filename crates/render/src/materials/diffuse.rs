@@ -1,0 +1,28 @@
+//! pbrt-v4's "diffuse": Lambertian reflection of a (textured) reflectance.
+
+use crate::bsdfs::{Bsdf, DiffuseBxdf};
+use crate::math::Color;
+use crate::textures::{SpectrumTexture, TextureEvalContext};
+use kiln_scene::RgbValue;
+
+#[derive(Debug, Clone)]
+pub struct DiffuseMaterial {
+    pub reflectance: SpectrumTexture,
+}
+
+impl DiffuseMaterial {
+    pub fn new(reflectance: &RgbValue) -> DiffuseMaterial {
+        DiffuseMaterial {
+            reflectance: reflectance.into(),
+        }
+    }
+
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+        Bsdf::Diffuse(DiffuseBxdf {
+            r: self
+                .reflectance
+                .evaluate(ctx)
+                .clamp(Color::ZERO, Color::ONE),
+        })
+    }
+}
