@@ -301,7 +301,7 @@ fn surface_step(
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
     let Some(bsdf) =
-        scene.materials[hit.surface.material as usize].bsdf(&TextureEvalContext::at(&hit))
+        scene.materials[hit.surface.material as usize].bsdf(&TextureEvalContext::at(hit))
     else {
         // An interface: continue straight through without counting a bounce.
         state.pass_throughs += 1;
