@@ -131,14 +131,19 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let render_time = render_start.elapsed();
     let mut frame = RgbBuffer::new(film.xresolution, film.yresolution, x0, y0, x1 - x0, y1 - y0);
     let mut stats = TileStats::default();
-    for r in &results {
+    for r in results {
         stats.merge(&r.stats);
-        for row in 0..r.rect.height {
-            let src = (row * r.rect.width) as usize;
-            let dst = ((r.rect.y0 - y0 + row) * frame.width + (r.rect.x0 - x0)) as usize;
-            frame.pixels[dst..dst + r.rect.width as usize]
-                .copy_from_slice(&r.pixels[src..src + r.rect.width as usize]);
-        }
+        let t = r.rect;
+        let mut tile = RgbBuffer::new(
+            film.xresolution,
+            film.yresolution,
+            t.x0,
+            t.y0,
+            t.width,
+            t.height,
+        );
+        tile.pixels = r.pixels;
+        frame.paste(&tile)?;
     }
     kiln_image::write_exr(&output, &frame)
         .with_context(|| format!("cannot write {}", output.display()))?;

@@ -64,12 +64,47 @@ pub struct JobStatus {
     pub merge_seconds: Option<f64>,
 }
 
+/// A tile's pixels in frame coordinates: the wire form of [`kiln_render::TileRect`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Rect {
     pub x0: u32,
     pub y0: u32,
     pub width: u32,
     pub height: u32,
+}
+
+impl From<kiln_render::TileRect> for Rect {
+    fn from(t: kiln_render::TileRect) -> Rect {
+        let kiln_render::TileRect {
+            x0,
+            y0,
+            width,
+            height,
+        } = t;
+        Rect {
+            x0,
+            y0,
+            width,
+            height,
+        }
+    }
+}
+
+impl From<Rect> for kiln_render::TileRect {
+    fn from(r: Rect) -> kiln_render::TileRect {
+        let Rect {
+            x0,
+            y0,
+            width,
+            height,
+        } = r;
+        kiln_render::TileRect {
+            x0,
+            y0,
+            width,
+            height,
+        }
+    }
 }
 
 /// A tile lent to a worker until `deadline_ms` (renewed by heartbeats).
@@ -108,4 +143,26 @@ pub struct JobCreated {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ApiError {
     pub error: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rects_convert_to_tile_rects_and_back() {
+        let t = kiln_render::TileRect {
+            x0: 1,
+            y0: 2,
+            width: 3,
+            height: 4,
+        };
+        let r = Rect::from(t);
+        assert_eq!(
+            (r.x0, r.y0, r.width, r.height),
+            (1, 2, 3, 4),
+            "each field lands in its namesake"
+        );
+        assert_eq!(kiln_render::TileRect::from(r), t);
+    }
 }

@@ -3,11 +3,24 @@
 //! Layout: the magic `KILNBDL1`, a u32 entry count, then per entry a u16 path length, the
 //! UTF-8 relative path, a u64 data length and the data (little endian). The first entry is
 //! the scene file. The digest is the SHA-256 of the whole blob, in hex.
+//!
+//! Unpacked bundles live in a cache folder, one subfolder per digest, which the coordinator
+//! (its data directory's `scenes/`) and workers (`--cache-dir`) fill through the same
+//! [`unpack_into_cache`]: a subfolder is complete once its [`SCENE_MARKER`] exists.
 
 use sha2::{Digest, Sha256};
 use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 const MAGIC: &[u8; 8] = b"KILNBDL1";
+
+/// The file in an unpacked bundle's folder that names its scene file (a relative path).
+/// It is written last, so a folder that has it is complete.
+pub const SCENE_MARKER: &str = ".scene";
+
+/// The bundle's own bytes, kept beside its unpacked files when asked (the coordinator
+/// serves them to workers).
+pub const BUNDLE_FILE: &str = "bundle.kiln";
 
 #[derive(Debug, thiserror::Error)]
 pub enum BundleError {
@@ -140,6 +153,85 @@ pub fn unpack(bytes: &[u8], dir: &Path) -> Result<PathBuf, BundleError> {
     Ok(dir.join(&entries[0].0))
 }
 
+/// Whether `text` has the form of a digest (hexadecimal), and so is safe as a folder name.
+pub fn is_digest(text: &str) -> bool {
+    !text.is_empty() && text.bytes().all(|b| b.is_ascii_hexdigit())
+}
+
+/// The scene file of the bundle `digest` if it is completely unpacked in `cache`.
+pub fn cached_scene(cache: &Path, digest: &str) -> Option<PathBuf> {
+    if !is_digest(digest) {
+        return None;
+    }
+    let dir = cache.join(digest);
+    let rel = std::fs::read_to_string(dir.join(SCENE_MARKER)).ok()?;
+    Some(dir.join(safe_relative(rel.trim())?))
+}
+
+/// Unpacks a bundle into `cache/<digest>` unless it is there already, and returns the path
+/// of its scene file. `digest` must be the bundle's (callers check or compute it).
+///
+/// The files are written to a private temporary folder, the marker last, and the folder is
+/// renamed into place, so a reader never sees half a bundle and two processes unpacking the
+/// same bundle at once both succeed. A folder left without a marker (by an older layout) is
+/// replaced. With `keep_bundle` the bundle's bytes are kept too, as [`BUNDLE_FILE`].
+pub fn unpack_into_cache(
+    bytes: &[u8],
+    digest: &str,
+    cache: &Path,
+    keep_bundle: bool,
+) -> Result<PathBuf, BundleError> {
+    if let Some(scene) = cached_scene(cache, digest) {
+        return Ok(scene);
+    }
+    if !is_digest(digest) {
+        return Err(BundleError::Corrupt(format!("'{digest}' is not a digest")));
+    }
+    let io = |path: &Path, source| BundleError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    static UNIQUE: AtomicU64 = AtomicU64::new(0);
+    let tmp = cache.join(format!(
+        ".{digest}.{}.{}.tmp",
+        std::process::id(),
+        UNIQUE.fetch_add(1, Ordering::Relaxed)
+    ));
+    let result = (|| {
+        let scene = unpack(bytes, &tmp)?;
+        let rel = scene
+            .strip_prefix(&tmp)
+            .expect("unpack writes inside its folder");
+        if keep_bundle {
+            let path = tmp.join(BUNDLE_FILE);
+            std::fs::write(&path, bytes).map_err(|e| io(&path, e))?;
+        }
+        let marker = tmp.join(SCENE_MARKER);
+        std::fs::write(&marker, rel.to_string_lossy().as_bytes()).map_err(|e| io(&marker, e))?;
+        let dir = cache.join(digest);
+        let mut replaced = false;
+        loop {
+            match std::fs::rename(&tmp, &dir) {
+                Ok(()) => return Ok(dir.join(rel)),
+                // Another request or process unpacked it first.
+                Err(_) if cached_scene(cache, digest).is_some() => {
+                    let _ = std::fs::remove_dir_all(&tmp);
+                    return Ok(dir.join(rel));
+                }
+                Err(_) if !replaced && dir.is_dir() => {
+                    std::fs::remove_dir_all(&dir).map_err(|e| io(&dir, e))?;
+                    replaced = true;
+                }
+                Err(e) => return Err(io(&dir, e)),
+            }
+        }
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -173,6 +265,79 @@ mod tests {
         evil.extend_from_slice(b"../x1");
         evil.extend_from_slice(&0u64.to_le_bytes());
         assert!(matches!(entries(&evil), Err(BundleError::Corrupt(m)) if m.contains("escapes")));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A two-file bundle (a scene including another file) in a fresh folder.
+    fn sample_bundle(name: &str) -> (PathBuf, Bundle) {
+        let dir = std::env::temp_dir().join(format!("kiln-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("src/models")).unwrap();
+        std::fs::write(dir.join("src/models/inc.pbrt"), "Shape \"sphere\"\n").unwrap();
+        std::fs::write(
+            dir.join("src/scene.pbrt"),
+            "WorldBegin\nInclude \"models/inc.pbrt\"\n",
+        )
+        .unwrap();
+        let b = pack(&dir.join("src/scene.pbrt")).unwrap();
+        (dir, b)
+    }
+
+    #[test]
+    fn unpacking_into_a_cache_is_complete_once_and_idempotent() {
+        let (dir, b) = sample_bundle("cache-test");
+        let cache = dir.join("cache");
+        std::fs::create_dir_all(&cache).unwrap();
+        assert_eq!(cached_scene(&cache, &b.digest), None);
+        let scene = unpack_into_cache(&b.bytes, &b.digest, &cache, true).unwrap();
+        assert_eq!(scene, cache.join(&b.digest).join("scene.pbrt"));
+        assert_eq!(cached_scene(&cache, &b.digest), Some(scene.clone()));
+        assert!(kiln_scene::load_file(&scene).is_ok());
+        assert_eq!(
+            std::fs::read(cache.join(&b.digest).join(BUNDLE_FILE)).unwrap(),
+            b.bytes
+        );
+        // A second unpack finds it and writes nothing; no temporary folder is left.
+        std::fs::write(cache.join(&b.digest).join("models/inc.pbrt"), "# kept\n").unwrap();
+        assert_eq!(
+            unpack_into_cache(&b.bytes, &b.digest, &cache, true).unwrap(),
+            scene
+        );
+        assert_eq!(
+            std::fs::read_to_string(cache.join(&b.digest).join("models/inc.pbrt")).unwrap(),
+            "# kept\n"
+        );
+        let names: Vec<_> = std::fs::read_dir(&cache)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert_eq!(names, [b.digest.as_str()]);
+        // Without keep_bundle only the scene's files and the marker are written.
+        let other = dir.join("other");
+        unpack_into_cache(&b.bytes, &b.digest, &other, false).unwrap();
+        assert!(!other.join(&b.digest).join(BUNDLE_FILE).exists());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn an_incomplete_cache_folder_is_replaced_and_bad_input_leaves_nothing() {
+        let (dir, b) = sample_bundle("cache-replace-test");
+        let cache = dir.join("cache");
+        // A folder without the marker (a worker cache of an older layout).
+        std::fs::create_dir_all(cache.join(&b.digest)).unwrap();
+        std::fs::write(cache.join(&b.digest).join(".kiln-scene"), "scene.pbrt").unwrap();
+        assert_eq!(cached_scene(&cache, &b.digest), None);
+        let scene = unpack_into_cache(&b.bytes, &b.digest, &cache, false).unwrap();
+        assert_eq!(cached_scene(&cache, &b.digest), Some(scene));
+        assert!(!cache.join(&b.digest).join(".kiln-scene").exists());
+        // A corrupt bundle or a digest that is not one writes nothing.
+        let bad = dir.join("bad");
+        std::fs::create_dir_all(&bad).unwrap();
+        let cut = &b.bytes[..b.bytes.len() - 3];
+        assert!(unpack_into_cache(cut, "abc", &bad, false).is_err());
+        assert!(unpack_into_cache(&b.bytes, "../escape", &bad, false).is_err());
+        assert_eq!(cached_scene(&bad, "../escape"), None);
+        assert_eq!(std::fs::read_dir(&bad).unwrap().count(), 0);
         std::fs::remove_dir_all(&dir).ok();
     }
 }

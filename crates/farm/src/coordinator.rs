@@ -253,12 +253,12 @@ impl Coordinator {
         if spec.tile == 0 {
             return Err("tile must be at least 1".into());
         }
-        let dir = self.scene_dir(&spec.scene);
-        let scene_file = std::fs::read_to_string(dir.join(".scene"))
-            .map_err(|_| format!("no scene with digest '{}' was uploaded", spec.scene))?;
-        let prefix = format!("{}/", dir.display());
-        let mut desc = kiln_scene::load_file(&dir.join(scene_file.trim()))
-            .map_err(|e| e.to_string().replace(&prefix, ""))?;
+        let scenes = self.config.data_dir.join("scenes");
+        let scene_file = bundle::cached_scene(&scenes, &spec.scene)
+            .ok_or_else(|| format!("no scene with digest '{}' was uploaded", spec.scene))?;
+        let prefix = format!("{}/", self.scene_dir(&spec.scene).display());
+        let mut desc =
+            kiln_scene::load_file(&scene_file).map_err(|e| e.to_string().replace(&prefix, ""))?;
         desc.apply_overrides(&spec.overrides())?;
         let f = &desc.film;
         let [x0, x1, y0, y1] = f.pixel_bounds;
@@ -340,7 +340,9 @@ impl Coordinator {
                 let Ok(tile) = kiln_image::decode_exr(&bytes) else {
                     continue;
                 };
-                copy_tile(&mut job.frame, &tile);
+                if job.frame.paste(&tile).is_err() {
+                    continue;
+                }
                 job.tile_state[idx] = TileState::Done;
                 job.done += 1;
             }
@@ -419,12 +421,13 @@ impl Coordinator {
     }
 }
 
-fn copy_tile(frame: &mut RgbBuffer, tile: &RgbBuffer) {
-    for row in 0..tile.height {
-        let src = (row * tile.width) as usize;
-        let dst = ((tile.y0 - frame.y0 + row) * frame.width + (tile.x0 - frame.x0)) as usize;
-        frame.pixels[dst..dst + tile.width as usize]
-            .copy_from_slice(&tile.pixels[src..src + tile.width as usize]);
+/// A buffer's data window.
+fn data_window(b: &RgbBuffer) -> Rect {
+    Rect {
+        x0: b.x0,
+        y0: b.y0,
+        width: b.width,
+        height: b.height,
     }
 }
 
@@ -487,33 +490,14 @@ async fn upload_scene(
     body: Bytes,
 ) -> Result<Json<SceneUploaded>, AppError> {
     let digest = bundle::digest_of(&body);
-    let dir = c.scene_dir(&digest);
-    let c2 = c.clone();
+    let scenes = c.config.data_dir.join("scenes");
     let digest2 = digest.clone();
     tokio::task::spawn_blocking(move || -> Result<(), AppError> {
-        let digest = digest2;
-        if dir.join(".scene").exists() {
-            return Ok(());
-        }
-        let entries = bundle::entries(&body)
-            .map_err(|e| AppError::new(StatusCode::BAD_REQUEST, e.to_string()))?;
-        let tmp = c2
-            .config
-            .data_dir
-            .join("scenes")
-            .join(format!(".{digest}.tmp"));
-        let _ = std::fs::remove_dir_all(&tmp);
-        let scene = bundle::unpack(&body, &tmp).map_err(internal)?;
-        std::fs::write(tmp.join("bundle.kiln"), &body).map_err(internal)?;
-        std::fs::write(
-            tmp.join(".scene"),
-            entries[0].0.to_string_lossy().as_bytes(),
-        )
-        .map_err(internal)?;
-        drop(scene);
-        match std::fs::rename(&tmp, &dir) {
-            Ok(()) => Ok(()),
-            Err(_) if dir.join(".scene").exists() => Ok(()),
+        match bundle::unpack_into_cache(&body, &digest2, &scenes, true) {
+            Ok(_) => Ok(()),
+            Err(e @ bundle::BundleError::Corrupt(_)) => {
+                Err(AppError::new(StatusCode::BAD_REQUEST, e.to_string()))
+            }
             Err(e) => Err(internal(e)),
         }
     })
@@ -526,13 +510,13 @@ async fn download_scene(
     State(c): State<Coordinator>,
     UrlPath(digest): UrlPath<String>,
 ) -> Result<Response, AppError> {
-    if !digest.chars().all(|ch| ch.is_ascii_hexdigit()) {
+    if !bundle::is_digest(&digest) {
         return Err(AppError::new(
             StatusCode::BAD_REQUEST,
             "a digest is hexadecimal",
         ));
     }
-    let bytes = tokio::fs::read(c.scene_dir(&digest).join("bundle.kiln"))
+    let bytes = tokio::fs::read(c.scene_dir(&digest).join(bundle::BUNDLE_FILE))
         .await
         .map_err(|_| {
             AppError::new(
@@ -777,18 +761,12 @@ async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Ap
             },
         );
         inner.metrics.leases_issued += 1;
-        let t = job.tiles[tile];
         let lease = Lease {
             lease: id,
             job: job.id,
             spec: job.spec.clone(),
             tile_index: tile as u32,
-            tile: Rect {
-                x0: t.x0,
-                y0: t.y0,
-                width: t.width,
-                height: t.height,
-            },
+            tile: job.tiles[tile].into(),
             ttl_ms: c.config.lease_ttl.as_millis() as u64,
         };
         return Ok(Json(lease).into_response());
@@ -850,9 +828,7 @@ async fn upload_tile(
     };
     let decoded = kiln_image::decode_exr(&body);
     let check = decoded.map_err(|e| e.to_string()).and_then(|t| {
-        if (t.frame_width, t.frame_height) != frame_size
-            || (t.x0, t.y0, t.width, t.height) != (rect.x0, rect.y0, rect.width, rect.height)
-        {
+        if (t.frame_width, t.frame_height) != frame_size || Rect::from(rect) != data_window(&t) {
             return Err(format!(
                 "the EXR's windows ({}x{} frame, {}x{} at {},{}) are not the leased tile's",
                 t.frame_width, t.frame_height, t.width, t.height, t.x0, t.y0
@@ -897,7 +873,7 @@ async fn upload_tile(
             .map_err(internal)?;
         let job = inner.jobs.get_mut(&job_id).expect("leased jobs exist");
         if job.tile_state[tile_idx] != TileState::Done {
-            copy_tile(&mut job.frame, &tile);
+            job.frame.paste(&tile).map_err(internal)?;
             job.tile_state[tile_idx] = TileState::Done;
             job.done += 1;
         }
@@ -926,7 +902,7 @@ fn stale_upload(inner: &Inner, id: u64, body: &[u8]) -> Result<Response, AppErro
         if let Some(idx) = job
             .tiles
             .iter()
-            .position(|r| (r.x0, r.y0, r.width, r.height) == (t.x0, t.y0, t.width, t.height))
+            .position(|&r| Rect::from(r) == data_window(&t))
         {
             if job.tile_state[idx] == TileState::Done
                 && Coordinator::kept_tile(inner, job.id, idx).is_some_and(|kept| kept == body)

@@ -109,11 +109,9 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Str
 }
 
 async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<Loaded, String> {
-    let dir = config.cache_dir.join(&spec.scene);
-    let marker = dir.join(".kiln-scene");
-    let scene_path = match std::fs::read_to_string(&marker) {
-        Ok(rel) => dir.join(rel.trim()),
-        Err(_) => {
+    let scene_path = match bundle::cached_scene(&config.cache_dir, &spec.scene) {
+        Some(path) => path,
+        None => {
             let bytes = client
                 .download_scene(&spec.scene)
                 .await
@@ -125,21 +123,13 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
                     spec.scene
                 ));
             }
-            let tmp = config
-                .cache_dir
-                .join(format!(".{}.{}", spec.scene, std::process::id()));
-            let path = bundle::unpack(&bytes, &tmp).map_err(|e| e.to_string())?;
-            let rel = path
-                .strip_prefix(&tmp)
-                .map_err(|e| e.to_string())?
-                .to_path_buf();
-            std::fs::write(tmp.join(".kiln-scene"), rel.to_string_lossy().as_bytes())
-                .map_err(|e| e.to_string())?;
-            if std::fs::rename(&tmp, &dir).is_err() {
-                // Another worker on this machine unpacked it first.
-                let _ = std::fs::remove_dir_all(&tmp);
-            }
-            dir.join(rel)
+            let cache = config.cache_dir.clone();
+            tokio::task::spawn_blocking(move || {
+                bundle::unpack_into_cache(&bytes, &digest, &cache, false)
+            })
+            .await
+            .map_err(|e| e.to_string())?
+            .map_err(|e| e.to_string())?
         }
     };
     let overrides = spec.overrides();
@@ -176,13 +166,7 @@ async fn render_and_upload(
             }
         })
     };
-    let t = lease.tile;
-    let rect = TileRect {
-        x0: t.x0,
-        y0: t.y0,
-        width: t.width,
-        height: t.height,
-    };
+    let rect = TileRect::from(lease.tile);
     let (pool, loaded2) = (pool.clone(), loaded.clone());
     let exr = tokio::task::spawn_blocking(move || {
         let result = pool.install(|| render_tile(&loaded2.renderer, rect));

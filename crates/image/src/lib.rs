@@ -69,6 +69,51 @@ impl RgbBuffer {
         self.pixels[(y * self.width + x) as usize]
     }
 
+    /// Copies `tile`'s pixels into this buffer at the tile's data window (both windows are
+    /// in the same frame's coordinates). A tile of another frame size, one whose pixels do
+    /// not match its window, or one that reaches outside this buffer's data window is an
+    /// error and leaves this buffer unchanged.
+    pub fn paste(&mut self, tile: &RgbBuffer) -> Result<(), ImageError> {
+        if (tile.frame_width, tile.frame_height) != (self.frame_width, self.frame_height) {
+            return Err(ImageError::Invalid(format!(
+                "a tile of a {}x{} frame cannot be pasted into a {}x{} frame",
+                tile.frame_width, tile.frame_height, self.frame_width, self.frame_height
+            )));
+        }
+        if tile.pixels.len() as u64 != tile.width as u64 * tile.height as u64 {
+            return Err(ImageError::Invalid(
+                "tile size does not match its pixels".into(),
+            ));
+        }
+        let inside = |t0: u32, tn: u32, s0: u32, sn: u32| {
+            t0 >= s0 && t0 as u64 + tn as u64 <= s0 as u64 + sn as u64
+        };
+        if !inside(tile.x0, tile.width, self.x0, self.width)
+            || !inside(tile.y0, tile.height, self.y0, self.height)
+        {
+            return Err(ImageError::Invalid(format!(
+                "the {}x{} tile at {},{} does not fit the {}x{} data window at {},{}",
+                tile.width,
+                tile.height,
+                tile.x0,
+                tile.y0,
+                self.width,
+                self.height,
+                self.x0,
+                self.y0
+            )));
+        }
+        let w = tile.width as usize;
+        for row in 0..tile.height as usize {
+            let src = row * w;
+            let dst = (tile.y0 - self.y0) as usize * self.width as usize
+                + row * self.width as usize
+                + (tile.x0 - self.x0) as usize;
+            self.pixels[dst..dst + w].copy_from_slice(&tile.pixels[src..src + w]);
+        }
+        Ok(())
+    }
+
     /// Mean of each channel over the data window.
     pub fn mean(&self) -> [f64; 3] {
         let mut sum = [0.0f64; 3];
@@ -286,6 +331,73 @@ mod tests {
         let bytes = encode_exr(&b).unwrap();
         assert!(decode_exr(&bytes[..bytes.len() / 2]).is_err());
         assert!(decode_exr(b"not an exr").is_err());
+    }
+
+    /// A buffer whose every pixel holds `v`.
+    fn filled(fw: u32, fh: u32, x0: u32, y0: u32, w: u32, h: u32, v: f32) -> RgbBuffer {
+        let mut b = RgbBuffer::new(fw, fh, x0, y0, w, h);
+        b.pixels.iter_mut().for_each(|p| *p = [v; 3]);
+        b
+    }
+
+    #[test]
+    fn paste_places_tiles_by_their_data_windows() {
+        // The frame's data window is 6x4 at (2, 1) in a 10x8 frame (a crop window).
+        let mut frame = RgbBuffer::new(10, 8, 2, 1, 6, 4);
+        let mut tile = RgbBuffer::new(10, 8, 5, 2, 3, 2);
+        for (i, p) in tile.pixels.iter_mut().enumerate() {
+            *p = [i as f32 + 1.0, 0.0, 0.0];
+        }
+        frame.paste(&tile).unwrap();
+        for y in 0..4 {
+            for x in 0..6 {
+                let (fx, fy) = (x + 2, y + 1);
+                let want = if (5..8).contains(&fx) && (2..4).contains(&fy) {
+                    ((fy - 2) * 3 + (fx - 5)) as f32 + 1.0
+                } else {
+                    0.0
+                };
+                assert_eq!(frame.get(x, y)[0], want, "pixel {fx},{fy}");
+            }
+        }
+        // A tile covering the whole data window replaces it.
+        frame.paste(&filled(10, 8, 2, 1, 6, 4, 2.0)).unwrap();
+        assert!(frame.pixels.iter().all(|p| *p == [2.0; 3]));
+    }
+
+    #[test]
+    fn paste_refuses_tiles_that_do_not_fit() {
+        let mut frame = filled(10, 8, 2, 1, 6, 4, 7.0);
+        let before = frame.clone();
+        for (tile, why) in [
+            (filled(10, 8, 6, 1, 3, 2, 1.0), "overlaps the right edge"),
+            (filled(10, 8, 2, 4, 2, 2, 1.0), "overlaps the bottom edge"),
+            (
+                filled(10, 8, 1, 1, 2, 2, 1.0),
+                "starts left of the data window",
+            ),
+            (
+                filled(10, 8, 2, 0, 2, 2, 1.0),
+                "starts above the data window",
+            ),
+            (filled(10, 8, 20, 20, 2, 2, 1.0), "lies outside the frame"),
+            (filled(12, 8, 2, 1, 2, 2, 1.0), "belongs to another frame"),
+            (
+                filled(10, 8, u32::MAX, 1, 2, 2, 1.0),
+                "would overflow the coordinates",
+            ),
+        ] {
+            let e = frame.paste(&tile);
+            assert!(
+                matches!(e, Err(ImageError::Invalid(_))),
+                "a tile that {why}"
+            );
+            assert_eq!(frame, before, "a tile that {why} changed the frame");
+        }
+        let mut short = filled(10, 8, 2, 1, 2, 2, 1.0);
+        short.pixels.pop();
+        assert!(frame.paste(&short).is_err());
+        assert_eq!(frame, before);
     }
 
     #[test]
