@@ -60,7 +60,7 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
         let mut config = Config::new(args.data_dir.clone());
         config.token = args.token;
         config.lease_ttl = Duration::from_secs_f64(args.lease_ttl.max(0.05));
-        let c = Coordinator::open(config).map_err(anyhow::Error::msg)?;
+        let c = Coordinator::open(config)?;
         let listener = tokio::net::TcpListener::bind(&args.listen)
             .await
             .with_context(|| format!("cannot listen on {}", args.listen))?;
@@ -293,7 +293,7 @@ pub fn farm(args: FarmArgs) -> Result<()> {
     let rt = runtime()?;
     let start = std::time::Instant::now();
     let result = rt.block_on(async {
-        let c = Coordinator::open(Config::new(data.clone())).map_err(anyhow::Error::msg)?;
+        let c = Coordinator::open(Config::new(data.clone()))?;
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
         let url = format!("http://{}", listener.local_addr()?);
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();

@@ -40,6 +40,30 @@ pub enum JobState {
     Cancelled,
 }
 
+impl JobState {
+    pub const ALL: [JobState; 4] = [
+        JobState::Running,
+        JobState::Done,
+        JobState::Failed,
+        JobState::Cancelled,
+    ];
+
+    /// The state's name, as its JSON spells it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobState::Running => "running",
+            JobState::Done => "done",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+
+    /// The state named `name` (as [`JobState::as_str`] spells it).
+    pub fn from_name(name: &str) -> Option<JobState> {
+        JobState::ALL.into_iter().find(|s| s.as_str() == name)
+    }
+}
+
 /// A job's progress, as GET /v1/jobs/{id} and its events report it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobStatus {
@@ -148,6 +172,18 @@ pub struct ApiError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn job_state_names_are_their_json() {
+        for s in JobState::ALL {
+            assert_eq!(
+                serde_json::to_value(s).unwrap(),
+                serde_json::Value::from(s.as_str())
+            );
+            assert_eq!(JobState::from_name(s.as_str()), Some(s));
+        }
+        assert_eq!(JobState::from_name("paused"), None);
+    }
 
     #[test]
     fn rects_convert_to_tile_rects_and_back() {

@@ -1,0 +1,118 @@
+//! What the coordinator's operations fail with: the client's mistakes (each with the
+//! message the client is shown) and internal failures (the store, the disk, a task).
+//!
+//! This file only names failures. Which HTTP status each one gets, and which are shown or
+//! only logged, is `http.rs`'s business; nothing here logs or knows about HTTP.
+//!
+//! Messages carry their cause's text (`"job store: {0}"`) and causes are not chained as
+//! `source()`, so a `{:#}` print (the CLI's) says each thing once.
+
+use super::MAX_WORKER_FAILURES;
+use crate::api::{JobState, Rect};
+use crate::bundle::BundleError;
+use kiln_image::ImageError;
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    // The client's mistakes: shown to it.
+    #[error("missing or wrong bearer token")]
+    Unauthorized,
+    #[error("no such route")]
+    NoRoute,
+    #[error("'{0}' is not an id")]
+    BadId(String),
+    #[error("bad request body: {0}")]
+    BadBody(serde_json::Error),
+    #[error("bad job: {0}")]
+    BadJob(serde_json::Error),
+    /// A scene bundle that does not unpack.
+    #[error("{0}")]
+    BadBundle(BundleError),
+    #[error("a digest is hexadecimal")]
+    BadDigest,
+    #[error("no scene with digest '{0}'")]
+    UnknownScene(String),
+    #[error("no job {0}")]
+    UnknownJob(u64),
+    /// A job whose scene cannot be planned into tiles.
+    #[error("{0}")]
+    Unplannable(PlanError),
+    #[error("job {id} is {}, not done", state.as_str())]
+    NotDone { id: u64, state: JobState },
+    #[error("worker '{0}' failed {MAX_WORKER_FAILURES} tiles in a row and is set aside")]
+    SetAside(String),
+    #[error("lease {0} has expired or is unknown")]
+    UnknownLease(u64),
+    /// An upload under an expired lease that is not the tile already kept.
+    #[error("lease {0} has expired or is unknown, and the tile differs from the one kept")]
+    StaleTile(u64),
+    #[error("job {0} is no longer running")]
+    JobEnded(u64),
+    #[error("rejected tile: {0}")]
+    RejectedTile(TileRejected),
+
+    // Internal failures: logged, never shown.
+    #[error("job store: {0}")]
+    Store(rusqlite::Error),
+    #[error("job {id}: corrupt spec: {message}")]
+    CorruptSpec { id: u64, message: String },
+    #[error("{}: {message}", path.display())]
+    Io { path: PathBuf, message: String },
+    #[error("cannot store a scene: {0}")]
+    Unpack(BundleError),
+    #[error("{0}")]
+    Image(ImageError),
+    #[error("a blocking task failed: {0}")]
+    Task(tokio::task::JoinError),
+}
+
+impl Error {
+    pub(super) fn io(path: impl Into<PathBuf>, e: std::io::Error) -> Error {
+        Error::Io {
+            path: path.into(),
+            message: e.to_string(),
+        }
+    }
+}
+
+impl From<rusqlite::Error> for Error {
+    fn from(e: rusqlite::Error) -> Error {
+        Error::Store(e)
+    }
+}
+
+impl From<tokio::task::JoinError> for Error {
+    fn from(e: tokio::task::JoinError) -> Error {
+        Error::Task(e)
+    }
+}
+
+/// Why a job's scene cannot be turned into a frame and tiles.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    #[error("tile must be at least 1")]
+    ZeroTile,
+    #[error("no scene with digest '{0}' was uploaded")]
+    NoScene(String),
+    /// The parser's message, with the data directory's prefix taken off file names.
+    #[error("{0}")]
+    Scene(String),
+    /// Overrides the scene cannot take (a resolution out of range, ...).
+    #[error("{0}")]
+    Overrides(String),
+}
+
+/// Why an uploaded tile was refused (the attempt counts as failed).
+#[derive(Debug, thiserror::Error)]
+pub enum TileRejected {
+    #[error("{0}")]
+    Decode(ImageError),
+    #[error(
+        "the EXR's windows ({}x{} frame, {}x{} at {},{}) are not the leased tile's",
+        frame.0, frame.1, window.width, window.height, window.x0, window.y0
+    )]
+    Windows { frame: (u32, u32), window: Rect },
+    #[error("the tile has NaN or infinite pixels")]
+    NonFinite,
+}

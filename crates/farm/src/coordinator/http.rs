@@ -1,0 +1,298 @@
+//! The coordinator's HTTP API: [`app`]'s routes, the bearer-token middleware, the
+//! handlers, and how an [`Error`] becomes a response.
+//!
+//! Handlers only parse requests, call the [`Coordinator`] handle and shape answers. They
+//! must never touch SQLite, the data directory or the lock directly. Every error body is
+//! `{"error": message}`: the client's mistakes with their own status and message, internal
+//! failures logged here once and answered with a bare 500.
+
+use super::{Coordinator, Error};
+use crate::api::*;
+use axum::body::Bytes;
+use axum::extract::{DefaultBodyLimit, Path as UrlPath, Request, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post, put};
+use axum::{Json, Router};
+use std::time::Duration;
+use tokio::sync::broadcast;
+
+/// The coordinator's HTTP routes.
+pub fn app(c: Coordinator) -> Router {
+    let max_scene = c.config().max_scene_bytes;
+    let max_tile = c.config().max_tile_bytes;
+    let api = Router::new()
+        .route(
+            "/v1/scenes",
+            post(upload_scene).layer(DefaultBodyLimit::max(max_scene)),
+        )
+        .route("/v1/scenes/{digest}", get(download_scene))
+        .route("/v1/jobs", post(create_job).get(list_jobs))
+        .route("/v1/jobs/{id}", get(get_job))
+        .route("/v1/jobs/{id}/events", get(job_events))
+        .route("/v1/jobs/{id}/result.exr", get(job_result))
+        .route("/v1/jobs/{id}/preview.png", get(job_preview))
+        .route("/v1/jobs/{id}/cancel", post(cancel_job))
+        .route("/v1/leases", post(lease))
+        .route("/v1/leases/{id}/heartbeat", post(heartbeat))
+        .route(
+            "/v1/leases/{id}/tile",
+            put(upload_tile).layer(DefaultBodyLimit::max(max_tile)),
+        )
+        .route("/v1/leases/{id}/fail", post(fail_lease))
+        .route("/v1/openapi.json", get(openapi))
+        .route("/metrics", get(metrics))
+        .route_layer(middleware::from_fn_with_state(c.clone(), require_token));
+    Router::new()
+        .route("/healthz", get(|| async { "ok\n" }))
+        .merge(api)
+        .fallback(|| async { Error::NoRoute })
+        .with_state(c)
+}
+
+impl Error {
+    /// The status a client gets for this error.
+    fn status(&self) -> StatusCode {
+        match self {
+            Error::Unauthorized => StatusCode::UNAUTHORIZED,
+            Error::NoRoute | Error::UnknownScene(_) | Error::UnknownJob(_) => StatusCode::NOT_FOUND,
+            Error::BadId(_)
+            | Error::BadBody(_)
+            | Error::BadJob(_)
+            | Error::BadBundle(_)
+            | Error::BadDigest
+            | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
+            Error::Unplannable(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            Error::NotDone { .. } | Error::UnknownLease(_) | Error::StaleTile(_) => {
+                StatusCode::CONFLICT
+            }
+            Error::SetAside(_) => StatusCode::FORBIDDEN,
+            Error::JobEnded(_) => StatusCode::GONE,
+            Error::Store(_)
+            | Error::CorruptSpec { .. }
+            | Error::Io { .. }
+            | Error::Unpack(_)
+            | Error::Image(_)
+            | Error::Task(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+}
+
+impl IntoResponse for Error {
+    fn into_response(self) -> Response {
+        let status = self.status();
+        let message = if status.is_server_error() {
+            // The details are for the operator's log, not for clients.
+            tracing::error!("{self}");
+            "internal error".to_string()
+        } else {
+            self.to_string()
+        };
+        (status, Json(ApiError { error: message })).into_response()
+    }
+}
+
+async fn require_token(
+    State(c): State<Coordinator>,
+    req: Request,
+    next: Next,
+) -> Result<Response, Error> {
+    if let Some(token) = &c.config().token {
+        let ok = req
+            .headers()
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|v| v.strip_prefix("Bearer ") == Some(token.as_str()));
+        if !ok {
+            return Err(Error::Unauthorized);
+        }
+    }
+    Ok(next.run(req).await)
+}
+
+/// Ids in paths, parsed here so a bad one gets a JSON error like every other.
+fn parse_id(text: &str) -> Result<u64, Error> {
+    text.parse().map_err(|_| Error::BadId(text.to_string()))
+}
+
+/// JSON bodies, parsed here so malformed ones get a JSON error that says what is wrong.
+fn parse_json<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, Error> {
+    serde_json::from_slice(body).map_err(Error::BadBody)
+}
+
+async fn upload_scene(
+    State(c): State<Coordinator>,
+    body: Bytes,
+) -> Result<Json<SceneUploaded>, Error> {
+    let digest = c.save_scene(body).await?;
+    Ok(Json(SceneUploaded { digest }))
+}
+
+async fn download_scene(
+    State(c): State<Coordinator>,
+    UrlPath(digest): UrlPath<String>,
+) -> Result<Response, Error> {
+    let bytes = c.scene_bundle(&digest).await?;
+    Ok(([(header::CONTENT_TYPE, "application/octet-stream")], bytes).into_response())
+}
+
+async fn create_job(
+    State(c): State<Coordinator>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Result<Response, Error> {
+    let spec: JobSpec = serde_json::from_slice(&body).map_err(Error::BadJob)?;
+    let key = headers
+        .get("idempotency-key")
+        .and_then(|v| v.to_str().ok())
+        .map(String::from);
+    let (id, created) = c.create_job(spec, key).await?;
+    let status = if created {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    };
+    Ok((status, Json(JobCreated { id })).into_response())
+}
+
+async fn list_jobs(State(c): State<Coordinator>) -> Json<Vec<JobStatus>> {
+    Json(c.statuses())
+}
+
+async fn get_job(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Json<JobStatus>, Error> {
+    let id = parse_id(&id)?;
+    c.status(id).map(Json).ok_or(Error::UnknownJob(id))
+}
+
+async fn job_events(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Response, Error> {
+    let id = parse_id(&id)?;
+    let first = c.status(id).ok_or(Error::UnknownJob(id))?;
+    let mut rx = c.subscribe();
+    let stream = async_stream(move |tx: tokio::sync::mpsc::Sender<Event>| async move {
+        let progress = |s: &JobStatus| {
+            Event::default()
+                .event("progress")
+                .json_data(s)
+                .unwrap_or_default()
+        };
+        let mut last = first;
+        let _ = tx.send(progress(&last)).await;
+        while last.state == JobState::Running {
+            let changed = tokio::time::timeout(Duration::from_secs(1), rx.recv()).await;
+            if let Ok(Err(broadcast::error::RecvError::Closed)) = changed {
+                break;
+            }
+            let Some(now) = c.status(id) else { break };
+            if now != last {
+                last = now;
+                if tx.send(progress(&last)).await.is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    Ok(Sse::new(stream)
+        .keep_alive(KeepAlive::default())
+        .into_response())
+}
+
+/// A stream fed by a task through a channel (so handlers can write loops with await).
+fn async_stream<F, Fut>(
+    f: F,
+) -> impl tokio_stream::Stream<Item = Result<Event, std::convert::Infallible>>
+where
+    F: FnOnce(tokio::sync::mpsc::Sender<Event>) -> Fut,
+    Fut: std::future::Future<Output = ()> + Send + 'static,
+{
+    let (tx, rx) = tokio::sync::mpsc::channel(16);
+    tokio::spawn(f(tx));
+    tokio_stream::StreamExt::map(tokio_stream::wrappers::ReceiverStream::new(rx), Ok)
+}
+
+async fn job_result(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Response, Error> {
+    let id = parse_id(&id)?;
+    let bytes = c.result(id).await?;
+    Ok(([(header::CONTENT_TYPE, "image/x-exr")], bytes).into_response())
+}
+
+async fn job_preview(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Response, Error> {
+    let id = parse_id(&id)?;
+    let png = c.preview(id).await?;
+    Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
+}
+
+async fn cancel_job(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Json<JobStatus>, Error> {
+    let id = parse_id(&id)?;
+    c.cancel(id).map(Json)
+}
+
+async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Error> {
+    let req: LeaseRequest = parse_json(&body)?;
+    Ok(match c.lease(&req.worker)? {
+        Some(lease) => Json(lease).into_response(),
+        None => StatusCode::NO_CONTENT.into_response(),
+    })
+}
+
+async fn heartbeat(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<StatusCode, Error> {
+    let id = parse_id(&id)?;
+    c.heartbeat(id)?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+async fn upload_tile(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+    body: Bytes,
+) -> Result<StatusCode, Error> {
+    let id = parse_id(&id)?;
+    c.upload_tile(id, body).await?;
+    Ok(StatusCode::OK)
+}
+
+async fn fail_lease(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+    body: Bytes,
+) -> Result<StatusCode, Error> {
+    let id = parse_id(&id)?;
+    let f: Failure = parse_json(&body)?;
+    c.fail_lease(id, &f.reason)?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+async fn metrics(State(c): State<Coordinator>) -> Response {
+    (
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        c.metrics_text(),
+    )
+        .into_response()
+}
+
+async fn openapi() -> Response {
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        include_str!("../openapi.json"),
+    )
+        .into_response()
+}

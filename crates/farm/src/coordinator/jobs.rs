@@ -1,0 +1,114 @@
+//! The client's side of the coordinator handle: scenes uploaded and downloaded, jobs
+//! created and cancelled, results, previews and metrics read.
+//!
+//! Each operation takes the lock only to read or record a few fields; parsing scenes,
+//! unpacking bundles and encoding images happen outside it. Nothing here speaks HTTP.
+
+use super::job::Job;
+use super::metrics::Snapshot;
+use super::{Coordinator, Error};
+use crate::api::{JobSpec, JobState, JobStatus};
+
+impl Coordinator {
+    /// Keeps an uploaded scene bundle; returns its digest.
+    pub async fn save_scene(&self, bundle: axum::body::Bytes) -> Result<String, Error> {
+        let files = self.files().clone();
+        tokio::task::spawn_blocking(move || files.save_bundle(&bundle)).await?
+    }
+
+    /// A kept scene bundle's bytes.
+    pub async fn scene_bundle(&self, digest: &str) -> Result<Vec<u8>, Error> {
+        self.files().bundle(digest).await
+    }
+
+    /// Creates a job, or finds the one created earlier with the same idempotency key.
+    /// Returns its id and whether it is new.
+    pub async fn create_job(
+        &self,
+        spec: JobSpec,
+        idempotency_key: Option<String>,
+    ) -> Result<(u64, bool), Error> {
+        if let Some(k) = &idempotency_key {
+            if let Some(id) = self.lock().store.job_with_key(k)? {
+                return Ok((id, false));
+            }
+        }
+        let (scenes, now) = (self.files().scenes(), self.now());
+        let spec2 = spec.clone();
+        let mut job = tokio::task::spawn_blocking(move || {
+            Job::plan(&scenes, 0, spec2, JobState::Running, now)
+        })
+        .await?
+        .map_err(Error::Unplannable)?;
+        let id = {
+            let mut state = self.lock();
+            // A retry may have created it while this one planned.
+            if let Some(k) = &idempotency_key {
+                if let Some(id) = state.store.job_with_key(k)? {
+                    return Ok((id, false));
+                }
+            }
+            let id = state.store.insert_job(&spec, idempotency_key.as_deref())?;
+            job.id = id;
+            state.jobs.insert(id, job);
+            id
+        };
+        self.notify(id);
+        Ok((id, true))
+    }
+
+    /// Cancels a running job (its leases end at their next heartbeat); returns its status.
+    pub fn cancel(&self, id: u64) -> Result<JobStatus, Error> {
+        let now = self.now();
+        let status = {
+            let mut state = self.lock();
+            let job = state.jobs.get_mut(&id).ok_or(Error::UnknownJob(id))?;
+            if job.state == JobState::Running {
+                job.state = JobState::Cancelled;
+                state.persist(id);
+            }
+            state.jobs[&id].status(now)
+        };
+        self.notify(id);
+        Ok(status)
+    }
+
+    /// The merged EXR of a finished job.
+    pub async fn result(&self, id: u64) -> Result<Vec<u8>, Error> {
+        let status = self.status(id).ok_or(Error::UnknownJob(id))?;
+        if status.state != JobState::Done {
+            return Err(Error::NotDone {
+                id,
+                state: status.state,
+            });
+        }
+        let path = self.files().result_path(id);
+        tokio::fs::read(&path).await.map_err(|e| Error::io(path, e))
+    }
+
+    /// The frame so far as an sRGB PNG.
+    pub async fn preview(&self, id: u64) -> Result<Vec<u8>, Error> {
+        let frame = self
+            .lock()
+            .jobs
+            .get(&id)
+            .map(|j| j.frame.clone())
+            .ok_or(Error::UnknownJob(id))?;
+        tokio::task::spawn_blocking(move || kiln_image::encode_png(&frame, 0.0))
+            .await?
+            .map_err(Error::Image)
+    }
+
+    /// The Prometheus text of the coordinator's counters and gauges.
+    pub fn metrics_text(&self) -> String {
+        let snapshot = {
+            let state = self.lock();
+            Snapshot::new(
+                &state.metrics,
+                state.jobs.values().map(|j| j.state),
+                state.leases.len(),
+            )
+        };
+        snapshot.render()
+    }
+}

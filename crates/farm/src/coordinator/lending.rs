@@ -1,0 +1,180 @@
+//! The workers' side of the coordinator handle: tiles lent under leases, heartbeats,
+//! uploads taken back and kept, failed attempts and expiry.
+//!
+//! An upload is decoded and checked outside the lock, and acknowledged only after the
+//! store has kept it. Nothing here speaks HTTP or reads a clock other than through
+//! `Coordinator::now`.
+
+use super::error::TileRejected;
+use super::{Coordinator, Error, State};
+use crate::api::{JobState, Lease};
+use axum::body::Bytes;
+use kiln_image::RgbBuffer;
+
+impl Coordinator {
+    /// Lends `worker` the next pending tile of the oldest running job that has one;
+    /// `None` if there is no work now.
+    pub fn lease(&self, worker: &str) -> Result<Option<Lease>, Error> {
+        let now = self.now();
+        let mut state = self.lock();
+        let state = &mut *state;
+        if state.workers.is_set_aside(worker) {
+            return Err(Error::SetAside(worker.to_string()));
+        }
+        state.workers.seen(worker);
+        let ttl = state.leases.ttl();
+        for job in state
+            .jobs
+            .values_mut()
+            .filter(|j| j.state == JobState::Running)
+        {
+            let Some(tile) = job.next_pending() else {
+                continue;
+            };
+            let id = state.leases.grant(job.id, tile, worker, now);
+            job.lend(tile, id);
+            state.metrics.leases_issued += 1;
+            return Ok(Some(Lease {
+                lease: id,
+                job: job.id,
+                spec: job.spec.clone(),
+                tile_index: tile as u32,
+                tile: job.tiles[tile].into(),
+                ttl_ms: ttl.as_millis() as u64,
+            }));
+        }
+        Ok(None)
+    }
+
+    /// Renews a lease. A lease of a job that stopped running ends here, so its worker
+    /// stops rendering.
+    pub fn heartbeat(&self, lease: u64) -> Result<(), Error> {
+        let now = self.now();
+        let mut state = self.lock();
+        let job = state
+            .leases
+            .renew(lease, now)
+            .ok_or(Error::UnknownLease(lease))?
+            .job;
+        if state
+            .jobs
+            .get(&job)
+            .is_some_and(|j| j.state != JobState::Running)
+        {
+            state.leases.remove(lease);
+            return Err(Error::JobEnded(job));
+        }
+        Ok(())
+    }
+
+    /// Takes a leased tile's EXR back: checks it against the lease's tile, keeps it in the
+    /// store, pastes it into the frame, and finishes the job if it was the last one. A
+    /// corrupt or mismatched upload counts as a failed attempt. An upload under a lease that
+    /// expired is accepted only if it is byte for byte the tile already kept.
+    pub async fn upload_tile(&self, lease: u64, exr: Bytes) -> Result<(), Error> {
+        let target = {
+            let state = self.lock();
+            state
+                .leases
+                .get(lease)
+                .map(|h| (h.job, state.jobs[&h.job].spot(h.tile)))
+        };
+        let decoded = kiln_image::decode_exr(&exr);
+        let Some((job, spot)) = target else {
+            // Which tile was it? The upload carries its own windows.
+            let tile = decoded.map_err(|_| Error::UnknownLease(lease))?;
+            return self.lock().judge_stale(lease, &tile, &exr);
+        };
+        let tile = match decoded
+            .map_err(TileRejected::Decode)
+            .and_then(|t| spot.check(&t).map(|()| t))
+        {
+            Ok(t) => t,
+            Err(why) => {
+                {
+                    let mut state = self.lock();
+                    state.metrics.tiles_rejected += 1;
+                    state.release_failed(lease, &format!("corrupt tile upload: {why}"));
+                }
+                self.notify(job);
+                return Err(Error::RejectedTile(why));
+            }
+        };
+        {
+            let mut state = self.lock();
+            if state.commit_tile(lease, &exr, &tile)? {
+                state.finish_if_ready(self.files(), job);
+            }
+        }
+        self.notify(job);
+        Ok(())
+    }
+
+    /// Records a failed attempt reported by the worker holding `lease`.
+    pub fn fail_lease(&self, lease: u64, reason: &str) -> Result<(), Error> {
+        let job = {
+            let mut state = self.lock();
+            let job = state
+                .leases
+                .get(lease)
+                .map(|h| h.job)
+                .ok_or(Error::UnknownLease(lease))?;
+            state.release_failed(lease, reason);
+            job
+        };
+        self.notify(job);
+        Ok(())
+    }
+}
+
+impl State {
+    /// Keeps a checked tile uploaded under `lease`: in the store first (if that fails the
+    /// lease stays, and expires), then in the job. Returns whether it was the job's last.
+    /// A lease that expired meanwhile is judged as a stale upload.
+    fn commit_tile(&mut self, lease: u64, exr: &[u8], tile: &RgbBuffer) -> Result<bool, Error> {
+        let Some(held) = self.leases.get(lease) else {
+            return self.judge_stale(lease, tile, exr).map(|()| false);
+        };
+        let (job, idx) = (held.job, held.tile);
+        self.store.insert_tile(job, idx, exr)?;
+        let held = self.leases.remove(lease).expect("checked above");
+        self.metrics.tiles_accepted += 1;
+        self.workers.succeeded(&held.worker);
+        let job = self.jobs.get_mut(&job).expect("leased jobs exist");
+        let newly_done = job.complete_tile(idx, tile).map_err(Error::Image)?;
+        Ok(newly_done && job.is_ready_to_merge())
+    }
+
+    /// An upload under an unknown or expired lease: fine if it is the very tile already
+    /// kept for its place (a worker whose lease expired finished anyway), else a conflict.
+    fn judge_stale(&self, lease: u64, tile: &RgbBuffer, exr: &[u8]) -> Result<(), Error> {
+        for job in self.jobs.values() {
+            let Some(idx) = job.find_tile(tile) else {
+                continue;
+            };
+            if job.is_done(idx)
+                && self
+                    .store
+                    .tile(job.id, idx)?
+                    .is_some_and(|kept| kept == exr)
+            {
+                return Ok(());
+            }
+        }
+        Err(Error::StaleTile(lease))
+    }
+
+    /// Ends a lease whose attempt failed: the tile goes back to the queue, or fails its job.
+    fn release_failed(&mut self, lease: u64, reason: &str) {
+        let Some(held) = self.leases.remove(lease) else {
+            return;
+        };
+        self.workers.failed(&held.worker);
+        let Some(job) = self.jobs.get_mut(&held.job) else {
+            return;
+        };
+        if job.attempt_failed(held.tile, reason) {
+            self.persist(held.job);
+        }
+    }
+}

@@ -1,0 +1,251 @@
+//! The coordinator: keeps jobs, scene bundles and finished tiles durable in a data
+//! directory, lends tiles to workers under leases, merges their EXRs and reports progress.
+//!
+//! - [`Coordinator`] (here) is the cheap-clone handle every request works through; its
+//!   methods are the operations, in `jobs.rs` (scenes, jobs, results: the client's side)
+//!   and `lending.rs` (leases, heartbeats, uploads, failures: the workers' side).
+//! - `http.rs` turns requests into those calls and errors into JSON responses.
+//! - `job.rs` (one job's tiles and frame), `leases.rs` (the lease table and worker records)
+//!   and `metrics.rs` (counters) are plain state; `store.rs` is SQLite and the data
+//!   directory's files; `error.rs` names the failures.
+
+mod error;
+mod http;
+mod job;
+mod jobs;
+mod leases;
+mod lending;
+mod metrics;
+mod store;
+
+pub use error::{Error, PlanError, TileRejected};
+pub use http::app;
+
+use crate::api::JobStatus;
+use job::Job;
+use leases::{Leases, Workers};
+use metrics::Metrics;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+use store::{DataDir, Store};
+use tokio::sync::broadcast;
+
+/// Tiles a job gives up on after this many failed attempts.
+pub const MAX_TILE_ATTEMPTS: u32 = 3;
+/// A worker whose attempts fail this many times in a row gets no more leases.
+pub const MAX_WORKER_FAILURES: u32 = 5;
+
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub data_dir: PathBuf,
+    pub token: Option<String>,
+    pub lease_ttl: Duration,
+    pub max_scene_bytes: usize,
+    pub max_tile_bytes: usize,
+}
+
+impl Config {
+    pub fn new(data_dir: PathBuf) -> Config {
+        Config {
+            data_dir,
+            token: None,
+            lease_ttl: Duration::from_secs(20),
+            max_scene_bytes: 2 << 30,
+            max_tile_bytes: 256 << 20,
+        }
+    }
+}
+
+/// The shared state handle: cheap to clone (one `Arc`), one per request.
+#[derive(Clone)]
+pub struct Coordinator {
+    shared: Arc<Shared>,
+}
+
+struct Shared {
+    config: Config,
+    files: DataDir,
+    /// A std mutex, not tokio's: every critical section is a few assignments and at most
+    /// one small SQLite statement, and none is held across an `.await` (the lock guard is
+    /// not `Send`, so the compiler refuses one that is). Slow work (scene parsing, EXR
+    /// decoding, writing the merged frame) happens outside it. SQLite wants one writer,
+    /// which this also gives it.
+    state: Mutex<State>,
+    /// Job ids whose status changed, for progress events.
+    events: broadcast::Sender<u64>,
+}
+
+/// Everything the lock guards.
+struct State {
+    store: Store,
+    jobs: BTreeMap<u64, Job>,
+    leases: Leases,
+    workers: Workers,
+    metrics: Metrics,
+}
+
+impl Coordinator {
+    /// Opens (or creates) the data directory and resumes every unfinished job in it.
+    pub fn open(config: Config) -> Result<Coordinator, Error> {
+        let files = DataDir::create(&config.data_dir)?;
+        let store = Store::open(&files)?;
+        let (events, _) = broadcast::channel(1024);
+        let coordinator = Coordinator {
+            shared: Arc::new(Shared {
+                state: Mutex::new(State {
+                    store,
+                    jobs: BTreeMap::new(),
+                    leases: Leases::new(config.lease_ttl),
+                    workers: Workers::default(),
+                    metrics: Metrics::default(),
+                }),
+                files,
+                config,
+                events,
+            }),
+        };
+        coordinator.resume()?;
+        Ok(coordinator)
+    }
+
+    /// Loads every job in the store with the tiles it kept; a running job whose tiles are
+    /// all kept is merged now.
+    fn resume(&self) -> Result<(), Error> {
+        let stored = self.lock().store.jobs()?;
+        for s in stored {
+            let id = s.id;
+            let mut job = match Job::plan(&self.files().scenes(), id, s.spec, s.state, self.now()) {
+                Ok(j) => j,
+                Err(e) => {
+                    tracing::warn!("job {id} cannot be resumed: {e}");
+                    continue;
+                }
+            };
+            job.error = s.error;
+            let kept = self.lock().store.tiles(id)?;
+            for (idx, exr) in kept {
+                job.restore_tile(idx, &exr);
+            }
+            job.restart_rate(self.now());
+            let mut state = self.lock();
+            state.jobs.insert(id, job);
+            state.finish_if_ready(self.files(), id);
+        }
+        Ok(())
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.shared.config
+    }
+
+    fn files(&self) -> &DataDir {
+        &self.shared.files
+    }
+
+    fn lock(&self) -> MutexGuard<'_, State> {
+        // A panic while holding the lock poisons it; the state is still consistent
+        // (every mutation is a few plain assignments), so carry on.
+        self.shared.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The time leases and rates are measured in.
+    fn now(&self) -> Instant {
+        Instant::now()
+    }
+
+    fn notify(&self, job: u64) {
+        let _ = self.shared.events.send(job);
+    }
+
+    fn subscribe(&self) -> broadcast::Receiver<u64> {
+        self.shared.events.subscribe()
+    }
+
+    pub fn status(&self, id: u64) -> Option<JobStatus> {
+        let now = self.now();
+        self.lock().jobs.get(&id).map(|j| j.status(now))
+    }
+
+    pub fn statuses(&self) -> Vec<JobStatus> {
+        let now = self.now();
+        self.lock().jobs.values().map(|j| j.status(now)).collect()
+    }
+
+    /// Returns expired leases' tiles to their jobs' queues.
+    pub fn expire_leases(&self) {
+        let now = self.now();
+        self.lock().expire_leases(now);
+    }
+}
+
+impl State {
+    /// Records a job's state and error in the store. A failure is logged, not returned:
+    /// the job goes on in memory, and a restart sees the state last recorded.
+    fn persist(&self, id: u64) {
+        let Some(job) = self.jobs.get(&id) else {
+            return;
+        };
+        if let Err(e) = self.store.set_state(id, job.state, job.error.as_deref()) {
+            tracing::error!("cannot record job {id}'s state: {e}");
+        }
+    }
+
+    fn expire_leases(&mut self, now: Instant) {
+        for (id, held) in self.leases.expire(now) {
+            self.metrics.leases_expired += 1;
+            if let Some(job) = self.jobs.get_mut(&held.job) {
+                job.lease_lost(held.tile, id);
+            }
+        }
+    }
+
+    /// Writes the merged frame of a job whose tiles are all done, and marks it done (or
+    /// failed, if the frame cannot be written).
+    fn finish_if_ready(&mut self, files: &DataDir, id: u64) {
+        let Some(job) = self.jobs.get_mut(&id) else {
+            return;
+        };
+        if !job.is_ready_to_merge() {
+            return;
+        }
+        let start = Instant::now();
+        let written = kiln_image::encode_exr(&job.frame)
+            .map_err(Error::Image)
+            .and_then(|bytes| files.write_result(id, &bytes));
+        match written {
+            Ok(()) => {
+                job.state = crate::api::JobState::Done;
+                job.merge_seconds = Some(start.elapsed().as_secs_f64());
+            }
+            Err(e) => {
+                tracing::error!("job {id}: cannot write the result: {e}");
+                job.state = crate::api::JobState::Failed;
+                job.error = Some(format!("cannot write the result: {e}"));
+            }
+        }
+        self.persist(id);
+    }
+}
+
+/// Serves [`app`] on a bound listener until `shutdown` resolves, expiring leases meanwhile.
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    c: Coordinator,
+    shutdown: impl std::future::Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let expirer = c.clone();
+    let tick = (c.config().lease_ttl / 4).max(Duration::from_millis(50));
+    let task = tokio::spawn(async move {
+        loop {
+            tokio::time::sleep(tick).await;
+            expirer.expire_leases();
+        }
+    });
+    let result = axum::serve(listener, app(c))
+        .with_graceful_shutdown(shutdown)
+        .await;
+    task.abort();
+    result
+}

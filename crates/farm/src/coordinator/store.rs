@@ -1,0 +1,206 @@
+//! The job store: what survives a restart. Jobs and every finished tile's EXR live in
+//! SQLite (`kiln.sqlite`, [`Store`]); scene bundles (unpacked under `scenes/<digest>`) and
+//! merged frames (`jobs/<id>/result.exr`) are files ([`DataDir`]), written atomically.
+//!
+//! It records and reads back; it must never decide anything about jobs or leases, and it
+//! keeps no state in memory beyond the connection.
+
+use super::Error;
+use crate::api::{JobSpec, JobState};
+use crate::bundle;
+use rusqlite::{Connection, OptionalExtension, params};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The data directory's layout. Cheap to clone; needs no lock.
+#[derive(Debug, Clone)]
+pub(super) struct DataDir {
+    root: PathBuf,
+}
+
+impl DataDir {
+    /// Creates the directory and its `scenes/` and `jobs/` folders if they are missing.
+    pub fn create(root: &Path) -> Result<DataDir, Error> {
+        let dir = DataDir {
+            root: root.to_path_buf(),
+        };
+        for sub in [dir.scenes(), dir.root.join("jobs")] {
+            std::fs::create_dir_all(&sub).map_err(|e| Error::io(&sub, e))?;
+        }
+        Ok(dir)
+    }
+
+    /// Where bundles are unpacked, one folder per digest (see [`bundle::unpack_into_cache`]).
+    pub fn scenes(&self) -> PathBuf {
+        self.root.join("scenes")
+    }
+
+    pub fn result_path(&self, job: u64) -> PathBuf {
+        self.root
+            .join("jobs")
+            .join(job.to_string())
+            .join("result.exr")
+    }
+
+    /// Keeps a bundle (unpacked, with its bytes for workers) unless it is kept already, and
+    /// returns its digest. Blocking.
+    pub fn save_bundle(&self, bytes: &[u8]) -> Result<String, Error> {
+        let digest = bundle::digest_of(bytes);
+        match bundle::unpack_into_cache(bytes, &digest, &self.scenes(), true) {
+            Ok(_) => Ok(digest),
+            Err(e @ bundle::BundleError::Corrupt(_)) => Err(Error::BadBundle(e)),
+            Err(e) => Err(Error::Unpack(e)),
+        }
+    }
+
+    /// A kept bundle's bytes, as uploaded.
+    pub async fn bundle(&self, digest: &str) -> Result<Vec<u8>, Error> {
+        if !bundle::is_digest(digest) {
+            return Err(Error::BadDigest);
+        }
+        let path = self.scenes().join(digest).join(bundle::BUNDLE_FILE);
+        tokio::fs::read(path)
+            .await
+            .map_err(|_| Error::UnknownScene(digest.to_string()))
+    }
+
+    /// Writes a job's merged EXR: to a temporary file, synced, then renamed over the result,
+    /// so a reader or a crash sees the old file or the new one, never half of one. Blocking.
+    pub fn write_result(&self, job: u64, bytes: &[u8]) -> Result<(), Error> {
+        let path = self.result_path(job);
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        write_atomically(&path, bytes).map_err(|e| Error::io(&path, e))
+    }
+}
+
+fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = path.with_extension("tmp");
+    let mut file = std::fs::File::create(&tmp)?;
+    file.write_all(bytes)?;
+    file.sync_all()?;
+    std::fs::rename(&tmp, path)
+}
+
+/// A job as the store keeps it.
+pub(super) struct StoredJob {
+    pub id: u64,
+    pub spec: JobSpec,
+    pub state: JobState,
+    pub error: Option<String>,
+}
+
+/// The SQLite connection: one writer, used under the coordinator's lock.
+pub(super) struct Store {
+    db: Connection,
+}
+
+impl Store {
+    pub fn open(dir: &DataDir) -> Result<Store, Error> {
+        let db = Connection::open(dir.root.join("kiln.sqlite"))?;
+        db.execute_batch(
+            "PRAGMA journal_mode = WAL;
+             PRAGMA synchronous = NORMAL;
+             CREATE TABLE IF NOT EXISTS jobs (id INTEGER PRIMARY KEY, spec TEXT NOT NULL, state TEXT NOT NULL, error TEXT, idempotency_key TEXT UNIQUE);
+             CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx));",
+        )?;
+        Ok(Store { db })
+    }
+
+    /// Every job, oldest first. A state the store does not know reads as failed.
+    pub fn jobs(&self) -> Result<Vec<StoredJob>, Error> {
+        let mut stmt = self
+            .db
+            .prepare("SELECT id, spec, state, error FROM jobs ORDER BY id")?;
+        let rows = stmt
+            .query_map([], |r| {
+                Ok((
+                    r.get::<_, i64>(0)? as u64,
+                    r.get::<_, String>(1)?,
+                    r.get::<_, String>(2)?,
+                    r.get(3)?,
+                ))
+            })?
+            .collect::<Result<Vec<_>, _>>()?;
+        rows.into_iter()
+            .map(|(id, spec, state, error)| {
+                Ok(StoredJob {
+                    id,
+                    spec: serde_json::from_str(&spec).map_err(|e| Error::CorruptSpec {
+                        id,
+                        message: e.to_string(),
+                    })?,
+                    state: JobState::from_name(&state).unwrap_or(JobState::Failed),
+                    error,
+                })
+            })
+            .collect()
+    }
+
+    /// A job's kept tiles: (index, EXR). Rows that cannot be read are left out.
+    pub fn tiles(&self, job: u64) -> Result<Vec<(usize, Vec<u8>)>, Error> {
+        let mut stmt = self
+            .db
+            .prepare("SELECT idx, exr FROM tiles WHERE job = ?1")?;
+        let tiles = stmt
+            .query_map([job as i64], |r| {
+                Ok((r.get::<_, i64>(0)? as usize, r.get::<_, Vec<u8>>(1)?))
+            })?
+            .filter_map(|r| r.ok())
+            .collect();
+        Ok(tiles)
+    }
+
+    /// The EXR kept for a finished tile.
+    pub fn tile(&self, job: u64, idx: usize) -> Result<Option<Vec<u8>>, Error> {
+        Ok(self
+            .db
+            .query_row(
+                "SELECT exr FROM tiles WHERE job = ?1 AND idx = ?2",
+                params![job as i64, idx as i64],
+                |r| r.get(0),
+            )
+            .optional()?)
+    }
+
+    /// The job created earlier under this idempotency key.
+    pub fn job_with_key(&self, key: &str) -> Result<Option<u64>, Error> {
+        Ok(self
+            .db
+            .query_row(
+                "SELECT id FROM jobs WHERE idempotency_key = ?1",
+                [key],
+                |r| r.get::<_, i64>(0),
+            )
+            .optional()?
+            .map(|id| id as u64))
+    }
+
+    /// Records a new running job; returns its id.
+    pub fn insert_job(&self, spec: &JobSpec, key: Option<&str>) -> Result<u64, Error> {
+        let spec_json = serde_json::to_string(spec).expect("a JobSpec serializes");
+        self.db.execute(
+            "INSERT INTO jobs (spec, state, idempotency_key) VALUES (?1, 'running', ?2)",
+            params![spec_json, key],
+        )?;
+        Ok(self.db.last_insert_rowid() as u64)
+    }
+
+    /// Keeps a finished tile's EXR. The first one kept for a tile stays.
+    pub fn insert_tile(&self, job: u64, idx: usize, exr: &[u8]) -> Result<(), Error> {
+        self.db.execute(
+            "INSERT OR IGNORE INTO tiles (job, idx, exr) VALUES (?1, ?2, ?3)",
+            params![job as i64, idx as i64, exr],
+        )?;
+        Ok(())
+    }
+
+    pub fn set_state(&self, job: u64, state: JobState, error: Option<&str>) -> Result<(), Error> {
+        self.db.execute(
+            "UPDATE jobs SET state = ?1, error = ?2 WHERE id = ?3",
+            params![state.as_str(), error, job as i64],
+        )?;
+        Ok(())
+    }
+}
