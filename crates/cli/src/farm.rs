@@ -129,9 +129,7 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
             flag.store(true, Ordering::SeqCst);
         });
         eprintln!("kiln worker {name}: {threads} threads");
-        let n = worker::run(config, stop)
-            .await
-            .map_err(anyhow::Error::msg)?;
+        let n = worker::run(config, stop).await?;
         eprintln!("kiln worker {name}: stopped after {n} tiles");
         Ok(())
     })

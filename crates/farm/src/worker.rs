@@ -12,6 +12,38 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
+/// Why a worker stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkerError {
+    #[error("cannot start {threads} threads: {message}")]
+    Threads { threads: usize, message: String },
+    #[error("the coordinator at {url} has been unreachable for {after:?}")]
+    Unreachable { url: String, after: Duration },
+    /// The coordinator refused this worker (a wrong token, or set aside after failures).
+    #[error("{0}")]
+    Refused(ClientError),
+}
+
+/// Why a lease's scene could not be made ready; sent to the coordinator as the reason the
+/// attempt failed.
+#[derive(Debug, thiserror::Error)]
+enum LoadError {
+    #[error("{0}")]
+    Download(ClientError),
+    #[error("the scene bundle's digest is {actual}, not {expected}")]
+    Digest { actual: String, expected: String },
+    #[error("{0}")]
+    Bundle(bundle::BundleError),
+    #[error("{0}")]
+    Scene(kiln_scene::SceneError),
+    #[error("{0}")]
+    Overrides(String),
+    #[error("{0}")]
+    Build(kiln_render::BuildError),
+    #[error("{0}")]
+    Task(tokio::task::JoinError),
+}
+
 #[derive(Debug, Clone)]
 pub struct WorkerConfig {
     pub coordinator: String,
@@ -33,13 +65,16 @@ struct Loaded {
 
 /// Runs until `stop` is set (after finishing the tile in hand) or the coordinator sets
 /// this worker aside. Returns the number of tiles rendered.
-pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, String> {
+pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, WorkerError> {
     let client = Client::new(&config.coordinator, config.token.clone());
     let pool = Arc::new(
         rayon::ThreadPoolBuilder::new()
             .num_threads(config.threads)
             .build()
-            .map_err(|e| format!("cannot start {} threads: {e}", config.threads))?,
+            .map_err(|e| WorkerError::Threads {
+                threads: config.threads,
+                message: e.to_string(),
+            })?,
     );
     let mut scenes: HashMap<String, Arc<Loaded>> = HashMap::new();
     let mut rendered = 0u64;
@@ -49,10 +84,10 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Str
         if matches!(answer, Err(ClientError::Http(_))) {
             let since = *unreachable_since.get_or_insert_with(std::time::Instant::now);
             if since.elapsed() > config.give_up_after {
-                return Err(format!(
-                    "the coordinator at {} has been unreachable for {:?}",
-                    config.coordinator, config.give_up_after
-                ));
+                return Err(WorkerError::Unreachable {
+                    url: config.coordinator.clone(),
+                    after: config.give_up_after,
+                });
             }
         } else {
             unreachable_since = None;
@@ -67,7 +102,7 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Str
                 if e.status() == Some(StatusCode::FORBIDDEN)
                     || e.status() == Some(StatusCode::UNAUTHORIZED) =>
             {
-                return Err(e.to_string());
+                return Err(WorkerError::Refused(e));
             }
             Err(e) => {
                 // The coordinator may be restarting: keep trying.
@@ -90,7 +125,7 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Str
                 l
             }
             Err(e) => {
-                let _ = client.fail(lease.lease, &e).await;
+                let _ = client.fail(lease.lease, &e.to_string()).await;
                 continue;
             }
         };
@@ -108,42 +143,43 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Str
     Ok(rendered)
 }
 
-async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<Loaded, String> {
+async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<Loaded, LoadError> {
     let scene_path = match bundle::cached_scene(&config.cache_dir, &spec.scene) {
         Some(path) => path,
         None => {
             let bytes = client
                 .download_scene(&spec.scene)
                 .await
-                .map_err(|e| e.to_string())?;
+                .map_err(LoadError::Download)?;
             let digest = bundle::digest_of(&bytes);
             if digest != spec.scene {
-                return Err(format!(
-                    "the scene bundle's digest is {digest}, not {}",
-                    spec.scene
-                ));
+                return Err(LoadError::Digest {
+                    actual: digest,
+                    expected: spec.scene.clone(),
+                });
             }
             let cache = config.cache_dir.clone();
             tokio::task::spawn_blocking(move || {
                 bundle::unpack_into_cache(&bytes, &digest, &cache, false)
             })
             .await
-            .map_err(|e| e.to_string())?
-            .map_err(|e| e.to_string())?
+            .map_err(LoadError::Task)?
+            .map_err(LoadError::Bundle)?
         }
     };
     let overrides = spec.overrides();
     tokio::task::spawn_blocking(move || {
-        let mut desc = kiln_scene::load_file(&scene_path).map_err(|e| e.to_string())?;
-        desc.apply_overrides(&overrides)?;
-        let renderer = Renderer::build(&desc).map_err(|e| e.to_string())?;
+        let mut desc = kiln_scene::load_file(&scene_path).map_err(LoadError::Scene)?;
+        desc.apply_overrides(&overrides)
+            .map_err(LoadError::Overrides)?;
+        let renderer = Renderer::build(&desc).map_err(LoadError::Build)?;
         Ok(Loaded {
             renderer,
             frame: (desc.film.xresolution, desc.film.yresolution),
         })
     })
     .await
-    .map_err(|e| e.to_string())?
+    .map_err(LoadError::Task)?
 }
 
 async fn render_and_upload(
