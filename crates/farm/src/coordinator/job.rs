@@ -13,6 +13,7 @@ use kiln_image::RgbBuffer;
 use kiln_render::{TileRect, split_into_tiles};
 use std::collections::VecDeque;
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,7 +36,9 @@ pub(super) struct Job {
     attempts: Vec<u32>,
     failures: u32,
     done: u32,
-    pub frame: RgbBuffer,
+    /// The finished tiles pasted together. Shared, so a merge or a preview can read it
+    /// after the lock is released (a paste during a preview copies it first).
+    pub frame: Arc<RgbBuffer>,
     spp: u32,
     started: Instant,
     samples_at_start: u64,
@@ -78,7 +81,7 @@ impl Job {
             attempts: vec![0; n],
             failures: 0,
             done: 0,
-            frame,
+            frame: Arc::new(frame),
             spp: desc.sampler.pixel_samples,
             started: now,
             samples_at_start: 0,
@@ -218,7 +221,7 @@ impl Job {
         if self.tile_state[idx] == TileState::Done {
             return Ok(false);
         }
-        self.frame.paste(tile)?;
+        Arc::make_mut(&mut self.frame).paste(tile)?;
         self.tile_state[idx] = TileState::Done;
         self.done += 1;
         Ok(true)

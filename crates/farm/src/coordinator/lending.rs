@@ -10,6 +10,7 @@ use super::{Coordinator, Error, State};
 use crate::api::{JobState, Lease};
 use axum::body::Bytes;
 use kiln_image::RgbBuffer;
+use std::sync::Arc;
 
 impl Coordinator {
     /// Lends `worker` the next pending tile of the oldest running job that has one;
@@ -100,13 +101,12 @@ impl Coordinator {
                 return Err(Error::RejectedTile(why));
             }
         };
-        {
-            let mut state = self.lock();
-            if state.commit_tile(lease, &exr, &tile)? {
-                state.finish_if_ready(self.files(), job);
-            }
-        }
+        let last = self.lock().commit_tile(lease, &exr, &tile)?;
         self.notify(job);
+        // The last tile's upload is answered once the frame is written (off the lock).
+        if let Some(frame) = last {
+            self.merge(job, frame).await;
+        }
         Ok(())
     }
 
@@ -129,11 +129,16 @@ impl Coordinator {
 
 impl State {
     /// Keeps a checked tile uploaded under `lease`: in the store first (if that fails the
-    /// lease stays, and expires), then in the job. Returns whether it was the job's last.
-    /// A lease that expired meanwhile is judged as a stale upload.
-    fn commit_tile(&mut self, lease: u64, exr: &[u8], tile: &RgbBuffer) -> Result<bool, Error> {
+    /// lease stays, and expires), then in the job. Returns the job's frame if this was its
+    /// last tile, to be merged. A lease that expired meanwhile is judged as a stale upload.
+    fn commit_tile(
+        &mut self,
+        lease: u64,
+        exr: &[u8],
+        tile: &RgbBuffer,
+    ) -> Result<Option<Arc<RgbBuffer>>, Error> {
         let Some(held) = self.leases.get(lease) else {
-            return self.judge_stale(lease, tile, exr).map(|()| false);
+            return self.judge_stale(lease, tile, exr).map(|()| None);
         };
         let (job, idx) = (held.job, held.tile);
         self.store.insert_tile(job, idx, exr)?;
@@ -142,7 +147,7 @@ impl State {
         self.workers.succeeded(&held.worker);
         let job = self.jobs.get_mut(&job).expect("leased jobs exist");
         let newly_done = job.complete_tile(idx, tile).map_err(Error::Image)?;
-        Ok(newly_done && job.is_ready_to_merge())
+        Ok((newly_done && job.is_ready_to_merge()).then(|| job.frame.clone()))
     }
 
     /// An upload under an unknown or expired lease: fine if it is the very tile already

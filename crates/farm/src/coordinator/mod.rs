@@ -5,6 +5,7 @@
 //!   methods are the operations, in `jobs.rs` (scenes, jobs, results: the client's side)
 //!   and `lending.rs` (leases, heartbeats, uploads, failures: the workers' side).
 //! - `http.rs` turns requests into those calls and errors into JSON responses.
+//! - `merge.rs` writes a finished job's frame without holding the lock.
 //! - `job.rs` (one job's tiles and frame), `leases.rs` (the lease table and worker records)
 //!   and `metrics.rs` (counters) are plain state; `store.rs` is SQLite and the data
 //!   directory's files; `error.rs` names the failures.
@@ -15,6 +16,7 @@ mod job;
 mod jobs;
 mod leases;
 mod lending;
+mod merge;
 mod metrics;
 mod store;
 
@@ -129,9 +131,12 @@ impl Coordinator {
                 job.restore_tile(idx, &exr);
             }
             job.restart_rate(self.now());
-            let mut state = self.lock();
-            state.jobs.insert(id, job);
-            state.finish_if_ready(self.files(), id);
+            let ready = job.is_ready_to_merge().then(|| job.frame.clone());
+            self.lock().jobs.insert(id, job);
+            // Its last tile was kept but the coordinator stopped before writing the frame.
+            if let Some(frame) = ready {
+                self.merge_blocking(id, &frame);
+            }
         }
         Ok(())
     }
@@ -199,33 +204,6 @@ impl State {
                 job.lease_lost(held.tile, id);
             }
         }
-    }
-
-    /// Writes the merged frame of a job whose tiles are all done, and marks it done (or
-    /// failed, if the frame cannot be written).
-    fn finish_if_ready(&mut self, files: &DataDir, id: u64) {
-        let Some(job) = self.jobs.get_mut(&id) else {
-            return;
-        };
-        if !job.is_ready_to_merge() {
-            return;
-        }
-        let start = Instant::now();
-        let written = kiln_image::encode_exr(&job.frame)
-            .map_err(Error::Image)
-            .and_then(|bytes| files.write_result(id, &bytes));
-        match written {
-            Ok(()) => {
-                job.state = crate::api::JobState::Done;
-                job.merge_seconds = Some(start.elapsed().as_secs_f64());
-            }
-            Err(e) => {
-                tracing::error!("job {id}: cannot write the result: {e}");
-                job.state = crate::api::JobState::Failed;
-                job.error = Some(format!("cannot write the result: {e}"));
-            }
-        }
-        self.persist(id);
     }
 }
 
