@@ -1,12 +1,14 @@
 //! Leases: which worker holds which tile until when, and which workers may hold any.
 //!
 //! Time comes in from the caller as `now`; nothing here reads a clock, so expiry is a pure
-//! function of the instants passed in. It must never touch jobs, the store or HTTP: the
-//! coordinator tells jobs what happened to their tiles.
+//! function of the instants passed in. The coordinator passes `tokio::time::Instant::now()`,
+//! which tests stop and move with `tokio::time::pause` and `advance`. This must never touch
+//! jobs, the store or HTTP: the coordinator tells jobs what happened to their tiles.
 
 use super::MAX_WORKER_FAILURES;
 use std::collections::HashMap;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use tokio::time::Instant;
 
 /// A tile lent to a worker.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -121,5 +123,67 @@ impl Workers {
         if let Some(n) = self.consecutive_failures.get_mut(worker) {
             *n = 0;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TTL: Duration = Duration::from_secs(20);
+    const MS: Duration = Duration::from_millis(1);
+
+    #[test]
+    fn a_lease_expires_only_after_its_deadline_and_renewals_move_it() {
+        let t0 = Instant::now();
+        let mut leases = Leases::new(TTL);
+        let a = leases.grant(7, 3, "w", t0);
+        let b = leases.grant(7, 4, "w", t0 + 5 * TTL / 20);
+        assert!(
+            leases.expire(t0 + TTL).is_empty(),
+            "due at t0 + ttl, not before"
+        );
+        let gone = leases.expire(t0 + TTL + MS);
+        assert_eq!(gone.len(), 1);
+        assert_eq!((gone[0].0, gone[0].1.job, gone[0].1.tile), (a, 7, 3));
+        assert!(leases.get(a).is_none() && leases.renew(a, t0).is_none());
+        // b was granted 5 s later; a heartbeat at 19 s gives it until 39 s.
+        assert_eq!(leases.renew(b, t0 + 19 * TTL / 20).map(|h| h.tile), Some(4));
+        assert!(leases.expire(t0 + TTL + TTL * 19 / 20).is_empty());
+        assert_eq!(leases.expire(t0 + 2 * TTL).len(), 1);
+        assert_eq!(leases.len(), 0);
+    }
+
+    #[test]
+    fn lease_ids_are_never_reused() {
+        let t0 = Instant::now();
+        let mut leases = Leases::new(TTL);
+        let a = leases.grant(1, 0, "w", t0);
+        assert!(leases.remove(a).is_some());
+        assert!(leases.remove(a).is_none());
+        let b = leases.grant(1, 0, "w", t0);
+        assert!(b > a);
+        leases.expire(t0 + 2 * TTL);
+        assert!(leases.grant(1, 0, "w", t0) > b);
+    }
+
+    #[test]
+    fn a_worker_is_set_aside_after_failures_in_a_row_only() {
+        let mut workers = Workers::default();
+        workers.seen("w");
+        for _ in 1..MAX_WORKER_FAILURES {
+            workers.failed("w");
+        }
+        workers.succeeded("w");
+        for _ in 1..MAX_WORKER_FAILURES {
+            workers.failed("w");
+        }
+        assert!(
+            !workers.is_set_aside("w"),
+            "a success in between resets the count"
+        );
+        workers.failed("w");
+        assert!(workers.is_set_aside("w"));
+        assert!(!workers.is_set_aside("other"));
     }
 }

@@ -29,6 +29,9 @@ impl Coordinator {
 
     /// Encodes and writes the merged frame, then commits. Blocking; locks only to commit.
     pub(super) fn merge_blocking(&self, id: u64, frame: &RgbBuffer) {
+        #[cfg(test)]
+        self.before_merge();
+        // Real time: this measures work done, it decides nothing.
         let start = std::time::Instant::now();
         let written = kiln_image::encode_exr(frame)
             .map_err(Error::Image)

@@ -19,6 +19,8 @@ mod lending;
 mod merge;
 mod metrics;
 mod store;
+#[cfg(test)]
+mod tests;
 
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
@@ -30,9 +32,10 @@ use metrics::Metrics;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use store::{DataDir, Store};
 use tokio::sync::broadcast;
+use tokio::time::Instant;
 
 /// Tiles a job gives up on after this many failed attempts.
 pub const MAX_TILE_ATTEMPTS: u32 = 3;
@@ -69,14 +72,18 @@ pub struct Coordinator {
 struct Shared {
     config: Config,
     files: DataDir,
-    /// A std mutex, not tokio's: every critical section is a few assignments and at most
-    /// one small SQLite statement, and none is held across an `.await` (the lock guard is
-    /// not `Send`, so the compiler refuses one that is). Slow work (scene parsing, EXR
-    /// decoding, writing the merged frame) happens outside it. SQLite wants one writer,
-    /// which this also gives it.
+    /// A std mutex, not tokio's (as tokio's docs advise for short critical sections):
+    /// every critical section is a few assignments and at most one small SQLite
+    /// statement, and none is held across an `.await` (a std guard is not `Send`, so a
+    /// handler or task that tried would not compile). Slow work (parsing scenes, decoding
+    /// uploads, encoding and writing the merged frame or a preview) happens outside it.
+    /// SQLite wants one writer, which this also gives it.
     state: Mutex<State>,
     /// Job ids whose status changed, for progress events.
     events: broadcast::Sender<u64>,
+    /// Tests hold a merge here to watch what other requests do meanwhile.
+    #[cfg(test)]
+    merge_hook: Mutex<Option<Box<dyn FnOnce() + Send>>>,
 }
 
 /// Everything the lock guards.
@@ -106,6 +113,8 @@ impl Coordinator {
                 files,
                 config,
                 events,
+                #[cfg(test)]
+                merge_hook: Mutex::new(None),
             }),
         };
         coordinator.resume()?;
@@ -155,7 +164,9 @@ impl Coordinator {
         self.shared.state.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// The time leases and rates are measured in.
+    /// The time leases and rates are measured in: tokio's clock, which tests pause and
+    /// advance (outside a runtime, and in production, it is the system's monotonic clock).
+    /// The only place the coordinator reads the time.
     fn now(&self) -> Instant {
         Instant::now()
     }
@@ -213,17 +224,19 @@ pub async fn serve(
     c: Coordinator,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    let expirer = c.clone();
-    let tick = (c.config().lease_ttl / 4).max(Duration::from_millis(50));
-    let task = tokio::spawn(async move {
-        loop {
-            tokio::time::sleep(tick).await;
-            expirer.expire_leases();
-        }
-    });
+    let task = tokio::spawn(expire_leases_every_tick(c.clone()));
     let result = axum::serve(listener, app(c))
         .with_graceful_shutdown(shutdown)
         .await;
     task.abort();
     result
+}
+
+/// Expires leases every quarter of their ttl (but no more often than every 50 ms), forever.
+async fn expire_leases_every_tick(c: Coordinator) {
+    let tick = (c.config().lease_ttl / 4).max(Duration::from_millis(50));
+    loop {
+        tokio::time::sleep(tick).await;
+        c.expire_leases();
+    }
 }
