@@ -76,54 +76,15 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Wor
                 message: e.to_string(),
             })?,
     );
-    let mut scenes: HashMap<String, Arc<Loaded>> = HashMap::new();
+    let mut scenes = Scenes::default();
     let mut rendered = 0u64;
-    let mut unreachable_since: Option<std::time::Instant> = None;
+    let mut unreachable_since = None;
     while !stop.load(Ordering::SeqCst) {
-        let answer = client.lease(&config.name).await;
-        if matches!(answer, Err(ClientError::Http(_))) {
-            let since = *unreachable_since.get_or_insert_with(std::time::Instant::now);
-            if since.elapsed() > config.give_up_after {
-                return Err(WorkerError::Unreachable {
-                    url: config.coordinator.clone(),
-                    after: config.give_up_after,
-                });
-            }
-        } else {
-            unreachable_since = None;
-        }
-        let lease = match answer {
-            Ok(Some(l)) => l,
-            Ok(None) => {
-                tokio::time::sleep(config.poll).await;
-                continue;
-            }
-            Err(e)
-                if e.status() == Some(StatusCode::FORBIDDEN)
-                    || e.status() == Some(StatusCode::UNAUTHORIZED) =>
-            {
-                return Err(WorkerError::Refused(e));
-            }
-            Err(e) => {
-                // The coordinator may be restarting: keep trying.
-                tracing::warn!("{e}");
-                tokio::time::sleep(Duration::from_millis(500)).await;
-                continue;
-            }
+        let Some(lease) = next_lease(&client, &config, &mut unreachable_since).await? else {
+            continue;
         };
-        let key = serde_json::to_string(&lease.spec).unwrap_or_default();
-        let loaded = match scenes.get(&key) {
-            Some(l) => Ok(l.clone()),
-            None => load(&client, &config, &lease.spec).await.map(Arc::new),
-        };
-        let loaded = match loaded {
-            Ok(l) => {
-                if scenes.len() >= 4 {
-                    scenes.clear();
-                }
-                scenes.insert(key, l.clone());
-                l
-            }
+        let loaded = match scenes.get(&client, &config, &lease.spec).await {
+            Ok(l) => l,
             Err(e) => {
                 let _ = client.fail(lease.lease, &e.to_string()).await;
                 continue;
@@ -141,6 +102,70 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Wor
         }
     }
     Ok(rendered)
+}
+
+/// Asks the coordinator for a tile. `None` (after a pause) when there is no work now or
+/// the coordinator did not answer (it may be restarting); an error when it refuses this
+/// worker, or has been unreachable since `unreachable_since` for longer than allowed.
+async fn next_lease(
+    client: &Client,
+    config: &WorkerConfig,
+    unreachable_since: &mut Option<std::time::Instant>,
+) -> Result<Option<Lease>, WorkerError> {
+    let answer = client.lease(&config.name).await;
+    if matches!(answer, Err(ClientError::Http(_))) {
+        let since = *unreachable_since.get_or_insert_with(std::time::Instant::now);
+        if since.elapsed() > config.give_up_after {
+            return Err(WorkerError::Unreachable {
+                url: config.coordinator.clone(),
+                after: config.give_up_after,
+            });
+        }
+    } else {
+        *unreachable_since = None;
+    }
+    match answer {
+        Ok(Some(lease)) => Ok(Some(lease)),
+        Ok(None) => {
+            tokio::time::sleep(config.poll).await;
+            Ok(None)
+        }
+        Err(e)
+            if e.status() == Some(StatusCode::FORBIDDEN)
+                || e.status() == Some(StatusCode::UNAUTHORIZED) =>
+        {
+            Err(WorkerError::Refused(e))
+        }
+        Err(e) => {
+            tracing::warn!("{e}");
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            Ok(None)
+        }
+    }
+}
+
+/// Scenes loaded for the last few job specs.
+#[derive(Default)]
+struct Scenes(HashMap<String, Arc<Loaded>>);
+
+impl Scenes {
+    async fn get(
+        &mut self,
+        client: &Client,
+        config: &WorkerConfig,
+        spec: &JobSpec,
+    ) -> Result<Arc<Loaded>, LoadError> {
+        let key = serde_json::to_string(spec).unwrap_or_default();
+        let loaded = match self.0.get(&key) {
+            Some(l) => l.clone(),
+            None => Arc::new(load(client, config, spec).await?),
+        };
+        if self.0.len() >= 4 {
+            self.0.clear();
+        }
+        self.0.insert(key, loaded.clone());
+        Ok(loaded)
+    }
 }
 
 async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<Loaded, LoadError> {
