@@ -1,5 +1,6 @@
 //! The workers' side of the coordinator handle: tiles lent under leases, heartbeats,
-//! uploads taken back and kept, failed attempts and expiry.
+//! uploads taken back and kept, and failed attempts. (Expiry is
+//! `Coordinator::expire_leases`, beside the handle.)
 //!
 //! An upload is decoded and checked outside the lock, and acknowledged only after the
 //! store has kept it. Nothing here speaks HTTP or reads a clock other than through
