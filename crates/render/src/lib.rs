@@ -24,11 +24,12 @@
 //!
 //! The modules, one concept each (ARCHITECTURE.md draws the map): [`shapes`] (geometry and
 //! its BVHs), [`lights`], [`materials`] and the [`bsdfs`] they make, [`textures`], [`media`],
-//! [`integrators`] (path tracing, photon maps), [`sampling`], [`camera`], [`scene`] (the
+//! [`integrators`] (path tracing, photon maps), [`sampling`], [`camera`] and [`filter`], [`scene`] (the
 //! built scene) and [`tile`] (the tile function).
 
 pub mod bsdfs;
 pub mod camera;
+pub mod filter;
 pub mod integrators;
 pub mod lights;
 pub mod materials;

@@ -3,7 +3,8 @@
 //! sampler and the VolumeLights' power estimates.
 
 use super::Scene;
-use crate::camera::{Camera, Filter};
+use crate::camera::Camera;
+use crate::filter::Filter;
 use crate::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use crate::lights::{
     Light, MediumLight, SphereLight, TriangleLight, VolumeInterior, VolumeSphereLight,

@@ -9,7 +9,8 @@ mod build;
 
 pub use build::{BuildError, MediaPolicy};
 
-use crate::camera::{Camera, Filter};
+use crate::camera::Camera;
+use crate::filter::Filter;
 use crate::lights::{Light, LightContext, VolumeInterior};
 use crate::materials::Material;
 use crate::math::{Color, Ray};
