@@ -315,7 +315,15 @@ impl Light {
         match self {
             Light::Triangle(l) => Some(l.emission_point(u)),
             Light::Sphere(l) => Some(l.emission_point(u)),
-            _ => None,
+            Light::Point(_)
+            | Light::Spot(_)
+            | Light::Distant(_)
+            | Light::VolumeTriangle(_)
+            | Light::VolumeSphere(_)
+            | Light::Medium(_)
+            | Light::UniformInfinite(_)
+            | Light::ImageInfinite(_)
+            | Light::Dome(_) => None,
         }
     }
 }

@@ -231,7 +231,15 @@ pub fn power_estimates(lights: &[super::Light], ctx: &LightContext, seed: u32) -
                     (s.center + n * s.radius, n)
                 }))
             }
-            _ => None,
+            super::Light::Point(_)
+            | super::Light::Spot(_)
+            | super::Light::Distant(_)
+            | super::Light::Triangle(_)
+            | super::Light::Sphere(_)
+            | super::Light::Medium(_)
+            | super::Light::UniformInfinite(_)
+            | super::Light::ImageInfinite(_)
+            | super::Light::Dome(_) => None,
         })
         .collect()
 }
