@@ -55,6 +55,23 @@ struct PathState {
     specular_since_gather: Option<u32>,
 }
 
+impl PathState {
+    /// Russian roulette after a scattering event: the path goes on, or stops.
+    fn roulette(&mut self, settings: &PathSettings, sampler: &mut PixelSampler) -> Next {
+        if survives_roulette(
+            &mut self.beta,
+            self.eta_scale,
+            self.depth,
+            settings,
+            sampler,
+        ) {
+            Next::Continue
+        } else {
+            Next::Stop
+        }
+    }
+}
+
 /// What the path does after a step.
 enum Next {
     /// Trace the next segment.
@@ -211,16 +228,7 @@ fn medium_step(
     if let Some((volume, _)) = state.inside {
         state.inside = Some((volume, true));
     }
-    if !survives_roulette(
-        &mut state.beta,
-        state.eta_scale,
-        state.depth,
-        settings,
-        sampler,
-    ) {
-        return Next::Stop;
-    }
-    Next::Continue
+    state.roulette(settings, sampler)
 }
 
 /// Inside a VolumeLight: the interior's emission along the segment (unless the entry hit
@@ -383,14 +391,5 @@ fn surface_step(
         // Scattered off something inside the shape: the next segment emits too.
         state.inside = Some((volume, true));
     }
-    if !survives_roulette(
-        &mut state.beta,
-        state.eta_scale,
-        state.depth,
-        settings,
-        sampler,
-    ) {
-        return Next::Stop;
-    }
-    Next::Continue
+    state.roulette(settings, sampler)
 }

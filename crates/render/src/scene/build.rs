@@ -14,7 +14,7 @@ use crate::materials::{DielectricMaterial, Material};
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::sampling::AliasTable;
-use crate::shapes::{Geometry, MeshInfo, NO_MEDIUM, Sphere, SurfaceInfo};
+use crate::shapes::{Geometry, MeshInfo, NO_MEDIUM, Primitives, Sphere, SurfaceInfo};
 use glam::{Affine3A, DMat4, Vec2, Vec3A};
 use kiln_scene::{
     AreaLightDesc, MediumKind, Roughness, SceneDescription, ShapeDesc, ShapeKind, TriangleMeshData,
@@ -40,13 +40,7 @@ pub enum MediaPolicy {
 }
 
 struct Builder {
-    positions: Vec<Vec3A>,
-    normals: Vec<Vec3A>,
-    uvs: Vec<Vec2>,
-    meshes: Vec<MeshInfo>,
-    triangle_vertices: Vec<[u32; 3]>,
-    triangle_mesh: Vec<u32>,
-    spheres: Vec<Sphere>,
+    prims: Primitives,
     lights: Vec<Light>,
     materials: Vec<Material>,
     volumes: Vec<VolumeInterior>,
@@ -64,7 +58,7 @@ impl Builder {
             n = -n;
         }
         if has_normals {
-            let ns: Vec3A = v.iter().map(|&k| self.normals[k as usize]).sum();
+            let ns: Vec3A = v.iter().map(|&k| self.prims.normals[k as usize]).sum();
             if n.dot(ns) < 0.0 {
                 n = -n;
             }
@@ -177,8 +171,8 @@ impl Builder {
         let surface = |light| SurfaceInfo { light, ..surface };
         let m = to_world.as_mat4();
         let normal_m = to_world.inverse().transpose().as_mat4();
-        let base = self.positions.len() as u32;
-        self.positions.extend(
+        let base = self.prims.positions.len() as u32;
+        self.prims.positions.extend(
             mesh.positions
                 .iter()
                 .map(|p| Vec3A::from(m.transform_point3(glam::Vec3::from(*p)))),
@@ -186,24 +180,25 @@ impl Builder {
         let has_normals = mesh.normals.is_some();
         if let Some(n) = &mesh.normals {
             // Normals transform by the inverse transpose.
-            self.normals.resize(base as usize, Vec3A::Z);
-            self.normals.extend(n.iter().map(|v| {
+            self.prims.normals.resize(base as usize, Vec3A::Z);
+            self.prims.normals.extend(n.iter().map(|v| {
                 Vec3A::from(normal_m.transform_vector3(glam::Vec3::from(*v))).normalize_or_zero()
             }));
         }
         let has_uvs = mesh.uvs.is_some();
         if let Some(uv) = &mesh.uvs {
-            self.uvs.resize(base as usize, Vec2::ZERO);
-            self.uvs.extend(uv.iter().map(|v| Vec2::from(*v)));
+            self.prims.uvs.resize(base as usize, Vec2::ZERO);
+            self.prims.uvs.extend(uv.iter().map(|v| Vec2::from(*v)));
         }
-        let mesh_id = self.meshes.len() as u32;
+        let mesh_id = self.prims.meshes.len() as u32;
         let flip = shape.reverse_orientation ^ swaps_handedness;
         let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
-        let first_triangle = self.triangle_vertices.len() as u32;
+        let first_triangle = self.prims.triangle_vertices.len() as u32;
         for t in mesh.indices.chunks_exact(3) {
-            self.triangle_vertices
+            self.prims
+                .triangle_vertices
                 .push([base + t[0], base + t[1], base + t[2]]);
-            self.triangle_mesh.push(mesh_id);
+            self.prims.triangle_mesh.push(mesh_id);
         }
         if let Some(AreaLightDesc::Diffuse {
             radiance,
@@ -212,7 +207,7 @@ impl Builder {
         }) = &shape.area_light
         {
             for t in mesh.indices.chunks_exact(3) {
-                let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
+                let p = [0, 1, 2].map(|k| self.prims.positions[(base + t[k]) as usize]);
                 let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
                 let n = self.face_normal(
                     p,
@@ -233,7 +228,7 @@ impl Builder {
         }
         if let Some(volume) = volume {
             for (i, t) in mesh.indices.chunks_exact(3).enumerate() {
-                let p = [0, 1, 2].map(|k| self.positions[(base + t[k]) as usize]);
+                let p = [0, 1, 2].map(|k| self.prims.positions[(base + t[k]) as usize]);
                 let tri = first_triangle + i as u32;
                 let cross = (p[0] - p[2]).cross(p[1] - p[2]);
                 // The same orientation a hit on this face gets.
@@ -253,7 +248,7 @@ impl Builder {
                 }));
             }
         }
-        self.meshes.push(MeshInfo {
+        self.prims.meshes.push(MeshInfo {
             surface: surface(light),
             first_triangle,
             has_normals,
@@ -316,7 +311,7 @@ impl Builder {
                 power: 0.0,
             }));
         }
-        self.spheres.push(Sphere {
+        self.prims.spheres.push(Sphere {
             center: center.as_vec3().into(),
             radius: world_radius,
             surface: surface(light),
@@ -335,13 +330,7 @@ impl Scene {
             .map(|m| Material::from_description(&m.kind))
             .collect();
         let mut b = Builder {
-            positions: Vec::new(),
-            normals: Vec::new(),
-            uvs: Vec::new(),
-            meshes: Vec::new(),
-            triangle_vertices: Vec::new(),
-            triangle_mesh: Vec::new(),
-            spheres: Vec::new(),
+            prims: Primitives::default(),
             lights: Vec::new(),
             materials,
             volumes: Vec::new(),
@@ -358,22 +347,14 @@ impl Scene {
                 b.add_shape(shape, instance.instance_to_world * shape.object_to_world)?;
             }
         }
-        let n_positions = b.positions.len();
-        if !b.normals.is_empty() {
-            b.normals.resize(n_positions, Vec3A::Z);
+        let n_positions = b.prims.positions.len();
+        if !b.prims.normals.is_empty() {
+            b.prims.normals.resize(n_positions, Vec3A::Z);
         }
-        if !b.uvs.is_empty() {
-            b.uvs.resize(n_positions, Vec2::ZERO);
+        if !b.prims.uvs.is_empty() {
+            b.prims.uvs.resize(n_positions, Vec2::ZERO);
         }
-        let geometry = Geometry::new(
-            b.positions,
-            b.normals,
-            b.uvs,
-            b.meshes,
-            b.triangle_vertices,
-            b.triangle_mesh,
-            b.spheres,
-        );
+        let geometry = Geometry::new(b.prims);
         let (lo, hi) = geometry.bounds();
         let radius = ((hi - lo).length() / 2.0).max(1e-3);
         let mut lights = b.lights;

@@ -77,6 +77,21 @@ pub struct SurfaceHit {
     pub light: Option<u32>,
 }
 
+/// A scene's primitives in world space, as the scene builder gathers them, before their
+/// BVHs are built. Normals and uvs are either empty or one per position.
+#[derive(Debug, Clone, Default)]
+pub struct Primitives {
+    pub positions: Vec<Vec3A>,
+    pub normals: Vec<Vec3A>,
+    pub uvs: Vec<Vec2>,
+    pub meshes: Vec<MeshInfo>,
+    /// Vertex indices per triangle, in the order the scene declared them.
+    pub triangle_vertices: Vec<[u32; 3]>,
+    /// The mesh each triangle belongs to.
+    pub triangle_mesh: Vec<u32>,
+    pub spheres: Vec<Sphere>,
+}
+
 /// All the geometry of a scene, ready to trace.
 pub struct Geometry {
     pub positions: Vec<Vec3A>,
@@ -117,15 +132,17 @@ pub struct ShapeSample {
 }
 
 impl Geometry {
-    pub fn new(
-        positions: Vec<Vec3A>,
-        normals: Vec<Vec3A>,
-        uvs: Vec<Vec2>,
-        meshes: Vec<MeshInfo>,
-        triangle_vertices: Vec<[u32; 3]>,
-        triangle_mesh: Vec<u32>,
-        spheres: Vec<Sphere>,
-    ) -> Geometry {
+    /// Builds the BVHs over `primitives`.
+    pub fn new(primitives: Primitives) -> Geometry {
+        let Primitives {
+            positions,
+            normals,
+            uvs,
+            meshes,
+            triangle_vertices,
+            triangle_mesh,
+            spheres,
+        } = primitives;
         let mut build_time = Duration::ZERO;
         let tris: Vec<RtTriangle> = triangle_vertices
             .iter()
@@ -312,20 +329,19 @@ mod tests {
             has_uvs: false,
             flip: false,
         }];
-        Geometry::new(
+        Geometry::new(Primitives {
             positions,
-            Vec::new(),
-            Vec::new(),
             meshes,
-            vec![[0, 1, 2], [0, 2, 3]],
-            vec![0, 0],
-            vec![Sphere {
+            triangle_vertices: vec![[0, 1, 2], [0, 2, 3]],
+            triangle_mesh: vec![0, 0],
+            spheres: vec![Sphere {
                 center: Vec3A::new(0.0, 0.0, 5.0),
                 radius: 1.0,
                 surface,
                 flip: false,
             }],
-        )
+            ..Primitives::default()
+        })
     }
 
     /// Guards the obvhs CWBVH miss on -0.0 direction components (shared/CRATES.md).

@@ -6,14 +6,15 @@ use crate::sampling::uniform_triangle;
 use glam::{Vec2, Vec3A};
 
 impl Geometry {
-    pub(super) fn triangle_hit(&self, ray: &Ray, t: f32, tri: u32) -> SurfaceHit {
-        let [i0, i1, i2] = self.triangle_vertices[tri as usize];
+    /// Triangle `tri`'s vertex indices, its mesh and its vertex positions.
+    fn triangle(&self, tri: u32) -> ([u32; 3], &MeshInfo, [Vec3A; 3]) {
+        let v = self.triangle_vertices[tri as usize];
         let mesh = &self.meshes[self.triangle_mesh[tri as usize] as usize];
-        let (p0, p1, p2) = (
-            self.positions[i0 as usize],
-            self.positions[i1 as usize],
-            self.positions[i2 as usize],
-        );
+        (v, mesh, v.map(|i| self.positions[i as usize]))
+    }
+
+    pub(super) fn triangle_hit(&self, ray: &Ray, t: f32, tri: u32) -> SurfaceHit {
+        let ([i0, i1, i2], mesh, [p0, p1, p2]) = self.triangle(tri);
         let p = ray.at(t);
         let b = barycentrics(p, p0, p1, p2);
         let (ng, ns) = self.oriented_normals(mesh, [i0, i1, i2], [p0, p1, p2], b);
@@ -51,13 +52,7 @@ impl Geometry {
     /// Position, geometric and shading normal at barycentrics `b` of triangle `tri`,
     /// oriented as a hit there would be.
     pub fn surface_point(&self, tri: u32, b: [f32; 3]) -> (Vec3A, Vec3A, Vec3A) {
-        let [i0, i1, i2] = self.triangle_vertices[tri as usize];
-        let mesh = &self.meshes[self.triangle_mesh[tri as usize] as usize];
-        let (p0, p1, p2) = (
-            self.positions[i0 as usize],
-            self.positions[i1 as usize],
-            self.positions[i2 as usize],
-        );
+        let ([i0, i1, i2], mesh, [p0, p1, p2]) = self.triangle(tri);
         let p = p0 * b[0] + p1 * b[1] + p2 * b[2];
         let (ng, ns) = self.oriented_normals(mesh, [i0, i1, i2], [p0, p1, p2], b);
         (p, ng, ns)
