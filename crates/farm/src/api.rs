@@ -169,6 +169,12 @@ pub struct ApiError {
     pub error: String,
 }
 
+/// The header a tile upload carries: the SHA-256 of its EXR bytes, in hexadecimal, computed
+/// by the worker that rendered it. The coordinator accepts the tile only if the bytes it
+/// received have that digest, so a tile damaged on the way is rendered again rather than
+/// merged.
+pub const TILE_DIGEST_HEADER: &str = "x-kiln-tile-sha256";
+
 #[cfg(test)]
 mod tests {
     use super::*;

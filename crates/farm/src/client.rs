@@ -122,6 +122,7 @@ impl Client {
     pub async fn upload_tile(&self, lease: u64, exr: Vec<u8>) -> Result<()> {
         self.send(
             self.req(Method::PUT, &format!("/v1/leases/{lease}/tile"))
+                .header(TILE_DIGEST_HEADER, crate::bundle::digest_of(&exr))
                 .body(exr),
         )
         .await

@@ -65,6 +65,17 @@ impl RgbBuffer {
         }
     }
 
+    pub fn windows(&self) -> Windows {
+        Windows {
+            frame_width: self.frame_width,
+            frame_height: self.frame_height,
+            x0: self.x0,
+            y0: self.y0,
+            width: self.width,
+            height: self.height,
+        }
+    }
+
     pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
         self.pixels[(y * self.width + x) as usize]
     }
@@ -197,7 +208,66 @@ fn smallvec_of(
 
 /// Decodes an EXR written by [`encode_exr`] (or any EXR with R, G, B channels in its first layer).
 pub fn decode_exr(bytes: &[u8]) -> Result<RgbBuffer, ImageError> {
+    decode_exr_limited(bytes, MAX_PIXELS)
+}
+
+/// The most pixels [`decode_exr`] accepts in an image's data window or display window: a
+/// 16384 x 16384 frame, 3 GiB of float RGB. [`decode_exr_limited`] takes another limit.
+pub const MAX_PIXELS: u64 = 1 << 28;
+
+/// Where an image's pixels sit: the frame's size (the display window) and the data window
+/// inside it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Windows {
+    pub frame_width: u32,
+    pub frame_height: u32,
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// Reads an EXR's windows (of its first layer) from its header alone, decoding no pixels.
+pub fn read_exr_windows(bytes: &[u8]) -> Result<Windows, ImageError> {
+    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
+        .map_err(|e| ImageError::Exr(e.to_string()))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| ImageError::Exr("no layer".into()))?;
+    let display = header.shared_attributes.display_window;
+    let pos = header.own_attributes.layer_position;
+    let to_u32 = |v: usize, what: &str| {
+        u32::try_from(v).map_err(|_| ImageError::Invalid(format!("EXR {what} {v} is too large")))
+    };
+    Ok(Windows {
+        frame_width: to_u32(display.size.0, "width")?,
+        frame_height: to_u32(display.size.1, "height")?,
+        x0: (pos.0 as i64 - display.position.0 as i64).clamp(0, u32::MAX as i64) as u32,
+        y0: (pos.1 as i64 - display.position.1 as i64).clamp(0, u32::MAX as i64) as u32,
+        width: to_u32(header.layer_size.0, "width")?,
+        height: to_u32(header.layer_size.1, "height")?,
+    })
+}
+
+/// Decodes an EXR whose data window holds at most `max_pixels` pixels (and whose display
+/// window, the frame, at most [`MAX_PIXELS`]). The header is read and checked before
+/// anything the size of the image is allocated, so a small file that claims a huge image
+/// is an error, not an allocation failure.
+pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, ImageError> {
     use exr::prelude::{ReadChannels, ReadLayers};
+    let w = read_exr_windows(bytes)?;
+    let checks = [
+        ("data window", w.width, w.height, max_pixels),
+        ("display window", w.frame_width, w.frame_height, MAX_PIXELS),
+    ];
+    for (what, width, height, limit) in checks {
+        if u64::from(width) * u64::from(height) > limit {
+            return Err(ImageError::Invalid(format!(
+                "EXR {what} of {width}x{height} pixels is larger than the {limit} pixels allowed here"
+            )));
+        }
+    }
     let reader = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -323,6 +393,37 @@ mod tests {
         }
         let back = decode_exr(&encode_exr(&b).unwrap()).unwrap();
         assert_eq!(back, b);
+    }
+
+    /// A tiny file whose header claims a huge image (the 440-byte tile upload that aborted
+    /// the coordinator) is refused before anything of that size is allocated.
+    #[test]
+    fn an_exr_claiming_a_huge_window_is_refused_before_allocating() {
+        let bytes = encode_exr(&RgbBuffer::new(1, 1, 0, 0, 1, 1)).unwrap();
+        for name in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+            let mut evil = bytes.clone();
+            let at = evil
+                .windows(name.len())
+                .position(|w| w == name)
+                .expect("the attribute is in the header")
+                + name.len()
+                + 4;
+            // xMax and yMax: 100,000 x 100,000 pixels.
+            evil[at + 8..at + 12].copy_from_slice(&99_999i32.to_le_bytes());
+            evil[at + 12..at + 16].copy_from_slice(&99_999i32.to_le_bytes());
+            let err = decode_exr(&evil).unwrap_err().to_string();
+            assert!(err.contains("100000x100000"), "{err}");
+        }
+        // The windows come from the header alone, and agree with the decoded image's.
+        let tile = encode_exr(&RgbBuffer::new(8, 8, 2, 3, 4, 5)).unwrap();
+        assert_eq!(
+            read_exr_windows(&tile).unwrap(),
+            decode_exr(&tile).unwrap().windows()
+        );
+        // The limit is the caller's to choose.
+        let tile = encode_exr(&RgbBuffer::new(8, 8, 0, 0, 4, 4)).unwrap();
+        assert!(decode_exr_limited(&tile, 16).is_ok());
+        assert!(decode_exr_limited(&tile, 15).is_err());
     }
 
     #[test]

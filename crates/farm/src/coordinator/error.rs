@@ -49,6 +49,8 @@ pub enum Error {
     StaleTile(u64),
     #[error("job {0} is no longer running")]
     JobEnded(u64),
+    #[error("a tile upload must give the SHA-256 of its bytes in the X-Kiln-Tile-SHA256 header")]
+    NoTileDigest,
     #[error("rejected tile: {0}")]
     RejectedTile(TileRejected),
 
@@ -115,4 +117,6 @@ pub enum TileRejected {
     Windows { frame: (u32, u32), window: Rect },
     #[error("the tile has NaN or infinite pixels")]
     NonFinite,
+    #[error("the tile's bytes do not have the SHA-256 its upload gives (damaged on the way)")]
+    Digest,
 }

@@ -63,6 +63,7 @@ impl Error {
             | Error::BadJob(_)
             | Error::BadBundle(_)
             | Error::BadDigest
+            | Error::NoTileDigest
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
             Error::Unplannable(_) => StatusCode::UNPROCESSABLE_ENTITY,
             Error::NotDone { .. } | Error::UnknownLease(_) | Error::StaleTile(_) => {
@@ -263,10 +264,15 @@ async fn heartbeat(
 async fn upload_tile(
     State(c): State<Coordinator>,
     UrlPath(id): UrlPath<String>,
+    headers: HeaderMap,
     body: Bytes,
 ) -> Result<StatusCode, Error> {
     let id = parse_id(&id)?;
-    c.upload_tile(id, body).await?;
+    let digest = headers
+        .get(TILE_DIGEST_HEADER)
+        .and_then(|v| v.to_str().ok())
+        .ok_or(Error::NoTileDigest)?;
+    c.upload_tile(id, body, digest).await?;
     Ok(StatusCode::OK)
 }
 

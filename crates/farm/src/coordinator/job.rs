@@ -9,7 +9,7 @@ use super::MAX_TILE_ATTEMPTS;
 use super::error::{PlanError, TileRejected};
 use crate::api::{JobSpec, JobState, JobStatus, Rect};
 use crate::bundle;
-use kiln_image::RgbBuffer;
+use kiln_image::{RgbBuffer, Windows};
 use kiln_render::{TileRect, split_into_tiles};
 use std::collections::VecDeque;
 use std::path::Path;
@@ -200,8 +200,8 @@ impl Job {
         }
     }
 
-    /// Which of this job's tiles `tile` is, by its windows.
-    pub fn find_tile(&self, tile: &RgbBuffer) -> Option<usize> {
+    /// Which of this job's tiles has the windows `tile`.
+    pub fn find_tile(&self, tile: &Windows) -> Option<usize> {
         if (tile.frame_width, tile.frame_height)
             != (self.frame.frame_width, self.frame.frame_height)
         {
@@ -256,10 +256,15 @@ pub(super) struct TileSpot {
 }
 
 impl TileSpot {
+    /// The number of pixels the tile holds.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.window.width) * u64::from(self.window.height)
+    }
+
     /// Checks that an uploaded tile has this place's windows and finite pixels.
     pub fn check(&self, tile: &RgbBuffer) -> Result<(), TileRejected> {
         let frame = (tile.frame_width, tile.frame_height);
-        let window = data_window(tile);
+        let window = data_window(&tile.windows());
         if (frame, window) != (self.frame, self.window) {
             return Err(TileRejected::Windows { frame, window });
         }
@@ -270,8 +275,8 @@ impl TileSpot {
     }
 }
 
-/// A buffer's data window.
-fn data_window(b: &RgbBuffer) -> Rect {
+/// An image's data window.
+fn data_window(b: &Windows) -> Rect {
     Rect {
         x0: b.x0,
         y0: b.y0,

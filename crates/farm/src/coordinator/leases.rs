@@ -19,19 +19,25 @@ pub(super) struct Held {
     deadline: Instant,
 }
 
-/// The leases outstanding. Ids are never reused.
+/// The leases outstanding. Ids are never reused, across restarts too: an id is the
+/// coordinator's epoch (how many times its store was opened) times 2^40 plus a count, so a
+/// worker that still holds an id from before a restart names no lease granted after it.
+/// (2^40 leases are seven years at 5,000 a second.)
 pub(super) struct Leases {
     held: HashMap<u64, Held>,
     next: u64,
     ttl: Duration,
 }
 
+/// Lease ids per epoch.
+const EPOCH_LEASES: u64 = 1 << 40;
+
 impl Leases {
-    /// Leases that last `ttl` from their grant or last renewal.
-    pub fn new(ttl: Duration) -> Leases {
+    /// Leases that last `ttl` from their grant or last renewal, with ids of `epoch`.
+    pub fn new(ttl: Duration, epoch: u64) -> Leases {
         Leases {
             held: HashMap::new(),
-            next: 1,
+            next: epoch * EPOCH_LEASES + 1,
             ttl,
         }
     }
@@ -136,7 +142,7 @@ mod tests {
     #[test]
     fn a_lease_expires_only_after_its_deadline_and_renewals_move_it() {
         let t0 = Instant::now();
-        let mut leases = Leases::new(TTL);
+        let mut leases = Leases::new(TTL, 1);
         let a = leases.grant(7, 3, "w", t0);
         let b = leases.grant(7, 4, "w", t0 + 5 * TTL / 20);
         assert!(
@@ -157,7 +163,7 @@ mod tests {
     #[test]
     fn lease_ids_are_never_reused() {
         let t0 = Instant::now();
-        let mut leases = Leases::new(TTL);
+        let mut leases = Leases::new(TTL, 1);
         let a = leases.grant(1, 0, "w", t0);
         assert!(leases.remove(a).is_some());
         assert!(leases.remove(a).is_none());

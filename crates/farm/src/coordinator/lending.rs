@@ -9,8 +9,9 @@
 use super::error::TileRejected;
 use super::{Coordinator, Error, State};
 use crate::api::{JobState, Lease};
+use crate::bundle;
 use axum::body::Bytes;
-use kiln_image::RgbBuffer;
+use kiln_image::{RgbBuffer, Windows};
 use std::sync::Arc;
 
 impl Coordinator {
@@ -73,7 +74,7 @@ impl Coordinator {
     /// store, pastes it into the frame, and finishes the job if it was the last one. A
     /// corrupt or mismatched upload counts as a failed attempt. An upload under a lease that
     /// expired is accepted only if it is byte for byte the tile already kept.
-    pub async fn upload_tile(&self, lease: u64, exr: Bytes) -> Result<(), Error> {
+    pub async fn upload_tile(&self, lease: u64, exr: Bytes, digest: &str) -> Result<(), Error> {
         let target = {
             let state = self.lock();
             state
@@ -81,16 +82,21 @@ impl Coordinator {
                 .get(lease)
                 .map(|h| (h.job, state.jobs[&h.job].spot(h.tile)))
         };
-        let decoded = kiln_image::decode_exr(&exr);
         let Some((job, spot)) = target else {
-            // Which tile was it? The upload carries its own windows.
-            let tile = decoded.map_err(|_| Error::UnknownLease(lease))?;
-            return self.lock().judge_stale(lease, &tile, &exr);
+            // Which tile was it? The upload's header says, and its bytes are compared with
+            // the tile kept there: no pixel is decoded for a lease that is not live.
+            let windows =
+                kiln_image::read_exr_windows(&exr).map_err(|_| Error::UnknownLease(lease))?;
+            return self.lock().judge_stale(lease, &windows, &exr);
         };
-        let tile = match decoded
-            .map_err(TileRejected::Decode)
-            .and_then(|t| spot.check(&t).map(|()| t))
-        {
+        // The bytes are the worker's, or the tile is rendered again; and at most the tile's
+        // own pixels are decoded, whatever the EXR's header claims.
+        let checked = if bundle::digest_of(&exr).eq_ignore_ascii_case(digest.trim()) {
+            kiln_image::decode_exr_limited(&exr, spot.pixels()).map_err(TileRejected::Decode)
+        } else {
+            Err(TileRejected::Digest)
+        };
+        let tile = match checked.and_then(|t| spot.check(&t).map(|()| t)) {
             Ok(t) => t,
             Err(why) => {
                 {
@@ -139,7 +145,7 @@ impl State {
         tile: &RgbBuffer,
     ) -> Result<Option<Arc<RgbBuffer>>, Error> {
         let Some(held) = self.leases.get(lease) else {
-            return self.judge_stale(lease, tile, exr).map(|()| None);
+            return self.judge_stale(lease, &tile.windows(), exr).map(|()| None);
         };
         let (job, idx) = (held.job, held.tile);
         self.store.insert_tile(job, idx, exr)?;
@@ -153,7 +159,7 @@ impl State {
 
     /// An upload under an unknown or expired lease: fine if it is the very tile already
     /// kept for its place (a worker whose lease expired finished anyway), else a conflict.
-    fn judge_stale(&self, lease: u64, tile: &RgbBuffer, exr: &[u8]) -> Result<(), Error> {
+    fn judge_stale(&self, lease: u64, tile: &Windows, exr: &[u8]) -> Result<(), Error> {
         for job in self.jobs.values() {
             let Some(idx) = job.find_tile(tile) else {
                 continue;

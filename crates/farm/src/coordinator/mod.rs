@@ -100,13 +100,14 @@ impl Coordinator {
     pub fn open(config: Config) -> Result<Coordinator, Error> {
         let files = DataDir::create(&config.data_dir)?;
         let store = Store::open(&files)?;
+        let epoch = store.next_epoch()?;
         let (events, _) = broadcast::channel(1024);
         let coordinator = Coordinator {
             shared: Arc::new(Shared {
                 state: Mutex::new(State {
                     store,
                     jobs: BTreeMap::new(),
-                    leases: Leases::new(config.lease_ttl),
+                    leases: Leases::new(config.lease_ttl, epoch),
                     workers: Workers::default(),
                     metrics: Metrics::default(),
                 }),

@@ -103,9 +103,24 @@ impl Store {
             "PRAGMA journal_mode = WAL;
              PRAGMA synchronous = NORMAL;
              CREATE TABLE IF NOT EXISTS jobs (id INTEGER PRIMARY KEY, spec TEXT NOT NULL, state TEXT NOT NULL, error TEXT, idempotency_key TEXT UNIQUE);
-             CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx));",
+             CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx));
+             CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);",
         )?;
         Ok(Store { db })
+    }
+
+    /// Counts this opening of the store: 1 the first time, then one more at each restart,
+    /// committed before it is returned. Lease ids carry it, so an id from before a restart
+    /// never names a lease granted after it.
+    pub fn next_epoch(&self) -> Result<u64, Error> {
+        let epoch: i64 = self.db.query_row(
+            "INSERT INTO meta (key, value) VALUES ('epoch', 1)
+             ON CONFLICT (key) DO UPDATE SET value = value + 1
+             RETURNING value",
+            [],
+            |row| row.get(0),
+        )?;
+        Ok(epoch as u64)
     }
 
     /// Every job, oldest first. A state the store does not know reads as failed.

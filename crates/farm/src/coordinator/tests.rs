@@ -148,8 +148,34 @@ async fn job_status(app: &Router, job: u64) -> JobStatus {
     json(&body)
 }
 
+/// Uploads `exr` under `lease` with its digest, as a worker does.
 async fn upload(app: &Router, lease: u64, exr: Vec<u8>) -> (StatusCode, Bytes) {
-    call(app, "PUT", &format!("/v1/leases/{lease}/tile"), None, exr).await
+    let digest = crate::bundle::digest_of(&exr);
+    upload_with_digest(app, lease, exr, Some(&digest)).await
+}
+
+async fn upload_with_digest(
+    app: &Router,
+    lease: u64,
+    exr: Vec<u8>,
+    digest: Option<&str>,
+) -> (StatusCode, Bytes) {
+    let mut req = Request::builder()
+        .method("PUT")
+        .uri(format!("/v1/leases/{lease}/tile"));
+    if let Some(d) = digest {
+        req = req.header(crate::api::TILE_DIGEST_HEADER, d);
+    }
+    let response = app
+        .clone()
+        .oneshot(req.body(Body::from(exr)).unwrap())
+        .await
+        .unwrap();
+    let status = response.status();
+    let body = axum::body::to_bytes(response.into_body(), usize::MAX)
+        .await
+        .unwrap();
+    (status, body)
 }
 
 async fn heartbeat(app: &Router, lease: u64) -> StatusCode {
@@ -288,8 +314,8 @@ async fn tiles_go_from_lease_to_upload_to_a_finished_job() {
     assert_eq!(a.ttl_ms, TTL.as_millis() as u64);
     assert!(lease(&f.app, "w").await.is_none(), "both tiles are lent");
     let (tile_a, tile_b) = (tile_of(&a, frame, 0.25), tile_of(&b, frame, 4.0));
-    let (status, _) = upload(&f.app, b.lease, exr(&tile_b)).await;
-    assert_eq!(status, StatusCode::OK);
+    let (status, body) = upload(&f.app, b.lease, exr(&tile_b)).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let s = job_status(&f.app, job).await;
     assert_eq!(
         (s.state, s.tiles_done, s.tiles_total),
@@ -570,4 +596,96 @@ async fn a_restarted_coordinator_keeps_acknowledged_tiles_and_merges_a_finished_
     expected.paste(&tile_a).unwrap();
     expected.paste(&tile_b).unwrap();
     assert_eq!(body, exr(&expected));
+}
+
+/// A flipped bit in an uploaded tile (one the EXR decoder would accept) is caught by the
+/// tile's digest: the upload is refused, the attempt counts as failed, the tile is lent
+/// again, and the merged frame holds the worker's real pixels. An upload without a digest
+/// is refused outright.
+#[tokio::test]
+async fn a_tile_damaged_on_the_way_is_refused_and_lent_again() {
+    let f = farm(None);
+    let job = submit(&f, 16, 16, 16).await;
+    let first = lease(&f.app, "w").await.unwrap();
+    let tile = tile_of(&first, (16, 16), 0.25);
+    let good = exr(&tile);
+    let digest = crate::bundle::digest_of(&good);
+    // One flipped bit, the last one whose file still decodes, to other pixels.
+    let damaged = (0..good.len() * 8)
+        .rev()
+        .map(|bit| {
+            let mut d = good.clone();
+            d[bit / 8] ^= 1 << (bit % 8);
+            d
+        })
+        .find(|d| kiln_image::decode_exr(d).is_ok_and(|t| t.pixels != tile.pixels))
+        .expect("some single-bit damage decodes to other pixels");
+    let (status, body) = upload_with_digest(&f.app, first.lease, damaged, Some(&digest)).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(error_of(&body).contains("SHA-256"), "{}", error_of(&body));
+    let (status, body) = upload_with_digest(&f.app, first.lease, good.clone(), None).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(error_of(&body).contains("X-Kiln-Tile-SHA256"));
+    // The damaged upload ended the lease; the tile is lent again and finishes the job.
+    let again = lease(&f.app, "w").await.unwrap();
+    assert_eq!(again.tile_index, first.tile_index);
+    assert_eq!(upload(&f.app, again.lease, good).await.0, StatusCode::OK);
+    let s = job_status(&f.app, job).await;
+    assert_eq!((s.state, s.failures), (JobState::Done, 1));
+    let (_, body) = call(
+        &f.app,
+        "GET",
+        &format!("/v1/jobs/{job}/result.exr"),
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(kiln_image::decode_exr(&body).unwrap().pixels, tile.pixels);
+}
+
+/// An EXR of a few hundred bytes whose header claims billions of pixels is refused, under
+/// a live lease and under an unknown one, without decoding it; the coordinator goes on.
+#[tokio::test]
+async fn a_tile_claiming_a_huge_image_is_refused_without_decoding_it() {
+    let f = farm(None);
+    let job = submit(&f, 16, 16, 16).await;
+    let held = lease(&f.app, "w").await.unwrap();
+    let mut evil = exr(&tile_of(&held, (16, 16), 1.0));
+    let name = b"dataWindow\0box2i\0";
+    let at = evil.windows(name.len()).position(|w| w == name).unwrap() + name.len() + 4;
+    evil[at + 8..at + 12].copy_from_slice(&99_999i32.to_le_bytes());
+    evil[at + 12..at + 16].copy_from_slice(&99_999i32.to_le_bytes());
+    assert!(evil.len() < 1000);
+    for id in [held.lease, held.lease + 1000] {
+        let (status, body) = upload(&f.app, id, evil.clone()).await;
+        assert!(status.is_client_error(), "{status}: {}", error_of(&body));
+    }
+    assert_eq!(job_status(&f.app, job).await.state, JobState::Running);
+    assert!(lease(&f.app, "w").await.is_some(), "the tile is lent again");
+}
+
+/// Lease ids are never reused, across restarts too: a worker still holding an id from
+/// before a restart cannot heartbeat, upload to or fail a lease granted after it.
+#[tokio::test]
+async fn lease_ids_from_before_a_restart_name_no_new_lease() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    submit(&f, 32, 16, 16).await;
+    let old = lease(&f.app, "old").await.unwrap();
+    let Farm { dir: _dir, c, app } = f;
+    drop((c, app));
+    let (_c, app) = open(&data, None);
+    let new = lease(&app, "new").await.unwrap();
+    assert_ne!(new.lease, old.lease);
+    let other = lease(&app, "new").await.unwrap();
+    assert!(![new.lease, other.lease].contains(&old.lease));
+    assert_eq!(heartbeat(&app, old.lease).await, StatusCode::CONFLICT);
+    let tile = tile_of(&old, (32, 16), 1.0);
+    assert_eq!(
+        upload(&app, old.lease, exr(&tile)).await.0,
+        StatusCode::CONFLICT
+    );
+    // The new leases are untouched.
+    assert_eq!(heartbeat(&app, new.lease).await, StatusCode::NO_CONTENT);
+    assert_eq!(heartbeat(&app, other.lease).await, StatusCode::NO_CONTENT);
 }
