@@ -113,3 +113,45 @@ fn missing_scene_file() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("/nonexistent/scene.pbrt"), "{err}");
 }
+
+/// Geometry beyond f32's range (or near it), or not a number, is an error naming the
+/// Shape's file and line, never a panic inside the BVH builder.
+#[test]
+fn overflowing_or_nan_geometry() {
+    for (p, words) in [
+        ("3.5e38 0 0", "vertex 1 of this mesh"),
+        ("1e308 0 0", "vertex 1 of this mesh"),
+        ("1e16 0 0", "within 1e15"),
+    ] {
+        let text = format!(
+            "WorldBegin\nLightSource \"infinite\"\n\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 {p} 0 1 0 ]\n  \"integer indices\" [ 0 1 2 ]\n"
+        );
+        let (err, _d) = failing(&text);
+        assert_names(&err, "scene.pbrt", 4, words);
+    }
+    // A transform can carry finite vertices out of range too.
+    let (err, _d) = failing(
+        "WorldBegin\nScale 1e30 1e30 1e30\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ]\n  \"integer indices\" [ 0 1 2 ]\n",
+    );
+    assert_names(&err, "scene.pbrt", 3, "world space");
+    let (err, _d) = failing("WorldBegin\nShape \"sphere\" \"float radius\" [ 1e38 ]\n");
+    assert_names(&err, "scene.pbrt", 2, "this sphere");
+    // A NaN vertex in a binary PLY.
+    let dir = tempfile::tempdir().unwrap();
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n".to_vec();
+    for v in [[0.0f32, 0.0, 0.0], [f32::NAN, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        for c in v {
+            ply.extend(c.to_le_bytes());
+        }
+    }
+    ply.push(3);
+    for i in [0i32, 1, 2] {
+        ply.extend(i.to_le_bytes());
+    }
+    std::fs::write(dir.path().join("nan.ply"), ply).unwrap();
+    let err = crate::util::failing_in(
+        dir.path(),
+        "WorldBegin\nLightSource \"infinite\"\nShape \"plymesh\" \"string filename\" \"nan.ply\"\n",
+    );
+    assert_names(&err, "scene.pbrt", 3, "vertex 1 of this mesh");
+}

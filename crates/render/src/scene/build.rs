@@ -31,6 +31,18 @@ pub enum BuildError {
     },
 }
 
+/// The largest world-space coordinate a shape may reach. The BVH builder and intersection
+/// tests multiply coordinates (areas, determinants), so a coordinate near f32's range, or
+/// beyond it once transformed, would overflow inside them; 10^15 is far beyond any scene.
+pub const WORLD_LIMIT: f32 = 1e15;
+
+const WORLD_LIMIT_TEXT: &str =
+    "coordinates must be finite and within 1e15 of the origin (Kiln's limit for geometry)";
+
+fn within_world_limit(p: Vec3A) -> bool {
+    p.is_finite() && p.abs().max_element() <= WORLD_LIMIT
+}
+
 /// Whether a scene is built with its participating media. pbrt-v4's "path" integrator
 /// ignores them (interfaces vanish, media-bounded shapes keep only their materials).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -177,6 +189,16 @@ impl Builder {
                 .iter()
                 .map(|p| Vec3A::from(m.transform_point3(glam::Vec3::from(*p)))),
         );
+        let world = &self.prims.positions[base as usize..];
+        if let Some(i) = world.iter().position(|p| !within_world_limit(*p)) {
+            return Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: format!(
+                    "vertex {i} of this mesh is at {} in world space (object space {:?}): {}",
+                    world[i], mesh.positions[i], WORLD_LIMIT_TEXT
+                ),
+            });
+        }
         let has_normals = mesh.normals.is_some();
         if let Some(n) = &mesh.normals {
             // Normals transform by the inverse transpose.
@@ -279,8 +301,19 @@ impl Builder {
                     .into(),
             });
         }
-        let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
         let world_radius = (radius * axes[0]) as f32;
+        let center_f32 = Vec3A::from(center.as_vec3());
+        if !within_world_limit(center_f32 + world_radius)
+            || !within_world_limit(center_f32 - world_radius)
+        {
+            return Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: format!(
+                    "this sphere (center {center_f32}, radius {world_radius} in world space): {WORLD_LIMIT_TEXT}"
+                ),
+            });
+        }
+        let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
         if let Some(AreaLightDesc::Diffuse {
             radiance,
             two_sided,

@@ -75,8 +75,13 @@ pub fn parse_vol(bytes: &[u8]) -> std::result::Result<VolFile, String> {
             "bounding box {bbox_min:?}..{bbox_max:?} is empty or not finite"
         ));
     }
-    let count = (nx as u64) * (ny as u64) * (nz as u64);
-    let expected = HEADER as u64 + count * value_size;
+    // i32 sizes multiply past u64: a header can claim more than any file holds.
+    let expected = [ny, nz]
+        .iter()
+        .try_fold(nx as u64, |n, &d| n.checked_mul(d as u64))
+        .and_then(|count| count.checked_mul(value_size))
+        .and_then(|bytes| bytes.checked_add(HEADER as u64))
+        .ok_or_else(|| format!("a {nx}x{ny}x{nz} grid is larger than any file can hold"))?;
     if (bytes.len() as u64) < expected {
         return Err(format!(
             "truncated: a {nx}x{ny}x{nz} grid needs {expected} bytes, the file has {}",
@@ -158,6 +163,16 @@ mod tests {
 
     #[test]
     fn malformed_vol_files_say_why() {
+        // Sizes whose product overflows 64 bits: an error, not a wrapped size check.
+        let mut huge = write_vol(&grid(), ([0.0; 3], [1.0; 3]));
+        for at in [8, 12, 16] {
+            huge[at..at + 4].copy_from_slice(&i32::MAX.to_le_bytes());
+        }
+        assert!(
+            parse_vol(&huge)
+                .unwrap_err()
+                .contains("larger than any file")
+        );
         let good = write_vol(&grid(), ([0.0; 3], [1.0; 3]));
         let check = |bytes: &[u8], want: &str| {
             let e = parse_vol(bytes).unwrap_err();
