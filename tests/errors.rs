@@ -155,3 +155,44 @@ fn overflowing_or_nan_geometry() {
     );
     assert_names(&err, "scene.pbrt", 3, "vertex 1 of this mesh");
 }
+
+/// Sizes from outside are checked before anything is allocated: a frame of 65536 x 65536
+/// (51.5 GB of float RGB) is refused with a message that says so, and so is an
+/// environment map whose few hundred bytes claim 100,000 x 100,000 pixels.
+#[test]
+fn huge_frames_and_images_are_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        dir.path(),
+        "sky.pbrt",
+        "WorldBegin\nLightSource \"infinite\" \"rgb L\" [ 1 1 1 ]\n",
+    );
+    let out = kiln()
+        .args(["render", "--resolution", "65536x65536", "-q", "-o"])
+        .arg(dir.path().join("o.exr"))
+        .arg(&scene)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("4294967296 pixels, 51.5 GB"), "{err}");
+    // The limit is the user's to raise; below it the same scene renders.
+    let out = kiln()
+        .args(["render", "--resolution", "64x64", "--spp", "1", "-q", "-o"])
+        .arg(dir.path().join("o.exr"))
+        .args(["--max-frame-pixels", "4096"])
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    std::fs::write(
+        dir.path().join("huge.exr"),
+        crate::util::exr_claiming(100_000, 100_000),
+    )
+    .unwrap();
+    let err = crate::util::failing_in(
+        dir.path(),
+        "WorldBegin\n\nLightSource \"infinite\" \"string filename\" \"huge.exr\"\n",
+    );
+    assert_names(&err, "scene.pbrt", 3, "100000x100000 pixels is larger than");
+}

@@ -256,3 +256,21 @@ pub fn failing_in(dir: &Path, text: &str) -> String {
     );
     stderr
 }
+
+/// A small, valid EXR whose header claims a `width x height` data window (the rest of the
+/// file is a 1x1 image's): what a hostile upload or bundle sends.
+#[allow(dead_code)]
+pub fn exr_claiming(width: i32, height: i32) -> Vec<u8> {
+    let mut bytes = kiln_image::encode_exr(&RgbBuffer::new(1, 1, 0, 0, 1, 1)).unwrap();
+    for name in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+        let at = bytes
+            .windows(name.len())
+            .position(|w| w == name)
+            .expect("the attribute is in the header")
+            + name.len()
+            + 4;
+        bytes[at + 8..at + 12].copy_from_slice(&(width - 1).to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&(height - 1).to_le_bytes());
+    }
+    bytes
+}

@@ -52,6 +52,9 @@ pub struct CoordinatorArgs {
     /// Seconds a lease lasts without a heartbeat.
     #[arg(long, default_value_t = 20.0)]
     lease_ttl: f64,
+    /// The most pixels a job's frame may hold (it is kept in memory while the job runs).
+    #[arg(long, default_value_t = kiln_image::MAX_PIXELS)]
+    max_frame_pixels: u64,
 }
 
 pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
@@ -60,6 +63,7 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
         let mut config = Config::new(args.data_dir.clone());
         config.token = args.token;
         config.lease_ttl = Duration::from_secs_f64(args.lease_ttl.max(0.05));
+        config.max_frame_pixels = args.max_frame_pixels;
         let c = Coordinator::open(config)?;
         let listener = tokio::net::TcpListener::bind(&args.listen)
             .await

@@ -39,6 +39,9 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// The most pixels the rendered frame may hold (it is kept in memory).
+    #[arg(long, default_value_t = kiln_image::MAX_PIXELS)]
+    max_frame_pixels: u64,
 }
 
 pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
@@ -74,6 +77,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         seed: args.seed,
     })
     .map_err(anyhow::Error::msg)?;
+    desc.check_frame_size(args.max_frame_pixels)
+        .map_err(anyhow::Error::msg)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()

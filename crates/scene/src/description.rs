@@ -409,6 +409,29 @@ pub struct Overrides {
 
 impl SceneDescription {
     /// Applies overrides; a crop window keeps its fractions of the frame.
+    /// The pixels a render of this scene holds: the film's crop window (the whole frame
+    /// without one).
+    pub fn rendered_pixels(&self) -> u64 {
+        let [x0, x1, y0, y1] = self.film.pixel_bounds;
+        u64::from(x1 - x0) * u64::from(y1 - y0)
+    }
+
+    /// Refuses a render of more than `max_pixels` pixels before anything is allocated for
+    /// it, saying how large it would be.
+    pub fn check_frame_size(&self, max_pixels: u64) -> Result<(), String> {
+        let n = self.rendered_pixels();
+        if n <= max_pixels {
+            return Ok(());
+        }
+        let [x0, x1, y0, y1] = self.film.pixel_bounds;
+        Err(format!(
+            "a {}x{} render is {n} pixels, {:.1} GB of float RGB: more than the {max_pixels} pixels allowed (raise --max-frame-pixels on a machine with the memory)",
+            x1 - x0,
+            y1 - y0,
+            n as f64 * 12.0 / 1e9
+        ))
+    }
+
     pub fn apply_overrides(&mut self, o: &Overrides) -> Result<(), String> {
         if let Some((w, h)) = o.resolution {
             if w == 0 || h == 0 || w > 65536 || h > 65536 {

@@ -54,6 +54,7 @@ impl Job {
         spec: JobSpec,
         state: JobState,
         now: Instant,
+        max_frame_pixels: u64,
     ) -> Result<Job, PlanError> {
         if spec.tile == 0 {
             return Err(PlanError::ZeroTile);
@@ -64,6 +65,8 @@ impl Job {
         let mut desc = kiln_scene::load_file(&scene)
             .map_err(|e| PlanError::Scene(e.to_string().replace(&prefix, "")))?;
         desc.apply_overrides(&spec.overrides())
+            .map_err(PlanError::Overrides)?;
+        desc.check_frame_size(max_frame_pixels)
             .map_err(PlanError::Overrides)?;
         let f = &desc.film;
         let [x0, x1, y0, y1] = f.pixel_bounds;

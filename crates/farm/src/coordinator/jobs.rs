@@ -34,9 +34,10 @@ impl Coordinator {
             }
         }
         let (scenes, now) = (self.files().scenes(), self.now());
+        let max_pixels = self.config().max_frame_pixels;
         let spec2 = spec.clone();
         let mut job = tokio::task::spawn_blocking(move || {
-            Job::plan(&scenes, 0, spec2, JobState::Running, now)
+            Job::plan(&scenes, 0, spec2, JobState::Running, now, max_pixels)
         })
         .await?
         .map_err(Error::Unplannable)?;

@@ -49,6 +49,9 @@ pub struct Config {
     pub lease_ttl: Duration,
     pub max_scene_bytes: usize,
     pub max_tile_bytes: usize,
+    /// The most pixels a job's frame (its crop window) may hold: the frame is allocated
+    /// when the job is created. 16384 x 16384 by default (3 GiB of float RGB).
+    pub max_frame_pixels: u64,
 }
 
 impl Config {
@@ -59,6 +62,7 @@ impl Config {
             lease_ttl: Duration::from_secs(20),
             max_scene_bytes: 2 << 30,
             max_tile_bytes: 256 << 20,
+            max_frame_pixels: kiln_image::MAX_PIXELS,
         }
     }
 }
@@ -128,7 +132,9 @@ impl Coordinator {
         let stored = self.lock().store.jobs()?;
         for s in stored {
             let id = s.id;
-            let mut job = match Job::plan(&self.files().scenes(), id, s.spec, s.state, self.now()) {
+            let max_pixels = self.config().max_frame_pixels;
+            let scenes = self.files().scenes();
+            let mut job = match Job::plan(&scenes, id, s.spec, s.state, self.now(), max_pixels) {
                 Ok(j) => j,
                 Err(e) => {
                     tracing::warn!("job {id} cannot be resumed: {e}");

@@ -689,3 +689,43 @@ async fn lease_ids_from_before_a_restart_name_no_new_lease() {
     assert_eq!(heartbeat(&app, new.lease).await, StatusCode::NO_CONTENT);
     assert_eq!(heartbeat(&app, other.lease).await, StatusCode::NO_CONTENT);
 }
+
+/// A job whose frame would not fit in memory (65536 x 65536, from the request or from the
+/// scene's Film) is refused with a message that says how large it is; nothing is
+/// allocated for it and the coordinator goes on.
+#[tokio::test]
+async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
+    let f = farm(None);
+    submit(&f, 8, 8, 8).await;
+    let digest = f.c.lock().jobs.values().next().unwrap().spec.scene.clone();
+    for (resolution, scene) in [(Some((65536, 65536)), digest.clone()), (None, String::new())] {
+        let scene = if scene.is_empty() {
+            // A scene whose Film itself asks for the huge frame.
+            let dir = f.dir.path().join("huge-film");
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(
+                dir.join("scene.pbrt"),
+                "Film \"rgb\" \"integer xresolution\" [ 65536 ] \"integer yresolution\" [ 65536 ]\nWorldBegin\n",
+            )
+            .unwrap();
+            let bundle = crate::bundle::pack(&dir.join("scene.pbrt")).unwrap();
+            let (status, _) = call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
+            assert_eq!(status, StatusCode::OK);
+            bundle.digest
+        } else {
+            scene
+        };
+        let spec = JobSpec {
+            scene,
+            spp: Some(1),
+            resolution,
+            tile: 32,
+            seed: None,
+        };
+        let body = serde_json::to_vec(&spec).unwrap();
+        let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert!(error_of(&body).contains("51.5 GB"), "{}", error_of(&body));
+    }
+    assert_eq!(job_status(&f.app, 1).await.tiles_total, 1);
+}
