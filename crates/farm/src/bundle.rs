@@ -74,21 +74,33 @@ pub fn pack(scene: &Path) -> Result<Bundle, BundleError> {
             entries.push((rel, f.clone()));
         }
     }
+    let mut files = Vec::with_capacity(entries.len());
+    for (rel, path) in entries {
+        let data = std::fs::read(&path).map_err(|source| BundleError::Io { path, source })?;
+        files.push((rel, data));
+    }
+    Ok(encode(&files))
+}
+
+/// A bundle of these (relative name, contents) entries, the first being the scene file.
+pub fn encode(files: &[(String, Vec<u8>)]) -> Bundle {
     let mut bytes = Vec::new();
     bytes.extend_from_slice(MAGIC);
-    bytes.extend_from_slice(&(entries.len() as u32).to_le_bytes());
-    for (rel, path) in &entries {
-        let data = std::fs::read(path).map_err(|source| BundleError::Io {
-            path: path.clone(),
-            source,
-        })?;
+    bytes.extend_from_slice(&(files.len() as u32).to_le_bytes());
+    for (rel, data) in files {
         bytes.extend_from_slice(&(rel.len() as u16).to_le_bytes());
         bytes.extend_from_slice(rel.as_bytes());
         bytes.extend_from_slice(&(data.len() as u64).to_le_bytes());
-        bytes.extend_from_slice(&data);
+        bytes.extend_from_slice(data);
     }
     let digest = digest_of(&bytes);
-    Ok(Bundle { bytes, digest })
+    Bundle { bytes, digest }
+}
+
+/// An error's message with the folder a bundle was unpacked in taken off the file names it
+/// quotes: a farm's clients see paths inside their bundle, never the server's.
+pub fn relative_message(e: &impl std::fmt::Display, root: &Path) -> String {
+    e.to_string().replace(&format!("{}/", root.display()), "")
 }
 
 /// A relative path that stays inside the bundle (no root, no `..`).

@@ -34,8 +34,9 @@ enum LoadError {
     Digest { actual: String, expected: String },
     #[error("{0}")]
     Bundle(bundle::BundleError),
+    /// The parser's message, file names relative to the bundle.
     #[error("{0}")]
-    Scene(kiln_scene::SceneError),
+    Scene(String),
     #[error("{0}")]
     Overrides(String),
     #[error("{0}")]
@@ -193,8 +194,10 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
         }
     };
     let overrides = spec.overrides();
+    let root = config.cache_dir.join(&spec.scene);
     tokio::task::spawn_blocking(move || {
-        let mut desc = kiln_scene::load_file(&scene_path).map_err(LoadError::Scene)?;
+        let mut desc = kiln_scene::load_file_within(&scene_path, &root)
+            .map_err(|e| LoadError::Scene(bundle::relative_message(&e, &root)))?;
         desc.apply_overrides(&overrides)
             .map_err(LoadError::Overrides)?;
         let renderer = Renderer::build(&desc).map_err(LoadError::Build)?;

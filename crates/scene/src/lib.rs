@@ -32,4 +32,4 @@ pub mod spectrum;
 
 pub use description::*;
 pub use error::{Diagnostic, Loc, SceneError, Severity};
-pub use parser::{load_file, load_str};
+pub use parser::{load_file, load_file_within, load_str};

@@ -61,9 +61,9 @@ impl Job {
         }
         let scene = bundle::cached_scene(scenes, &spec.scene)
             .ok_or_else(|| PlanError::NoScene(spec.scene.clone()))?;
-        let prefix = format!("{}/", scenes.join(&spec.scene).display());
-        let mut desc = kiln_scene::load_file(&scene)
-            .map_err(|e| PlanError::Scene(e.to_string().replace(&prefix, "")))?;
+        let root = scenes.join(&spec.scene);
+        let mut desc = kiln_scene::load_file_within(&scene, &root)
+            .map_err(|e| PlanError::Scene(bundle::relative_message(&e, &root)))?;
         desc.apply_overrides(&spec.overrides())
             .map_err(PlanError::Overrides)?;
         desc.check_frame_size(max_frame_pixels)

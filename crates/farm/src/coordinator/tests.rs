@@ -698,7 +698,10 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
     let f = farm(None);
     submit(&f, 8, 8, 8).await;
     let digest = f.c.lock().jobs.values().next().unwrap().spec.scene.clone();
-    for (resolution, scene) in [(Some((65536, 65536)), digest.clone()), (None, String::new())] {
+    for (resolution, scene) in [
+        (Some((65536, 65536)), digest.clone()),
+        (None, String::new()),
+    ] {
         let scene = if scene.is_empty() {
             // A scene whose Film itself asks for the huge frame.
             let dir = f.dir.path().join("huge-film");
@@ -728,4 +731,40 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
         assert!(error_of(&body).contains("51.5 GB"), "{}", error_of(&body));
     }
     assert_eq!(job_status(&f.app, 1).await.tiles_total, 1);
+}
+
+/// A scene in a bundle may name only files inside the bundle: an Include of a server file
+/// (absolute, or climbing out with `..`) is refused before the file is opened, and the
+/// error quotes neither the file nor the coordinator's data path.
+#[tokio::test]
+async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
+    let f = farm(None);
+    let secret = f.dir.path().join("secret.pbrt");
+    std::fs::write(&secret, "this line is the server's secret\n").unwrap();
+    for include in [
+        secret.display().to_string(),
+        "../../secret.pbrt".to_string(),
+        "models/../../../secret.pbrt".to_string(),
+    ] {
+        let scene = format!("WorldBegin\nInclude \"{include}\"\n");
+        let bundle = crate::bundle::encode(&[("scene.pbrt".into(), scene.into_bytes())]);
+        let (status, _) = call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
+        assert_eq!(status, StatusCode::OK);
+        let spec = JobSpec {
+            scene: bundle.digest,
+            spp: Some(1),
+            resolution: Some((8, 8)),
+            tile: 8,
+            seed: None,
+        };
+        let body = serde_json::to_vec(&spec).unwrap();
+        let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        let error = error_of(&body);
+        assert!(error.contains("outside the scene's folder"), "{error}");
+        assert!(error.starts_with("scene.pbrt:2:"), "{error}");
+        assert!(!error.contains("server's secret"), "{error}");
+        let data = f.dir.path().join("data").display().to_string();
+        assert!(!error.contains(&data), "{error}");
+    }
 }

@@ -72,7 +72,7 @@ impl Parser {
                             "LightSource 'infinite': give either \"L\" or \"filename\", not both",
                         ));
                     }
-                    let path = self.resolve_file(&name);
+                    let path = self.resolve_file(&name, loc)?;
                     let image = files::images::read_environment(&path, loc)?;
                     let layout = if image.width == image.height {
                         EnvironmentLayout::EqualArea
@@ -198,7 +198,7 @@ impl Parser {
         }
         let grid = match params.string("grid")? {
             Some(name) => {
-                let path = self.resolve_file(&name);
+                let path = self.resolve_file(&name, loc)?;
                 let at = params.loc_of("grid").unwrap_or_else(|| loc.clone());
                 Some(Arc::new(files::voxel_csv::read_voxel_grid(&path, &at)?))
             }

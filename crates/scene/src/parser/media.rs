@@ -111,7 +111,7 @@ impl Parser {
             )),
             (None, None) => Ok(None),
             (None, Some(f)) => {
-                let path = self.resolve_file(&f);
+                let path = self.resolve_file(&f, loc)?;
                 let at = params.loc_of(&file_param).unwrap_or_else(|| loc.clone());
                 let vol = files::vol::read_vol(&path, &at)?;
                 Ok(Some((vol.grid, Some(vol.bbox))))

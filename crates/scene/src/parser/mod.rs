@@ -47,15 +47,57 @@ pub fn load_file(path: &Path) -> Result<SceneDescription> {
 
 /// Loads scene text; `file` names it in diagnostics, `base_dir` resolves relative paths.
 pub fn load_str(text: &str, file: &Path, base_dir: &Path) -> Result<SceneDescription> {
-    let mut parser = Parser::new(base_dir);
+    load(text, file, Parser::new(base_dir))
+}
+
+/// Loads a scene file that may read no file outside `root`: every file it names (Include,
+/// Import, meshes, grids, images) must resolve inside that folder, or loading fails with
+/// the name as written, before the file is opened. What a farm loads from a scene bundle
+/// goes through this, so a scene cannot make a coordinator or a worker read, and quote in
+/// an error, a file of the machine it runs on.
+pub fn load_file_within(path: &Path, root: &Path) -> Result<SceneDescription> {
+    let top = Loc::synthetic("command line");
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        loc: top,
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut parser = Parser::new(&base_dir);
+    parser.root = Some(normalize(root));
+    load(&text, path, parser)
+}
+
+fn load(text: &str, file: &Path, mut parser: Parser) -> Result<SceneDescription> {
     let file = Arc::new(file.to_path_buf());
     let tokens = tokenize(text, &file)?;
     parser.parse_tokens(&tokens, &file, 0)?;
     parser.finish(&file)
 }
 
+/// `path` with `.` and `..` components resolved lexically (no file system access: a scene
+/// bundle holds no links).
+fn normalize(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                if !out.pop() {
+                    out.push("..");
+                }
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
 struct Parser {
     base_dir: PathBuf,
+    /// The folder every file the scene names must lie in, when loading is confined.
+    root: Option<PathBuf>,
     warnings: Vec<Diagnostic>,
     gs: GraphicsState,
     stack: Vec<(GraphicsState, Loc, bool)>,
@@ -91,6 +133,7 @@ impl Parser {
         };
         Parser {
             base_dir: base_dir.to_path_buf(),
+            root: None,
             warnings: Vec::new(),
             gs: GraphicsState {
                 ctm: DMat4::IDENTITY,
@@ -166,12 +209,24 @@ impl Parser {
     }
 
     /// Resolves a file the scene refers to, and records it (a farm bundle must carry it).
-    fn resolve_file(&mut self, name: &str) -> PathBuf {
+    /// The path of a file the scene names at `loc`, recorded among the files it reads; an
+    /// error if loading is confined and the path leaves the root.
+    fn resolve_file(&mut self, name: &str, loc: &Loc) -> Result<PathBuf> {
         let path = self.resolve(name);
+        if let Some(root) = &self.root
+            && (Path::new(name).is_absolute() || !normalize(&path).starts_with(root))
+        {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "'{name}' is outside the scene's folder: a scene sent to a farm may name only files beside it"
+                ),
+            ));
+        }
         if !self.files.contains(&path) {
             self.files.push(path.clone());
         }
-        path
+        Ok(path)
     }
 
     fn resolve(&self, name: &str) -> PathBuf {
@@ -339,7 +394,7 @@ impl Parser {
                 "Include nested more than 32 deep (a cycle?)",
             ));
         }
-        let path = self.resolve_file(&name);
+        let path = self.resolve_file(&name, loc)?;
         let text = std::fs::read_to_string(&path).map_err(|source| SceneError::Io {
             loc: loc.clone(),
             path: path.clone(),
@@ -437,6 +492,32 @@ mod tests {
         load_str(text, Path::new("t.pbrt"), Path::new("."))
             .unwrap_err()
             .to_string()
+    }
+
+    /// Confined loading accepts any path that stays inside the root, `..` included, and
+    /// refuses one that leaves it before opening it.
+    #[test]
+    fn confined_loading_keeps_every_file_inside_its_root() {
+        let root = std::env::temp_dir().join(format!("kiln-confined-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("models")).unwrap();
+        std::fs::write(root.join("inner.pbrt"), "LightSource \"infinite\"\n").unwrap();
+        let scene = root.join("scene.pbrt");
+        let load = |include: &str| {
+            std::fs::write(&scene, format!("WorldBegin\nInclude \"{include}\"\n")).unwrap();
+            load_file_within(&scene, &root)
+        };
+        assert!(load("inner.pbrt").is_ok());
+        assert!(load("models/../inner.pbrt").is_ok());
+        for outside in ["../inner.pbrt", "/etc/hostname", "models/../../inner.pbrt"] {
+            let e = load(outside).unwrap_err().to_string();
+            assert!(
+                e.contains(":2: '") && e.contains("outside the scene's folder"),
+                "{e}"
+            );
+        }
+        // Unconfined loading (kiln render on a user's own file) still reads them.
+        assert!(load_file(&scene).is_err_and(|e| !e.to_string().contains("outside")));
+        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]

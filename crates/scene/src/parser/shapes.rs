@@ -34,7 +34,7 @@ impl Parser {
                 let name = params.string("filename")?.ok_or_else(|| {
                     SceneError::at(loc, format!("{ty}: \"string filename\" is required"))
                 })?;
-                let path = self.resolve_file(&name);
+                let path = self.resolve_file(&name, loc)?;
                 let mesh = if ty == "plymesh" {
                     if params.loc_of("displacement").is_some() {
                         return Err(SceneError::at(
