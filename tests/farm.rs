@@ -614,3 +614,36 @@ fn molten_glass_through_the_farm_is_bit_identical() {
         "the farm's frame differs from kiln render's"
     );
 }
+
+/// A medium too dense for tracking to cross (density 10^30 beside 0: the walk's steps
+/// vanish below f32's precision) used to keep a worker tracking for ever, its lease alive
+/// through heartbeats. Now each walk stops at its step limit, the worker fails the tile
+/// with the reason, and after three attempts the job fails with it.
+#[test]
+fn a_medium_too_dense_to_track_fails_its_job_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = crate::util::write_scene(dir.path(), "dense.pbrt", crate::util::TOO_DENSE);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), None);
+    let client = Client::new(&url, None);
+    let bundle = kiln_farm::bundle::pack(&scene_path).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = JobSpec {
+        scene: digest,
+        spp: Some(1),
+        resolution: None,
+        tile: 8,
+        seed: None,
+    };
+    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    let _worker = start_worker(
+        &url,
+        "w",
+        &dir.path().join("cache"),
+        &dir.path().join("w.log"),
+    );
+    let s = wait_done(&rt, &client, id, Duration::from_secs(60));
+    assert_eq!(s.state, JobState::Failed);
+    let error = s.error.unwrap();
+    assert!(error.contains("tracking steps in a medium"), "{error}");
+}

@@ -450,3 +450,15 @@ fn caustic_photon_maps_agree_with_path_tracing() {
         );
     }
 }
+
+/// A medium too dense to track (see util::TOO_DENSE) ends the render with the reason, in
+/// a bounded time, instead of running for ever; no image is written.
+#[test]
+fn a_medium_too_dense_to_track_fails_the_render_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let err = crate::util::failing_in(dir.path(), crate::util::TOO_DENSE);
+    assert!(
+        err.contains("gave up after 1048576 tracking steps in a medium"),
+        "{err}"
+    );
+}

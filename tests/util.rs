@@ -274,3 +274,23 @@ pub fn exr_claiming(width: i32, height: i32) -> Vec<u8> {
     }
     bytes
 }
+
+/// A scene whose medium no tracking can cross: density 10^30 beside 0, seen along the axis
+/// where they meet, so that every camera ray's walk visits collisions without end unless
+/// it is cut off.
+#[allow(dead_code)]
+pub const TOO_DENSE: &str = r#"Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
+Sampler "sobol" "integer pixelsamples" [ 1 ]
+LookAt -5 0 0  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 10 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+MakeNamedMedium "dense" "string type" "uniformgrid" "integer nx" 2 "integer ny" 1 "integer nz" 1
+  "float density" [ 0 1e30 ] "rgb sigma_a" [ 0 0 0 ] "rgb sigma_s" [ 1 1 1 ]
+  "point3 p0" [ -1 -1 -1 ] "point3 p1" [ 1 1 1 ]
+AttributeBegin
+MediumInterface "dense" ""
+Material "interface"
+Shape "sphere" "float radius" [ 1.8 ]
+AttributeEnd
+"#;

@@ -150,6 +150,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         tile.pixels = r.pixels;
         frame.paste(&tile)?;
     }
+    if let Some(why) = stats.cut_off_error() {
+        bail!("{}: {why}; no image was written", args.scene.display());
+    }
     kiln_image::write_exr(&output, &frame)
         .with_context(|| format!("cannot write {}", output.display()))?;
     if let Some(preview) = &args.preview {

@@ -234,6 +234,9 @@ async fn render_and_upload(
     let (pool, loaded2) = (pool.clone(), loaded.clone());
     let exr = tokio::task::spawn_blocking(move || {
         let result = pool.install(|| render_tile(&loaded2.renderer, rect));
+        if let Some(why) = result.stats.cut_off_error() {
+            return Err(why);
+        }
         let mut buffer = RgbBuffer::new(
             loaded2.frame.0,
             loaded2.frame.1,
@@ -243,7 +246,7 @@ async fn render_and_upload(
             rect.height,
         );
         buffer.pixels = result.pixels;
-        kiln_image::encode_exr(&buffer)
+        kiln_image::encode_exr(&buffer).map_err(|e| e.to_string())
     })
     .await;
     beat.abort();

@@ -40,10 +40,11 @@ pub mod scene;
 pub mod shapes;
 pub mod textures;
 pub mod tile;
+pub mod work;
 
 pub use integrators::{Integrator, PathSettings};
 pub use scene::{BuildError, MediaPolicy, Scene};
 pub use tile::{
-    NonFiniteSample, RenderSettings, Renderer, TileRect, TileResult, TileStats, render_pixel,
-    render_tile, split_into_tiles,
+    RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, render_pixel, render_tile,
+    split_into_tiles,
 };

@@ -6,6 +6,7 @@ use crate::integrators::{Integrator, Prepass};
 use crate::math::Color;
 use crate::sampling::PixelSampler;
 use crate::scene::{BuildError, MediaPolicy, Scene};
+use crate::work::Work;
 use glam::Vec2;
 use rayon::prelude::*;
 
@@ -122,9 +123,10 @@ impl Renderer {
     }
 }
 
-/// A sample whose radiance was NaN or infinite (and was counted as black).
+/// One camera sample: its pixel and its index (what `kiln render` prints so it can be
+/// replayed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NonFiniteSample {
+pub struct SampleId {
     pub x: u32,
     pub y: u32,
     pub sample: u32,
@@ -134,22 +136,44 @@ pub struct NonFiniteSample {
 pub struct TileStats {
     pub samples: u64,
     pub rays: u64,
+    /// Samples whose radiance was NaN or infinite (counted as black).
     pub nonfinite: u64,
     /// The first few non-finite samples, for replaying them.
-    pub nonfinite_examples: Vec<NonFiniteSample>,
+    pub nonfinite_examples: Vec<SampleId>,
+    /// Samples whose path was cut off in a medium at
+    /// [`MAX_TRACKING_STEPS`](crate::work::MAX_TRACKING_STEPS): a render that has any has
+    /// failed, and says so.
+    pub cut_off: u64,
+    pub cut_off_examples: Vec<SampleId>,
 }
 
 impl TileStats {
     pub const MAX_EXAMPLES: usize = 16;
 
+    /// Why a render with samples cut off in a medium failed; None when none was.
+    pub fn cut_off_error(&self) -> Option<String> {
+        let first = self.cut_off_examples.first()?;
+        Some(format!(
+            "{} samples gave up after {} tracking steps in a medium (the first at pixel {}, {}, sample {}): a medium's density is far too large for tracking to cross it",
+            self.cut_off,
+            crate::work::MAX_TRACKING_STEPS,
+            first.x,
+            first.y,
+            first.sample
+        ))
+    }
+
     pub fn merge(&mut self, other: &TileStats) {
         self.samples += other.samples;
         self.rays += other.rays;
         self.nonfinite += other.nonfinite;
-        for e in &other.nonfinite_examples {
-            if self.nonfinite_examples.len() < Self::MAX_EXAMPLES {
-                self.nonfinite_examples.push(*e);
-            }
+        self.cut_off += other.cut_off;
+        for (mine, theirs) in [
+            (&mut self.nonfinite_examples, &other.nonfinite_examples),
+            (&mut self.cut_off_examples, &other.cut_off_examples),
+        ] {
+            let room = Self::MAX_EXAMPLES.saturating_sub(mine.len());
+            mine.extend(theirs.iter().take(room));
         }
     }
 }
@@ -219,17 +243,22 @@ pub fn render_sample(
     let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
     let lens = sampler.get_2d();
     let ray = scene.camera.generate_ray(film, lens);
-    let mut l =
-        settings
-            .integrator
-            .li(&renderer.prepass, scene, ray, &mut sampler, &mut stats.rays);
+    let mut work = Work::default();
+    let mut l = settings
+        .integrator
+        .li(&renderer.prepass, scene, ray, &mut sampler, &mut work);
     stats.samples += 1;
+    stats.rays += work.rays;
+    if work.cut_walks > 0 {
+        stats.cut_off += 1;
+        if stats.cut_off_examples.len() < TileStats::MAX_EXAMPLES {
+            stats.cut_off_examples.push(SampleId { x, y, sample });
+        }
+    }
     if !l.is_finite() {
         stats.nonfinite += 1;
         if stats.nonfinite_examples.len() < TileStats::MAX_EXAMPLES {
-            stats
-                .nonfinite_examples
-                .push(NonFiniteSample { x, y, sample });
+            stats.nonfinite_examples.push(SampleId { x, y, sample });
         }
         l = Color::ZERO;
     }

@@ -7,6 +7,7 @@ use crate::math::{Color, offset_origin};
 use crate::sampling::{PixelSampler, TrackingRng, power_heuristic};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
+use crate::work::Work;
 use glam::Vec3A;
 use kiln_scene::LightStrategy;
 
@@ -74,7 +75,7 @@ pub(super) fn sample_direct(
     f: impl Fn(Vec3A) -> Color,
     pdf: impl Fn(Vec3A) -> f32,
     sampler: &mut PixelSampler,
-    rays: &mut u64,
+    work: &mut Work,
 ) -> Color {
     let u_light = sampler.get_1d();
     let u = sampler.get_2d();
@@ -82,7 +83,7 @@ pub(super) fn sample_direct(
         return Color::ZERO;
     };
     let (sample, traced) = scene.lights[index].sample(&scene.light_context(), v.p, u);
-    *rays += traced;
+    work.rays += traced;
     let Some(ls) = sample else {
         return Color::ZERO;
     };
@@ -107,12 +108,12 @@ pub(super) fn sample_direct(
         let d = target - origin;
         let len = d.length();
         if len > 0.0 {
-            scene.transmittance(origin, d / len, len * (1.0 - 1e-4), medium, &mut rng, rays)
+            scene.transmittance(origin, d / len, len * (1.0 - 1e-4), medium, &mut rng, work)
         } else {
             (Color::ZERO, medium)
         }
     } else {
-        scene.transmittance(origin, ls.wi, f32::INFINITY, medium, &mut rng, rays)
+        scene.transmittance(origin, ls.wi, f32::INFINITY, medium, &mut rng, work)
     };
     let (tr, end_medium) = tr;
     if tr == Color::ZERO {

@@ -17,6 +17,7 @@ pub use photons::{CausticMaps, CausticSettings};
 use crate::math::{Color, Ray};
 use crate::sampling::PixelSampler;
 use crate::scene::Scene;
+use crate::work::Work;
 use kiln_scene::{IntegratorDesc, LightStrategy};
 
 /// Where each bounce's sample dimensions start: 4 for the film and lens, then 8 per bounce.
@@ -115,14 +116,14 @@ impl Integrator {
         }
     }
 
-    /// Radiance arriving along `ray`; `rays` counts the rays traced.
+    /// Radiance arriving along `ray`; `work` counts what it cost.
     pub fn li(
         &self,
         prepass: &Prepass,
         scene: &Scene,
         ray: Ray,
         sampler: &mut PixelSampler,
-        rays: &mut u64,
+        work: &mut Work,
     ) -> Color {
         match self {
             // The path tracer is the volumetric one; without media in the scene its medium
@@ -133,7 +134,7 @@ impl Integrator {
                     settings,
                     prepass,
                 };
-                path::path_li(&ctx, ray, sampler, rays)
+                path::path_li(&ctx, ray, sampler, work)
             }
         }
     }

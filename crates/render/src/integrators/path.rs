@@ -15,6 +15,7 @@ use crate::sampling::{PixelSampler, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
 use crate::textures::TextureEvalContext;
+use crate::work::Work;
 use glam::Vec3A;
 use kiln_scene::LightStrategy;
 
@@ -82,12 +83,12 @@ enum Next {
     Stop,
 }
 
-/// Radiance arriving along `ray`; `rays` counts the rays traced.
+/// Radiance arriving along `ray`; `work` counts what it cost.
 pub(super) fn path_li(
     ctx: &PathContext,
     mut ray: Ray,
     sampler: &mut PixelSampler,
-    rays: &mut u64,
+    work: &mut Work,
 ) -> Color {
     let mut state = PathState {
         l: Color::ZERO,
@@ -104,10 +105,10 @@ pub(super) fn path_li(
         specular_since_gather: None,
     };
     loop {
-        *rays += 1;
+        work.rays += 1;
         let found = ctx.scene.geometry.intersect(&ray, f32::INFINITY);
         if state.medium.is_some() {
-            match medium_step(ctx, &mut state, &mut ray, found.as_ref(), sampler, rays) {
+            match medium_step(ctx, &mut state, &mut ray, found.as_ref(), sampler, work) {
                 Next::Continue => continue,
                 Next::Stop => break,
                 Next::Surface => {}
@@ -118,8 +119,8 @@ pub(super) fn path_li(
             escape(ctx, &mut state, &ray);
             break;
         };
-        surface_emission(ctx, &mut state, &ray, &hit, rays);
-        match surface_step(ctx, &mut state, &mut ray, &hit, sampler, rays) {
+        surface_emission(ctx, &mut state, &ray, &hit, work);
+        match surface_step(ctx, &mut state, &mut ray, &hit, sampler, work) {
             Next::Continue | Next::Surface => {}
             Next::Stop => break,
         }
@@ -135,7 +136,7 @@ fn medium_step(
     ray: &mut Ray,
     found: Option<&SurfaceHit>,
     sampler: &mut PixelSampler,
-    rays: &mut u64,
+    work: &mut Work,
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
     let Some(m) = state.medium else {
@@ -177,6 +178,10 @@ fn medium_step(
     let t = match event {
         MediumEvent::Crossed => return Next::Surface,
         MediumEvent::Absorbed => return Next::Stop,
+        MediumEvent::CutOff => {
+            work.cut_walks += 1;
+            return Next::Stop;
+        }
         MediumEvent::Scattered(t) => t,
     };
     if state.depth == settings.max_depth {
@@ -215,7 +220,7 @@ fn medium_step(
                 |wi| Color::splat(phase.p(wo, wi)),
                 |wi| phase.p(wo, wi),
                 sampler,
-                rays,
+                work,
             );
     }
     sampler.set_dimension(base + 4);
@@ -272,7 +277,7 @@ fn surface_emission(
     state: &mut PathState,
     ray: &Ray,
     hit: &SurfaceHit,
-    rays: &mut u64,
+    work: &mut Work,
 ) {
     let scene = ctx.scene;
     let Some(light_id) = hit.light else {
@@ -285,7 +290,7 @@ fn surface_emission(
         return;
     }
     let (le, traced) = light.le(&scene.light_context(), hit.p, hit.ng, hit.ns, -ray.dir);
-    *rays += traced;
+    work.rays += traced;
     if le != Color::ZERO {
         let w = emission_weight(
             ctx.settings,
@@ -305,7 +310,7 @@ fn surface_step(
     ray: &mut Ray,
     hit: &SurfaceHit,
     sampler: &mut PixelSampler,
-    rays: &mut u64,
+    work: &mut Work,
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
     let Some(bsdf) =
@@ -356,7 +361,7 @@ fn surface_step(
         };
         let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
         let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
-        state.l += state.beta * sample_direct(scene, settings, &v, f, pdf, sampler, rays);
+        state.l += state.beta * sample_direct(scene, settings, &v, f, pdf, sampler, work);
     }
     sampler.set_dimension(base + 3);
     let uc = sampler.get_1d();

@@ -257,7 +257,8 @@ fn trace_photon(
                 |_| {},
             ) {
                 MediumEvent::Crossed => {}
-                MediumEvent::Absorbed => return,
+                // A photon whose walk is cut off is lost (the camera paths report theirs).
+                MediumEvent::Absorbed | MediumEvent::CutOff => return,
                 MediumEvent::Scattered(t) => {
                     if specular_bounces > 0 {
                         volume.push(Photon {

@@ -5,6 +5,7 @@
 use super::{MediumEvent, Phase, SampledGrid};
 use crate::math::{Color, Ray};
 use crate::sampling::{Distribution3D, TrackingRng};
+use crate::work::MAX_TRACKING_STEPS;
 use glam::{Affine3A, Vec3A};
 
 /// Where a grid medium's emitted radiance comes from.
@@ -56,6 +57,17 @@ impl BlackbodyTable {
         let f = x - i as f32;
         self.rgb[i] * (1.0 - f) + self.rgb[i + 1] * f
     }
+}
+
+/// How a walk through the majorant grid ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Walk {
+    /// It reached the segment's end or left the box.
+    Ended,
+    /// The visitor stopped it.
+    Stopped,
+    /// It visited [`MAX_TRACKING_STEPS`] collisions and was cut off there.
+    CutOff,
 }
 
 /// Cells of the majorant grid along each axis (pbrt-v4 uses 16 too).
@@ -206,8 +218,8 @@ impl GridMedium {
 
     /// Visits the tentative collisions along the ray from `o` in unit direction `d` over
     /// (0, t_max): a Poisson process whose rate is the majorant of the cell the point is in.
-    /// `visit(t, p_box, sigma_maj)` returns false to stop; the walk returns whether it ran to
-    /// the end.
+    /// `visit(t, p_box, sigma_maj)` returns false to stop. A walk visits at most
+    /// [`MAX_TRACKING_STEPS`] collisions.
     pub fn walk(
         &self,
         o: Vec3A,
@@ -215,7 +227,8 @@ impl GridMedium {
         t_max: f32,
         rng: &mut TrackingRng,
         mut visit: impl FnMut(f32, Vec3A, f32) -> bool,
-    ) -> bool {
+    ) -> Walk {
+        let mut steps = 0u32;
         let r = MAJORANT_RES as f32;
         let oc = self.world_to_box.transform_point3a(o) * r;
         let dc = self.world_to_box.transform_vector3a(d) * r;
@@ -224,7 +237,7 @@ impl GridMedium {
         for a in 0..3 {
             if dc[a] == 0.0 {
                 if oc[a] < 0.0 || oc[a] > r {
-                    return true;
+                    return Walk::Ended;
                 }
                 continue;
             }
@@ -237,7 +250,7 @@ impl GridMedium {
             t_end = t_end.min(tb);
         }
         if t.partial_cmp(&t_end) != Some(std::cmp::Ordering::Less) {
-            return true;
+            return Walk::Ended;
         }
         let p = oc + dc * t;
         let n = MAJORANT_RES as i32;
@@ -279,30 +292,40 @@ impl GridMedium {
                     }
                     t += dt;
                     tau = -(1.0 - rng.next_f32()).ln();
+                    steps += 1;
+                    if steps > MAX_TRACKING_STEPS {
+                        return Walk::CutOff;
+                    }
                     if !visit(t, (oc + dc * t) / r, sigma_maj) {
-                        return false;
+                        return Walk::Stopped;
                     }
                 }
             }
             t = t_exit;
             if t >= t_end {
-                return true;
+                return Walk::Ended;
             }
             cell[axis] += step[axis];
             if cell[axis] < 0 || cell[axis] >= n {
-                return true;
+                return Walk::Ended;
             }
             next[axis] += delta[axis];
         }
     }
 
     /// Transmittance along the ray over (0, t_max) by ratio tracking, with Russian roulette
-    /// once it is small. Returns it with the number of density lookups.
-    pub fn transmittance(&self, o: Vec3A, d: Vec3A, t_max: f32, rng: &mut TrackingRng) -> Color {
+    /// once it is small; None if the walk was cut off.
+    pub fn transmittance(
+        &self,
+        o: Vec3A,
+        d: Vec3A,
+        t_max: f32,
+        rng: &mut TrackingRng,
+    ) -> Option<Color> {
         let mut tr = Color::ONE;
         let sigma_t = self.sigma_a + self.sigma_s;
         let mut u = rng.split(0x5851_f42d_4c95_7f2d);
-        self.walk(o, d, t_max, rng, |_, p, sigma_maj| {
+        let walk = self.walk(o, d, t_max, rng, |_, p, sigma_maj| {
             let st = sigma_t * self.density(p);
             tr *= (Color::ONE - st / sigma_maj).max(Color::ZERO);
             if tr.max_element() < 0.05 {
@@ -314,7 +337,7 @@ impl GridMedium {
             }
             tr != Color::ZERO
         });
-        tr
+        (walk != Walk::CutOff).then_some(tr)
     }
 
     /// Tracking against the majorants: at each tentative collision the emission is handed
@@ -333,7 +356,7 @@ impl GridMedium {
         let mut event = MediumEvent::Crossed;
         let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x6a09_e667_f3bc_c909);
         let emissive = self.is_emissive();
-        self.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
+        let walk = self.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
             let d = self.density(p);
             if d <= 0.0 {
                 return true;
@@ -367,6 +390,9 @@ impl GridMedium {
             *beta *= sigma_n / (sigma_maj * p_n);
             *beta != Color::ZERO
         });
+        if walk == Walk::CutOff {
+            return MediumEvent::CutOff;
+        }
         if *beta == Color::ZERO {
             return MediumEvent::Absorbed;
         }
@@ -486,7 +512,7 @@ mod tests {
         let mut sum = Color::ZERO;
         for i in 0..runs {
             let mut rng = TrackingRng::new(i);
-            sum += m.transmittance(o, d, 1.5, &mut rng);
+            sum += m.transmittance(o, d, 1.5, &mut rng).unwrap();
         }
         let mean = sum / runs as f32;
         for c in 0..3 {

@@ -13,7 +13,7 @@ pub mod homogeneous;
 pub mod phase;
 pub mod voxel_grid;
 
-pub use grid::GridMedium;
+pub use grid::{GridMedium, Walk};
 pub use homogeneous::HomogeneousMedium;
 pub use phase::Phase;
 pub use voxel_grid::SampledGrid;
@@ -38,6 +38,9 @@ pub enum MediumEvent {
     Absorbed,
     /// Scattered at this distance along the ray.
     Scattered(f32),
+    /// The walk through a grid was cut off at [`MAX_TRACKING_STEPS`](crate::work::MAX_TRACKING_STEPS)
+    /// collisions: the path ends, and the sample is reported.
+    CutOff,
 }
 
 /// Emission met by free-flight sampling, handed to the caller to weight and add.
@@ -72,10 +75,17 @@ impl Medium {
     }
 
     /// Transmittance along the segment from `o` in unit direction `d` over (0, `t`); grid
-    /// media estimate it by ratio tracking with numbers from `rng`.
-    pub fn transmittance(&self, o: Vec3A, d: Vec3A, t: f32, rng: &mut TrackingRng) -> Color {
+    /// media estimate it by ratio tracking with numbers from `rng` (None if that walk was
+    /// cut off).
+    pub fn transmittance(
+        &self,
+        o: Vec3A,
+        d: Vec3A,
+        t: f32,
+        rng: &mut TrackingRng,
+    ) -> Option<Color> {
         match self {
-            Medium::Homogeneous(h) => h.transmittance(t),
+            Medium::Homogeneous(h) => Some(h.transmittance(t)),
             Medium::Grid(g) => g.transmittance(o, d, t, rng),
         }
     }

@@ -17,6 +17,7 @@ use crate::math::{Color, Ray};
 use crate::media::Medium;
 use crate::sampling::{AliasTable, TrackingRng};
 use crate::shapes::Geometry;
+use crate::work::Work;
 use glam::Vec3A;
 
 /// A scene ready to trace.
@@ -74,10 +75,10 @@ impl Scene {
         tmax: f32,
         mut medium: Option<u32>,
         rng: &mut TrackingRng,
-        rays: &mut u64,
+        work: &mut Work,
     ) -> (Color, Option<u32>) {
         if self.media.is_empty() {
-            *rays += 1;
+            work.rays += 1;
             let tr = if self.geometry.unoccluded(origin, dir, tmax) {
                 Color::ONE
             } else {
@@ -89,11 +90,15 @@ impl Scene {
         let mut o = origin;
         let mut remaining = tmax;
         for _ in 0..64 {
-            *rays += 1;
+            work.rays += 1;
             let hit = self.geometry.intersect(&Ray::new(o, dir), remaining);
             let seg = hit.as_ref().map_or(remaining, |h| h.t);
             if let Some(m) = medium {
-                tr *= self.media[m as usize].transmittance(o, dir, seg, rng);
+                let Some(t) = self.media[m as usize].transmittance(o, dir, seg, rng) else {
+                    work.cut_walks += 1;
+                    return (Color::ZERO, medium);
+                };
+                tr *= t;
                 if tr == Color::ZERO {
                     return (tr, medium);
                 }
