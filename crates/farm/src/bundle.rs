@@ -112,6 +112,48 @@ fn safe_relative(rel: &str) -> Option<PathBuf> {
     Some(p.to_path_buf())
 }
 
+/// The longest name one path component may have (what common file systems allow).
+const MAX_NAME_BYTES: usize = 255;
+
+/// Checks that a bundle's entry names can all be files in one folder tree: no NUL, no
+/// component longer than [`MAX_NAME_BYTES`], no name twice, and no name that is both a
+/// file and a folder (`a` and `a/b`). A name the file system would refuse is the
+/// bundle's fault, said here; what fails after this is the server's.
+fn check_names(names: &[&Path]) -> Result<(), BundleError> {
+    let corrupt = |m: String| Err(BundleError::Corrupt(m));
+    let mut files = std::collections::HashSet::new();
+    let mut folders = std::collections::HashSet::new();
+    for name in names {
+        let shown = name.display();
+        for c in name.components() {
+            let c = c.as_os_str().as_encoded_bytes();
+            if c.contains(&0) {
+                return corrupt(format!(
+                    "path '{}' holds a NUL byte",
+                    shown.to_string().escape_debug()
+                ));
+            }
+            if c.len() > MAX_NAME_BYTES {
+                return corrupt(format!(
+                    "a name in path '{shown}' is longer than {MAX_NAME_BYTES} bytes"
+                ));
+            }
+        }
+        if !files.insert(name.to_path_buf()) {
+            return corrupt(format!("path '{shown}' is in it twice"));
+        }
+        let mut parent = name.parent();
+        while let Some(p) = parent.filter(|p| !p.as_os_str().is_empty()) {
+            folders.insert(p.to_path_buf());
+            parent = p.parent();
+        }
+    }
+    if let Some(both) = files.iter().find(|f| folders.contains(*f)) {
+        return corrupt(format!("'{}' is both a file and a folder", both.display()));
+    }
+    Ok(())
+}
+
 /// The entries of a bundle: (relative path, data). Checks the structure, never panics.
 pub fn entries(bytes: &[u8]) -> Result<Vec<(PathBuf, &[u8])>, BundleError> {
     let corrupt = |m: &str| BundleError::Corrupt(m.to_string());
@@ -145,6 +187,7 @@ pub fn entries(bytes: &[u8]) -> Result<Vec<(PathBuf, &[u8])>, BundleError> {
     if out.is_empty() {
         return Err(corrupt("it has no scene file"));
     }
+    check_names(&out.iter().map(|(p, _)| p.as_path()).collect::<Vec<_>>())?;
     Ok(out)
 }
 

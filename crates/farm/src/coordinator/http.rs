@@ -49,7 +49,39 @@ pub fn app(c: Coordinator) -> Router {
         .route("/healthz", get(|| async { "ok\n" }))
         .merge(api)
         .fallback(|| async { Error::NoRoute })
+        .layer(middleware::map_response(json_errors))
         .with_state(c)
+}
+
+/// Every error answer is the documented JSON `{"error": ...}`: axum's own rejections (a
+/// body over its limit, a method a route does not have) come as plain text, and are
+/// rewritten here with their message.
+async fn json_errors(response: Response) -> Response {
+    let status = response.status();
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return response;
+    }
+    let (parts, body) = response.into_parts();
+    let text = axum::body::to_bytes(body, 4096)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+        .unwrap_or_default();
+    let message = if text.is_empty() {
+        status.canonical_reason().unwrap_or("error").to_lowercase()
+    } else {
+        text
+    };
+    let mut json = (status, Json(ApiError { error: message })).into_response();
+    for (name, value) in &parts.headers {
+        if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
+            json.headers_mut().insert(name, value.clone());
+        }
+    }
+    json
 }
 
 impl Error {

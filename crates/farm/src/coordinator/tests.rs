@@ -768,3 +768,125 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
         assert!(!error.contains(&data), "{error}");
     }
 }
+
+/// Answers axum makes itself (a body over its limit, a method a route lacks) are the
+/// documented JSON error too.
+#[tokio::test]
+async fn every_error_answer_is_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = Config::new(dir.path().join("data"));
+    config.max_tile_bytes = 1000;
+    config.max_scene_bytes = 1000;
+    let app = app(Coordinator::open(config).unwrap());
+    for (method, uri, body) in [
+        ("PUT", "/v1/leases/1/tile", vec![0u8; 5000]),
+        ("POST", "/v1/scenes", vec![0u8; 5000]),
+        ("DELETE", "/v1/jobs", Vec::new()),
+        ("GET", "/v1/leases", Vec::new()),
+    ] {
+        let req = Request::builder()
+            .method(method)
+            .uri(uri)
+            .header(crate::api::TILE_DIGEST_HEADER, "00")
+            .body(Body::from(body))
+            .unwrap();
+        let response = app.clone().oneshot(req).await.unwrap();
+        let status = response.status();
+        assert!(status.is_client_error(), "{method} {uri}: {status}");
+        assert_eq!(
+            response.headers()[header::CONTENT_TYPE],
+            "application/json",
+            "{method} {uri}"
+        );
+        let body = axum::body::to_bytes(response.into_body(), usize::MAX)
+            .await
+            .unwrap();
+        assert!(!error_of(&body).is_empty(), "{method} {uri}");
+    }
+}
+
+/// Bundles whose entry names the file system would refuse (a file that is also a folder, a
+/// name over 255 bytes, a NUL, a name twice) are the client's mistake: a 400 that says
+/// which, never a 500 with the server's path, and nothing is left behind.
+#[tokio::test]
+async fn bundles_whose_names_cannot_be_files_are_refused() {
+    let f = farm(None);
+    let scene = b"WorldBegin\n".to_vec();
+    let long = "n".repeat(300);
+    for (names, words) in [
+        (vec!["scene.pbrt", "a", "a/b"], "both a file and a folder"),
+        (vec!["scene.pbrt", "a/b", "a"], "both a file and a folder"),
+        (vec!["scene.pbrt", long.as_str()], "longer than 255 bytes"),
+        (vec!["scene.pbrt", "x\0y"], "NUL"),
+        (vec!["scene.pbrt", "m.ply", "m.ply"], "twice"),
+    ] {
+        let files: Vec<(String, Vec<u8>)> = names
+            .iter()
+            .map(|n| (n.to_string(), scene.clone()))
+            .collect();
+        let bundle = crate::bundle::encode(&files);
+        let (status, body) = call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{names:?}");
+        let error = error_of(&body);
+        assert!(error.contains(words), "{names:?}: {error}");
+        assert!(
+            !error.contains(&f.dir.path().display().to_string()),
+            "{error}"
+        );
+    }
+    // Nothing was kept: the scenes folder holds no entry, finished or temporary.
+    let scenes = f.dir.path().join("data").join("scenes");
+    let left: Vec<_> = std::fs::read_dir(&scenes)
+        .map(|d| d.flatten().map(|e| e.file_name()).collect())
+        .unwrap_or_default();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// Submits racing with one Idempotency-Key make one job: every answer names it, none is a
+/// 500 (the store's UNIQUE constraint once answered about four in ten of them).
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn racing_submits_with_one_idempotency_key_make_one_job() {
+    let f = farm(None);
+    submit(&f, 8, 8, 8).await;
+    let digest = f.c.lock().jobs.values().next().unwrap().spec.scene.clone();
+    for round in 0..5 {
+        let key = format!("retry-{round}");
+        let requests = (0..8).map(|_| {
+            let app = f.app.clone();
+            let spec = JobSpec {
+                scene: digest.clone(),
+                spp: Some(1),
+                resolution: None,
+                tile: 8,
+                seed: None,
+            };
+            let key = key.clone();
+            tokio::spawn(async move {
+                let req = Request::builder()
+                    .method("POST")
+                    .uri("/v1/jobs")
+                    .header("idempotency-key", key)
+                    .body(Body::from(serde_json::to_vec(&spec).unwrap()))
+                    .unwrap();
+                let response = app.oneshot(req).await.unwrap();
+                let status = response.status();
+                let body = axum::body::to_bytes(response.into_body(), usize::MAX)
+                    .await
+                    .unwrap();
+                (status, body)
+            })
+        });
+        let mut ids = Vec::new();
+        for r in requests.collect::<Vec<_>>() {
+            let (status, body) = r.await.unwrap();
+            assert!(
+                status == StatusCode::CREATED || status == StatusCode::OK,
+                "{status}: {}",
+                String::from_utf8_lossy(&body)
+            );
+            ids.push(json::<crate::api::JobCreated>(&body).id);
+        }
+        ids.dedup();
+        assert_eq!(ids.len(), 1, "round {round}: {ids:?}");
+    }
+}
