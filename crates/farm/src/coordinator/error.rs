@@ -57,8 +57,6 @@ pub enum Error {
     // Internal failures: logged, never shown.
     #[error("job store: {0}")]
     Store(rusqlite::Error),
-    #[error("job {id}: corrupt spec: {message}")]
-    CorruptSpec { id: u64, message: String },
     #[error("{}: {message}", path.display())]
     Io { path: PathBuf, message: String },
     #[error("cannot store a scene: {0}")]
@@ -67,6 +65,9 @@ pub enum Error {
     Image(ImageError),
     #[error("a blocking task failed: {0}")]
     Task(tokio::task::JoinError),
+    /// The data directory holds what its store has lost: starting would hide those jobs.
+    #[error("{0}")]
+    LostJobs(String),
 }
 
 impl Error {

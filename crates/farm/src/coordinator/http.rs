@@ -104,7 +104,7 @@ impl Error {
             Error::SetAside(_) => StatusCode::FORBIDDEN,
             Error::JobEnded(_) => StatusCode::GONE,
             Error::Store(_)
-            | Error::CorruptSpec { .. }
+            | Error::LostJobs(_)
             | Error::Io { .. }
             | Error::Unpack(_)
             | Error::Image(_)

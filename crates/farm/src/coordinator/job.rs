@@ -92,6 +92,47 @@ impl Job {
         })
     }
 
+    /// A job that cannot be planned again at a restart (its record or its scene bundle is
+    /// damaged or gone): kept in the list with the reason, with no tiles. One that was
+    /// still running has failed; a finished one keeps its state (its frame is a file).
+    pub fn damaged(
+        id: u64,
+        spec: Option<JobSpec>,
+        state: JobState,
+        reason: String,
+        now: Instant,
+    ) -> Job {
+        let spec = spec.unwrap_or(JobSpec {
+            scene: String::new(),
+            spp: None,
+            resolution: None,
+            tile: 1,
+            seed: None,
+        });
+        let state = if state == JobState::Running {
+            JobState::Failed
+        } else {
+            state
+        };
+        Job {
+            id,
+            spec,
+            state,
+            error: Some(reason),
+            tiles: Vec::new(),
+            tile_state: Vec::new(),
+            queue: VecDeque::new(),
+            attempts: Vec::new(),
+            failures: 0,
+            done: 0,
+            frame: Arc::new(RgbBuffer::new(0, 0, 0, 0, 0, 0)),
+            spp: 0,
+            started: now,
+            samples_at_start: 0,
+            merge_seconds: None,
+        }
+    }
+
     fn samples_of(&self, i: usize) -> u64 {
         self.tiles[i].pixel_count() * self.spp as u64
     }

@@ -104,6 +104,20 @@ impl Coordinator {
     pub fn open(config: Config) -> Result<Coordinator, Error> {
         let files = DataDir::create(&config.data_dir)?;
         let store = Store::open(&files)?;
+        // Merged frames whose jobs the store does not hold: the database (or its WAL) was
+        // lost or replaced. Starting would hide those jobs for good; say so instead.
+        let stored: std::collections::HashSet<u64> = store.jobs()?.iter().map(|j| j.id).collect();
+        let lost: Vec<u64> = files
+            .job_folders()?
+            .into_iter()
+            .filter(|id| !stored.contains(id))
+            .collect();
+        if !lost.is_empty() {
+            return Err(Error::LostJobs(format!(
+                "{}: the store has no record of jobs {lost:?}, whose frames are in jobs/: kiln.sqlite (or its -wal file) was truncated, deleted or replaced. Restore it, or move those folders out of jobs/ to start without them",
+                config.data_dir.display()
+            )));
+        }
         let epoch = store.next_epoch()?;
         let (events, _) = broadcast::channel(1024);
         let coordinator = Coordinator {
@@ -134,10 +148,22 @@ impl Coordinator {
             let id = s.id;
             let max_pixels = self.config().max_frame_pixels;
             let scenes = self.files().scenes();
-            let mut job = match Job::plan(&scenes, id, s.spec, s.state, self.now(), max_pixels) {
+            let planned = match s.spec.clone() {
+                Ok(spec) => Job::plan(&scenes, id, spec, s.state, self.now(), max_pixels)
+                    .map_err(|e| format!("it cannot be resumed: {e}")),
+                Err(why) => Err(why),
+            };
+            let mut job = match planned {
                 Ok(j) => j,
-                Err(e) => {
-                    tracing::warn!("job {id} cannot be resumed: {e}");
+                Err(why) => {
+                    // Kept in the list, failed with the reason, and the rest resume.
+                    tracing::error!("job {id}: {why}");
+                    let job = Job::damaged(id, s.spec.ok(), s.state, why, self.now());
+                    let mut state = self.lock();
+                    if job.state != s.state {
+                        state.store.set_state(id, job.state, job.error.as_deref())?;
+                    }
+                    state.jobs.insert(id, job);
                     continue;
                 }
             };

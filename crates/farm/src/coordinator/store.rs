@@ -35,6 +35,19 @@ impl DataDir {
         self.root.join("scenes")
     }
 
+    /// The ids of the jobs whose folders (`jobs/<id>`, a merged frame) are in the data
+    /// directory.
+    pub fn job_folders(&self) -> Result<Vec<u64>, Error> {
+        let jobs = self.root.join("jobs");
+        let entries = std::fs::read_dir(&jobs).map_err(|e| Error::io(&jobs, e))?;
+        let mut ids: Vec<u64> = entries
+            .flatten()
+            .filter_map(|e| e.file_name().to_str()?.parse().ok())
+            .collect();
+        ids.sort_unstable();
+        Ok(ids)
+    }
+
     pub fn result_path(&self, job: u64) -> PathBuf {
         self.root
             .join("jobs")
@@ -86,7 +99,8 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 /// A job as the store keeps it.
 pub(super) struct StoredJob {
     pub id: u64,
-    pub spec: JobSpec,
+    /// The job's spec, or why it cannot be read back.
+    pub spec: Result<JobSpec, String>,
     pub state: JobState,
     pub error: Option<String>,
 }
@@ -124,33 +138,46 @@ impl Store {
     }
 
     /// Every job, oldest first. A state the store does not know reads as failed.
+    ///
+    /// A row that cannot be read back (a damaged spec, a value of the wrong type) is
+    /// returned with `spec` as the reason, so that the job can be reported failed while
+    /// the others resume.
     pub fn jobs(&self) -> Result<Vec<StoredJob>, Error> {
         let mut stmt = self
             .db
             .prepare("SELECT id, spec, state, error FROM jobs ORDER BY id")?;
-        let rows = stmt
-            .query_map([], |r| {
-                Ok((
-                    r.get::<_, i64>(0)? as u64,
+        let rows = stmt.query_map([], |r| {
+            let id = r.get::<_, i64>(0)? as u64;
+            let fields = (|| {
+                Ok::<_, rusqlite::Error>((
                     r.get::<_, String>(1)?,
                     r.get::<_, String>(2)?,
-                    r.get(3)?,
+                    r.get::<_, Option<String>>(3)?,
                 ))
-            })?
-            .collect::<Result<Vec<_>, _>>()?;
-        rows.into_iter()
-            .map(|(id, spec, state, error)| {
-                Ok(StoredJob {
+            })();
+            Ok((id, fields))
+        })?;
+        let mut jobs = Vec::new();
+        for row in rows {
+            let (id, fields) = row?;
+            let job = match fields {
+                Ok((spec, state, error)) => StoredJob {
                     id,
-                    spec: serde_json::from_str(&spec).map_err(|e| Error::CorruptSpec {
-                        id,
-                        message: e.to_string(),
-                    })?,
+                    spec: serde_json::from_str(&spec)
+                        .map_err(|e| format!("its record in the store is damaged: {e}")),
                     state: JobState::from_name(&state).unwrap_or(JobState::Failed),
                     error,
-                })
-            })
-            .collect()
+                },
+                Err(e) => StoredJob {
+                    id,
+                    spec: Err(format!("its record in the store is damaged: {e}")),
+                    state: JobState::Failed,
+                    error: None,
+                },
+            };
+            jobs.push(job);
+        }
+        Ok(jobs)
     }
 
     /// A job's kept tiles: (index, EXR). Rows that cannot be read are left out.

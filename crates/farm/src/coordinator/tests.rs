@@ -890,3 +890,78 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
         assert_eq!(ids.len(), 1, "round {round}: {ids:?}");
     }
 }
+
+/// Damage to the store or the data directory is reported, and the rest serves: a job whose
+/// record is unreadable, or whose scene bundle was deleted, is listed failed with the
+/// reason (a finished one keeps its frame); a store that lost jobs whose frames are on
+/// disk refuses to start, saying so, instead of starting empty.
+#[tokio::test]
+async fn damage_is_reported_and_the_rest_of_the_coordinator_serves() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    let done = submit(&f, 8, 8, 8).await;
+    let l = lease(&f.app, "w").await.unwrap();
+    assert_eq!(
+        upload(&f.app, l.lease, exr(&tile_of(&l, (8, 8), 1.0)))
+            .await
+            .0,
+        StatusCode::OK
+    );
+    let running = submit(&f, 16, 8, 8).await;
+    let damaged = submit(&f, 24, 8, 8).await;
+    let healthy = submit(&f, 32, 8, 8).await;
+    let scene_of = |job: u64| f.c.lock().jobs[&job].spec.scene.clone();
+    let (done_scene, running_scene) = (scene_of(done), scene_of(running));
+    let Farm { dir, c, app } = f;
+    drop((c, app));
+    // The finished job's and the running job's bundles vanish; one record is garbled.
+    for digest in [&done_scene, &running_scene] {
+        std::fs::remove_dir_all(data.join("scenes").join(digest)).unwrap();
+    }
+    let db = rusqlite::Connection::open(data.join("kiln.sqlite")).unwrap();
+    db.execute(
+        "UPDATE jobs SET spec = '{not json' WHERE id = ?1",
+        [damaged as i64],
+    )
+    .unwrap();
+    drop(db);
+    let (_c, app) = open(&data, None);
+    let s = job_status(&app, done).await;
+    assert_eq!(s.state, JobState::Done);
+    let (status, _) = call(
+        &app,
+        "GET",
+        &format!("/v1/jobs/{done}/result.exr"),
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "a finished job keeps its frame");
+    let s = job_status(&app, running).await;
+    assert_eq!(s.state, JobState::Failed);
+    assert!(s.error.unwrap().contains("no scene with digest"));
+    let s = job_status(&app, damaged).await;
+    assert_eq!(s.state, JobState::Failed);
+    assert!(s.error.unwrap().contains("record in the store is damaged"));
+    let s = job_status(&app, healthy).await;
+    assert_eq!(s.state, JobState::Running);
+    assert!(lease(&app, "w").await.is_some(), "the healthy job is lent");
+    drop((_c, app));
+    // The store is replaced by an empty one: the finished job's frame is on disk, so the
+    // coordinator refuses to start, naming the job.
+    std::fs::remove_file(data.join("kiln.sqlite")).unwrap();
+    for side in ["kiln.sqlite-wal", "kiln.sqlite-shm"] {
+        let _ = std::fs::remove_file(data.join(side));
+    }
+    let mut config = Config::new(data.clone());
+    config.lease_ttl = TTL;
+    let err = Coordinator::open(config)
+        .err()
+        .expect("it refuses to start")
+        .to_string();
+    assert!(
+        err.contains(&format!("no record of jobs [{done}]")),
+        "{err}"
+    );
+    drop(dir);
+}
