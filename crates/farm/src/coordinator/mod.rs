@@ -18,6 +18,8 @@ mod leases;
 mod lending;
 mod merge;
 mod metrics;
+#[cfg(test)]
+mod proptests;
 mod store;
 #[cfg(test)]
 mod tests;

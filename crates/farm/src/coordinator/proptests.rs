@@ -1,0 +1,225 @@
+//! Property tests of the lease state machine: random sequences of leases, heartbeats,
+//! uploads (right, wrong and damaged), failures, clock jumps past the lease time and
+//! coordinator restarts, run against the coordinator itself on tokio's paused clock. After
+//! any sequence: no operation is an internal error, no tile is ever accepted with bytes
+//! other than those first accepted for it, and driving the job on with a healthy worker
+//! ends it: done, its frame holding exactly the bytes accepted for each tile, or failed
+//! because a tile failed its three attempts.
+
+use super::{Config, Coordinator, Error};
+use crate::api::{JobSpec, JobState, Lease};
+use axum::body::Bytes;
+use kiln_image::RgbBuffer;
+use proptest::prelude::*;
+use std::collections::HashMap;
+use std::path::Path;
+use std::time::Duration;
+
+const TTL: Duration = Duration::from_secs(10);
+/// A 24 x 16 frame of 8-pixel tiles: six tiles.
+const FRAME: (u32, u32) = (24, 16);
+
+#[derive(Debug, Clone)]
+enum Op {
+    Lease(u8),
+    Heartbeat(u8),
+    /// Upload under held lease n: the right pixels, other pixels, or damaged bytes.
+    Upload(u8, Kind),
+    Fail(u8),
+    /// Move the clock on by this many seconds, and expire what is due.
+    Advance(u8),
+    Restart,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Kind {
+    Right,
+    Other,
+    Damaged,
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    prop_oneof![
+        4 => (0u8..3).prop_map(Op::Lease),
+        2 => any::<u8>().prop_map(Op::Heartbeat),
+        5 => (any::<u8>(), prop_oneof![4 => Just(Kind::Right), 1 => Just(Kind::Other), 1 => Just(Kind::Damaged)])
+            .prop_map(|(n, k)| Op::Upload(n, k)),
+        1 => any::<u8>().prop_map(Op::Fail),
+        2 => (1u8..25).prop_map(Op::Advance),
+        1 => Just(Op::Restart),
+    ]
+}
+
+fn open(data: &Path) -> Coordinator {
+    let mut config = Config::new(data.to_path_buf());
+    config.lease_ttl = TTL;
+    Coordinator::open(config).unwrap()
+}
+
+/// The tile a lease asks for, every pixel `value`, encoded.
+fn tile_bytes(lease: &Lease, value: f32) -> Vec<u8> {
+    let t = lease.tile;
+    let mut tile = RgbBuffer::new(FRAME.0, FRAME.1, t.x0, t.y0, t.width, t.height);
+    tile.pixels.iter_mut().for_each(|p| *p = [value; 3]);
+    kiln_image::encode_exr(&tile).unwrap()
+}
+
+/// Client mistakes and refusals are answers; anything else is a defect.
+fn assert_not_internal(r: &Result<(), Error>) {
+    if let Err(e) = r {
+        assert!(
+            matches!(
+                e,
+                Error::UnknownLease(_)
+                    | Error::StaleTile(_)
+                    | Error::RejectedTile(_)
+                    | Error::SetAside(_)
+                    | Error::JobEnded(_)
+            ),
+            "internal error: {e:?}"
+        );
+    }
+}
+
+fn run(ops: Vec<Op>) {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .start_paused(true)
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let dir = tempfile::tempdir().unwrap();
+        let data = dir.path().join("data");
+        let mut c = open(&data);
+        let scene = dir.path().join("scene");
+        std::fs::create_dir_all(&scene).unwrap();
+        std::fs::write(
+            scene.join("scene.pbrt"),
+            format!(
+                "Film \"rgb\" \"integer xresolution\" [ {} ] \"integer yresolution\" [ {} ]\nWorldBegin\n",
+                FRAME.0, FRAME.1
+            ),
+        )
+        .unwrap();
+        let bundle = crate::bundle::pack(&scene.join("scene.pbrt")).unwrap();
+        let digest = c.save_scene(Bytes::from(bundle.bytes)).await.unwrap();
+        let spec = JobSpec {
+            scene: digest,
+            spp: Some(1),
+            resolution: None,
+            tile: 8,
+            seed: None,
+        };
+        let (job, _) = c.create_job(spec, None).await.unwrap();
+        let mut held: Vec<Lease> = Vec::new();
+        // The bytes first accepted for each tile.
+        let mut accepted: HashMap<u32, Vec<u8>> = HashMap::new();
+        let upload = |c: &Coordinator, lease: &Lease, bytes: Vec<u8>, digest: String| {
+            let c = c.clone();
+            let id = lease.lease;
+            async move { c.upload_tile(id, Bytes::from(bytes), &digest).await }
+        };
+        for op in ops {
+            match op {
+                Op::Lease(w) => match c.lease(&format!("w{w}")) {
+                    Ok(Some(l)) => held.push(l),
+                    Ok(None) => {}
+                    Err(e) => assert_not_internal(&Err(e)),
+                },
+                Op::Heartbeat(n) if !held.is_empty() => {
+                    let l = &held[n as usize % held.len()];
+                    assert_not_internal(&c.heartbeat(l.lease));
+                }
+                Op::Upload(n, kind) if !held.is_empty() => {
+                    let l = held[n as usize % held.len()].clone();
+                    let right = tile_bytes(&l, l.tile_index as f32);
+                    let (bytes, digest) = match kind {
+                        Kind::Right => (right.clone(), crate::bundle::digest_of(&right)),
+                        Kind::Other => {
+                            let other = tile_bytes(&l, 100.0 + l.tile_index as f32);
+                            let d = crate::bundle::digest_of(&other);
+                            (other, d)
+                        }
+                        Kind::Damaged => (b"not an exr".to_vec(), crate::bundle::digest_of(&right)),
+                    };
+                    let r = upload(&c, &l, bytes.clone(), digest).await;
+                    assert_not_internal(&r);
+                    if r.is_ok() {
+                        let first = accepted.entry(l.tile_index).or_insert_with(|| bytes.clone());
+                        assert_eq!(
+                            *first, bytes,
+                            "tile {} accepted with other bytes than before",
+                            l.tile_index
+                        );
+                    }
+                }
+                Op::Fail(n) if !held.is_empty() => {
+                    let l = &held[n as usize % held.len()];
+                    assert_not_internal(&c.fail_lease(l.lease, "injected"));
+                }
+                Op::Advance(s) => {
+                    tokio::time::advance(Duration::from_secs(s as u64)).await;
+                    c.expire_leases();
+                }
+                Op::Restart => {
+                    drop(c);
+                    c = open(&data);
+                }
+                _ => {}
+            }
+            // Done tiles are exactly the tiles accepted, restarts or not.
+            assert_eq!(c.status(job).unwrap().tiles_done as usize, accepted.len());
+        }
+        // A healthy worker drives the job to its end.
+        for _ in 0..100 {
+            if c.status(job).unwrap().state != JobState::Running {
+                break;
+            }
+            tokio::time::advance(TTL * 2).await;
+            c.expire_leases();
+            while let Ok(Some(l)) = c.lease("healthy") {
+                let right = tile_bytes(&l, l.tile_index as f32);
+                let digest = crate::bundle::digest_of(&right);
+                let r = upload(&c, &l, right.clone(), digest).await;
+                assert_not_internal(&r);
+                if r.is_ok() {
+                    let first = accepted.entry(l.tile_index).or_insert_with(|| right.clone());
+                    assert_eq!(*first, right);
+                }
+            }
+        }
+        let s = c.status(job).unwrap();
+        match s.state {
+            JobState::Done => {
+                let frame = kiln_image::decode_exr(&c.result(job).await.unwrap()).unwrap();
+                assert_eq!(accepted.len() as u32, s.tiles_total, "every tile accepted");
+                for (idx, bytes) in &accepted {
+                    let tile = kiln_image::decode_exr(bytes).unwrap();
+                    for y in 0..tile.height {
+                        for x in 0..tile.width {
+                            assert_eq!(
+                                frame.get(tile.x0 + x, tile.y0 + y),
+                                tile.get(x, y),
+                                "tile {idx}"
+                            );
+                        }
+                    }
+                }
+            }
+            JobState::Failed => {
+                let error = s.error.unwrap_or_default();
+                assert!(error.contains("failed 3 times"), "{error}");
+            }
+            other => panic!("the job ended {other:?}"),
+        }
+    });
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn no_tile_is_lost_or_accepted_twice_with_other_bytes(ops in prop::collection::vec(op(), 0..60)) {
+        run(ops);
+    }
+}
