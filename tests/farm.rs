@@ -647,3 +647,93 @@ fn a_medium_too_dense_to_track_fails_its_job_with_the_reason() {
     let error = s.error.unwrap();
     assert!(error.contains("tracking steps in a medium"), "{error}");
 }
+
+/// Waits until the worker's log holds `words`; panics after `limit`.
+fn wait_for_log(log: &Path, words: &str, limit: Duration) -> String {
+    let start = Instant::now();
+    loop {
+        let text = std::fs::read_to_string(log).unwrap_or_default();
+        if text.contains(words) {
+            return text;
+        }
+        assert!(
+            start.elapsed() < limit,
+            "no '{words}' in {limit:?}:\n{text}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Waits until the coordinator at `url` has issued `n` leases.
+fn wait_for_leases(rt: &tokio::runtime::Runtime, url: &str, n: u64) {
+    let start = Instant::now();
+    let want = format!("kiln_leases_issued_total {n}");
+    loop {
+        let text = rt
+            .block_on(async { reqwest::get(format!("{url}/metrics")).await?.text().await })
+            .unwrap_or_default();
+        if text.lines().any(|l| l.trim() == want) {
+            return;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no lease {n}:\n{text}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A tile that would take minutes (one 64x64 tile at 16,384 spp). Cancelling its job stops
+/// the worker mid-tile: its next heartbeat is refused and the render stops between pixels.
+/// A worker told twice to stop leaves at once and gives its tile back, which is lent
+/// again straight away.
+#[test]
+fn cancel_and_a_second_sigterm_reach_a_worker_mid_tile() {
+    const ONE_LONG_TILE: &[&str] = &["--spp", "16384", "--resolution", "64x64", "--tile", "64"];
+    let dir = tempfile::tempdir().unwrap();
+    let coord = start_coordinator(&dir.path().join("data"), free_port());
+    let client = Client::new(&coord.url, None);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let log = dir.path().join("w.log");
+    let _w = start_worker(&coord.url, "w", &dir.path().join("cache"), &log);
+    let id = submit(&coord.url, &scene("mis/scene.pbrt"), ONE_LONG_TILE);
+    wait_for_leases(&rt, &coord.url, 1);
+    let start = Instant::now();
+    rt.block_on(client.cancel(id)).unwrap();
+    wait_for_log(&log, "abandoned part way", Duration::from_secs(10));
+    assert!(start.elapsed() < Duration::from_secs(10));
+    // Twice SIGTERM: the second stops the render, and the tile is given back. (Another
+    // seed: the same settings again would be the cancelled job, as submits are idempotent.)
+    let id = submit(
+        &coord.url,
+        &scene("mis/scene.pbrt"),
+        &[ONE_LONG_TILE, &["--seed", "2"]].concat(),
+    );
+    let log2 = dir.path().join("w2.log");
+    let mut w2 = start_worker(&coord.url, "w2", &dir.path().join("cache2"), &log2);
+    wait_for_leases(&rt, &coord.url, 2);
+    for _ in 0..2 {
+        let term = std::process::Command::new("kill")
+            .args(["-TERM", &w2.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(term.success());
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = w2.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "the worker did not leave"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}");
+    let s = rt.block_on(client.status(id)).unwrap();
+    assert_eq!((s.state, s.tiles_done), (JobState::Running, 0));
+    assert!(s.failures >= 1, "the tile was given back: {s:?}");
+    rt.block_on(client.cancel(id)).unwrap();
+}

@@ -8,7 +8,7 @@ use kiln_farm::coordinator::{self, Config, Coordinator};
 use kiln_farm::worker::{self, WorkerConfig};
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 fn runtime() -> Result<tokio::runtime::Runtime> {
@@ -125,12 +125,17 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
         give_up_after: Duration::from_secs_f64(args.give_up_after.max(0.0)),
     };
     rt.block_on(async move {
-        let stop = Arc::new(AtomicBool::new(false));
+        let stop = Arc::new(worker::Stop::default());
         let flag = stop.clone();
+        let who = name.clone();
         tokio::spawn(async move {
             shutdown_signal().await;
-            // Finish the tile in hand, then leave.
-            flag.store(true, Ordering::SeqCst);
+            // Finish the tile in hand, then leave; a second signal leaves at once, giving
+            // the tile back.
+            flag.after_tile.store(true, Ordering::SeqCst);
+            eprintln!("kiln worker {who}: stopping after this tile (signal again to stop now)");
+            shutdown_signal().await;
+            flag.now.store(true, Ordering::SeqCst);
         });
         eprintln!("kiln worker {name}: {threads} threads");
         let n = worker::run(config, stop).await?;

@@ -84,6 +84,14 @@ impl Client {
         Ok(self.send(r).await?.json::<JobCreated>().await?.id)
     }
 
+    /// Cancels a job: its tiles are lent no more, and workers rendering one stop.
+    pub async fn cancel(&self, job: u64) -> Result<JobStatus> {
+        let r = self
+            .send(self.req(Method::POST, &format!("/v1/jobs/{job}/cancel")))
+            .await?;
+        Ok(r.json().await?)
+    }
+
     pub async fn status(&self, job: u64) -> Result<JobStatus> {
         Ok(self
             .send(self.req(Method::GET, &format!("/v1/jobs/{job}")))

@@ -4,7 +4,7 @@ use crate::api::{JobSpec, Lease};
 use crate::bundle;
 use crate::client::{Client, ClientError};
 use kiln_image::RgbBuffer;
-use kiln_render::{Renderer, TileRect, render_tile};
+use kiln_render::{Renderer, TileRect, render_tile_until};
 use reqwest::StatusCode;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -64,9 +64,18 @@ struct Loaded {
     frame: (u32, u32),
 }
 
-/// Runs until `stop` is set (after finishing the tile in hand) or the coordinator sets
-/// this worker aside. Returns the number of tiles rendered.
-pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, WorkerError> {
+/// When a worker stops.
+#[derive(Debug, Default)]
+pub struct Stop {
+    /// Finish the tile in hand, then leave (a first SIGTERM).
+    pub after_tile: AtomicBool,
+    /// Leave now: the tile in hand is given back to the coordinator (a second SIGTERM).
+    pub now: AtomicBool,
+}
+
+/// Runs until `stop` says so or the coordinator sets this worker aside. Returns the number
+/// of tiles rendered.
+pub async fn run(config: WorkerConfig, stop: Arc<Stop>) -> Result<u64, WorkerError> {
     let client = Client::new(&config.coordinator, config.token.clone());
     let pool = Arc::new(
         rayon::ThreadPoolBuilder::new()
@@ -80,7 +89,7 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Wor
     let mut scenes = Scenes::default();
     let mut rendered = 0u64;
     let mut unreachable_since = None;
-    while !stop.load(Ordering::SeqCst) {
+    while !stop.after_tile.load(Ordering::SeqCst) && !stop.now.load(Ordering::SeqCst) {
         let Some(lease) = next_lease(&client, &config, &mut unreachable_since).await? else {
             continue;
         };
@@ -91,13 +100,17 @@ pub async fn run(config: WorkerConfig, stop: Arc<AtomicBool>) -> Result<u64, Wor
                 continue;
             }
         };
-        match render_and_upload(&client, &pool, &loaded, &lease).await {
-            Ok(()) => {
+        let (name, job, tile) = (&config.name, lease.job, lease.tile_index);
+        match render_and_upload(&client, &pool, &loaded, &lease, &stop).await {
+            Ok(Outcome::Uploaded) => {
                 rendered += 1;
-                eprintln!(
-                    "kiln worker {}: rendered job {} tile {}",
-                    config.name, lease.job, lease.tile_index
-                );
+                eprintln!("kiln worker {name}: rendered job {job} tile {tile}");
+            }
+            Ok(Outcome::Failed(why)) => {
+                eprintln!("kiln worker {name}: job {job} tile {tile} failed: {why}");
+            }
+            Ok(Outcome::Abandoned) => {
+                eprintln!("kiln worker {name}: job {job} tile {tile} abandoned part way");
             }
             Err(e) => tracing::warn!("job {} tile {}: {e}", lease.job, lease.tile_index),
         }
@@ -210,30 +223,53 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
     .map_err(LoadError::Task)?
 }
 
+/// What became of a leased tile.
+enum Outcome {
+    Uploaded,
+    /// The render failed, and the lease with it (the coordinator was told why).
+    Failed(String),
+    /// The render stopped part way: the lease was lost, or the worker was told to leave now.
+    Abandoned,
+}
+
 async fn render_and_upload(
     client: &Client,
     pool: &Arc<rayon::ThreadPool>,
     loaded: &Arc<Loaded>,
     lease: &Lease,
-) -> Result<(), ClientError> {
-    // Heartbeats keep the lease while the tile renders.
+    stop: &Arc<Stop>,
+) -> Result<Outcome, ClientError> {
+    // Heartbeats keep the lease while the tile renders; one the coordinator refuses (the
+    // job was cancelled or has ended, the lease expired) stops the render between pixels.
+    let lost = Arc::new(AtomicBool::new(false));
     let beat = {
         let client = client.clone();
         let id = lease.lease;
+        let lost = lost.clone();
         let every = Duration::from_millis((lease.ttl_ms / 3).max(10));
         tokio::spawn(async move {
             loop {
                 tokio::time::sleep(every).await;
-                if client.heartbeat(id).await.is_err() {
-                    break;
+                match client.heartbeat(id).await {
+                    Ok(()) => {}
+                    Err(e) if e.status().is_some_and(|s| s.is_client_error()) => {
+                        lost.store(true, Ordering::SeqCst);
+                        break;
+                    }
+                    // The coordinator may be restarting: the lease may still be good.
+                    Err(_) => {}
                 }
             }
         })
     };
     let rect = TileRect::from(lease.tile);
-    let (pool, loaded2) = (pool.clone(), loaded.clone());
+    let (pool, loaded2, lost2, stop2) = (pool.clone(), loaded.clone(), lost.clone(), stop.clone());
     let exr = tokio::task::spawn_blocking(move || {
-        let result = pool.install(|| render_tile(&loaded2.renderer, rect));
+        let halt = || lost2.load(Ordering::Relaxed) || stop2.now.load(Ordering::Relaxed);
+        let Some(result) = pool.install(|| render_tile_until(&loaded2.renderer, rect, &halt))
+        else {
+            return Ok(None);
+        };
         if let Some(why) = result.stats.cut_off_error() {
             return Err(why);
         }
@@ -246,22 +282,31 @@ async fn render_and_upload(
             rect.height,
         );
         buffer.pixels = result.pixels;
-        kiln_image::encode_exr(&buffer).map_err(|e| e.to_string())
+        kiln_image::encode_exr(&buffer)
+            .map(Some)
+            .map_err(|e| e.to_string())
     })
     .await;
     beat.abort();
     let exr = match exr {
-        Ok(Ok(bytes)) => bytes,
+        Ok(Ok(Some(bytes))) => bytes,
+        Ok(Ok(None)) => {
+            if !lost.load(Ordering::SeqCst) {
+                // Told to leave now: the tile goes back to be lent again at once.
+                let _ = client.fail(lease.lease, "the worker was stopped").await;
+            }
+            return Ok(Outcome::Abandoned);
+        }
         Ok(Err(e)) => {
             let _ = client.fail(lease.lease, &e.to_string()).await;
-            return Ok(());
+            return Ok(Outcome::Failed(e));
         }
         Err(e) => {
-            let _ = client
-                .fail(lease.lease, &format!("the render panicked: {e}"))
-                .await;
-            return Ok(());
+            let why = format!("the render panicked: {e}");
+            let _ = client.fail(lease.lease, &why).await;
+            return Ok(Outcome::Failed(why));
         }
     };
-    client.upload_tile(lease.lease, exr).await
+    client.upload_tile(lease.lease, exr).await?;
+    Ok(Outcome::Uploaded)
 }

@@ -46,5 +46,5 @@ pub use integrators::{Integrator, PathSettings};
 pub use scene::{BuildError, MediaPolicy, Scene};
 pub use tile::{
     RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, render_pixel, render_tile,
-    split_into_tiles,
+    render_tile_until, split_into_tiles,
 };

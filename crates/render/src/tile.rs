@@ -189,27 +189,38 @@ pub struct TileResult {
 /// Renders one tile. The result depends only on the scene, the settings and the
 /// tile's pixels: not on the tile's size, its neighbours, or the thread count.
 pub fn render_tile(renderer: &Renderer, rect: TileRect) -> TileResult {
-    let rows: Vec<(Vec<[f32; 3]>, TileStats)> = (rect.y0..rect.y0 + rect.height)
+    render_tile_until(renderer, rect, &|| false).expect("never stopped")
+}
+
+/// [`render_tile`], asking `stop` before each pixel: None as soon as it says yes (a job
+/// cancelled, a lease lost, a worker told to leave). A tile that runs to its end is the
+/// same bytes as [`render_tile`]'s.
+pub fn render_tile_until(
+    renderer: &Renderer,
+    rect: TileRect,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<TileResult> {
+    let rows: Option<Vec<(Vec<[f32; 3]>, TileStats)>> = (rect.y0..rect.y0 + rect.height)
         .into_par_iter()
         .map(|y| {
             let mut stats = TileStats::default();
             let row = (rect.x0..rect.x0 + rect.width)
-                .map(|x| render_pixel(renderer, x, y, &mut stats))
-                .collect();
-            (row, stats)
+                .map(|x| (!stop()).then(|| render_pixel(renderer, x, y, &mut stats)))
+                .collect::<Option<Vec<_>>>()?;
+            Some((row, stats))
         })
         .collect();
     let mut pixels = Vec::with_capacity(rect.pixel_count() as usize);
     let mut stats = TileStats::default();
-    for (row, s) in rows {
+    for (row, s) in rows? {
         pixels.extend(row);
         stats.merge(&s);
     }
-    TileResult {
+    Some(TileResult {
         rect,
         pixels,
         stats,
-    }
+    })
 }
 
 /// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean.
