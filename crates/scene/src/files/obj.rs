@@ -8,14 +8,18 @@ use std::path::Path;
 /// Reads every object of an OBJ file into one triangle mesh (materials in the file are ignored:
 /// the scene's current material applies, as for every other shape).
 pub fn read_obj(path: &Path, loc: &Loc) -> Result<TriangleMeshData> {
-    let bytes = read_bytes(path, loc)?;
+    parse_obj(&read_bytes(path, loc)?, path, loc)
+}
+
+/// [`read_obj`] on the file's bytes; `path` names it in errors.
+pub fn parse_obj(bytes: &[u8], path: &Path, loc: &Loc) -> Result<TriangleMeshData> {
     let options = tobj::LoadOptions {
         single_index: true,
         triangulate: true,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _materials) = tobj::load_obj_buf(&mut bytes.as_slice(), &options, |_| {
+    let (models, _materials) = tobj::load_obj_buf(&mut &bytes[..], &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
     .map_err(|e| SceneError::at(loc, format!("OBJ file '{}': {e}", path.display())))?;
