@@ -63,7 +63,9 @@ pub fn parse_voxel_grid(text: &str) -> std::result::Result<VoxelGrid, (usize, St
         ));
     }
     let (nx, ny, nz) = (dims[0] as usize, dims[1] as usize, dims[2] as usize);
-    let mut values = Vec::with_capacity(nx * ny * nz);
+    // Reserve what the header asks for only as far as the text could hold it (a value takes
+    // at least two characters): a short file claiming 4096^3 voxels must not allocate them.
+    let mut values = Vec::with_capacity((nx * ny * nz).min(text.len() / 2));
     let mut count = 0;
     for (line, row) in rows.by_ref() {
         if count == ny * nz {
@@ -104,6 +106,13 @@ pub fn parse_voxel_grid(text: &str) -> std::result::Result<VoxelGrid, (usize, St
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A few bytes that claim 4096^3 voxels are an error, not a 275 GB allocation.
+    #[test]
+    fn a_header_claiming_a_huge_grid_allocates_nothing_for_it() {
+        let err = parse_voxel_grid("4096, 4096, 4096\n1, 2\n").unwrap_err();
+        assert_eq!(err.0, 2, "{err:?}");
+    }
 
     #[test]
     fn voxel_grid_layout_and_errors() {
