@@ -561,22 +561,8 @@ fn sigterm_lets_a_worker_finish_its_tile_and_leave() {
         assert!(start.elapsed() < Duration::from_secs(60));
         std::thread::sleep(Duration::from_millis(10));
     }
-    let term = std::process::Command::new("kill")
-        .args(["-TERM", &w.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(term.success());
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = w.try_wait().unwrap() {
-            break s;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(30),
-            "the worker did not leave after SIGTERM"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    sigterm(&w);
+    let status = wait_exit(&mut w, Duration::from_secs(30));
     assert!(status.success(), "{status:?}");
     let text = std::fs::read_to_string(&log).unwrap();
     assert!(text.contains("stopped after"), "{text}");
@@ -648,6 +634,30 @@ fn a_medium_too_dense_to_track_fails_its_job_with_the_reason() {
     assert!(error.contains("tracking steps in a medium"), "{error}");
 }
 
+/// Sends SIGTERM to a child process (through `kill`, where there is no signal API).
+fn sigterm(child: &Child) {
+    let term = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(term.success());
+}
+
+/// Waits for a child process to exit; panics after `limit`.
+fn wait_exit(child: &mut Child, limit: Duration) -> std::process::ExitStatus {
+    let start = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        assert!(
+            start.elapsed() < limit,
+            "the process did not exit in {limit:?}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 /// Waits until the worker's log holds `words`; panics after `limit`.
 fn wait_for_log(log: &Path, words: &str, limit: Duration) -> String {
     let start = Instant::now();
@@ -713,24 +723,10 @@ fn cancel_and_a_second_sigterm_reach_a_worker_mid_tile() {
     let mut w2 = start_worker(&coord.url, "w2", &dir.path().join("cache2"), &log2);
     wait_for_leases(&rt, &coord.url, 2);
     for _ in 0..2 {
-        let term = std::process::Command::new("kill")
-            .args(["-TERM", &w2.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(term.success());
+        sigterm(&w2);
         std::thread::sleep(Duration::from_millis(200));
     }
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = w2.try_wait().unwrap() {
-            break s;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(10),
-            "the worker did not leave"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let status = wait_exit(&mut w2, Duration::from_secs(10));
     assert!(status.success(), "{status:?}");
     let s = rt.block_on(client.status(id)).unwrap();
     assert_eq!((s.state, s.tiles_done), (JobState::Running, 0));
