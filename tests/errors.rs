@@ -196,3 +196,11 @@ fn huge_frames_and_images_are_refused_before_allocating() {
     );
     assert_names(&err, "scene.pbrt", 3, "100000x100000 pixels is larger than");
 }
+
+/// A photon count whose maps could not fit in memory is refused where it is written.
+#[test]
+fn too_many_caustic_photons() {
+    let (err, _d) =
+        failing("Integrator \"volpath\" \"integer causticphotons\" [ 1000000000 ]\nWorldBegin\n");
+    assert_names(&err, "scene.pbrt", 1, "causticphotons must be 0 to 5*10^7");
+}

@@ -373,10 +373,11 @@ impl Parser {
         // Kiln's caustic photon maps (seeds 003 and 004), off unless asked for.
         let caustic_photons = params.int("causticphotons", 0)?;
         let caustic_radius = params.float("causticradius", 0.0)? as f32;
-        if !(0..=1_000_000_000).contains(&caustic_photons) || caustic_radius < 0.0 {
+        // Each stored photon takes 64 bytes: 5 * 10^7 of them is at most 3.2 GB.
+        if !(0..=50_000_000).contains(&caustic_photons) || caustic_radius < 0.0 {
             return Err(SceneError::at(
                 loc,
-                "Integrator: causticphotons must be 0 to 10^9 and causticradius not negative",
+                "Integrator: causticphotons must be 0 to 5*10^7 (each stored photon takes 64 bytes) and causticradius not negative",
             ));
         }
         self.check_unused(params, "Integrator", &["regularize"])?;
