@@ -965,3 +965,35 @@ async fn damage_is_reported_and_the_rest_of_the_coordinator_serves() {
     );
     drop(dir);
 }
+
+/// A job's scene is a digest of an uploaded bundle, nothing else: a path, even one that
+/// names a folder with a scene marker, is no scene.
+#[tokio::test]
+async fn a_job_scene_must_be_a_digest() {
+    let f = farm(None);
+    submit(&f, 8, 8, 8).await;
+    let digest = f.c.lock().jobs.values().next().unwrap().spec.scene.clone();
+    for scene in [
+        format!("{digest}/.."),
+        format!("../scenes/{digest}"),
+        "..".to_string(),
+        "/etc".to_string(),
+        digest.to_uppercase() + "x",
+    ] {
+        let spec = JobSpec {
+            scene: scene.clone(),
+            spp: Some(1),
+            resolution: None,
+            tile: 8,
+            seed: None,
+        };
+        let body = serde_json::to_vec(&spec).unwrap();
+        let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
+        assert!(status.is_client_error(), "{scene}: {status}");
+        assert!(
+            error_of(&body).contains("no scene"),
+            "{scene}: {}",
+            error_of(&body)
+        );
+    }
+}
