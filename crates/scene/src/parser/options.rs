@@ -63,7 +63,7 @@ impl Parser {
 
     pub(super) fn camera(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_options(loc, "Camera")?;
-        self.camera_medium = self.medium_id(&self.gs.media.1.clone());
+        self.camera_medium = self.medium_id(&self.gs.media.1);
         let camera_from_world = self.gs.ctm;
         let camera_to_world = camera_from_world.inverse();
         if !camera_to_world.is_finite() {

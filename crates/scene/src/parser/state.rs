@@ -23,7 +23,7 @@ pub(super) struct GraphicsState {
     pub(super) reverse_orientation: bool,
     pub(super) material: MaterialId,
     pub(super) area_light: Option<AreaLightDesc>,
-    /// Names of the current inside and outside media ("" is vacuum), with where they were set.
+    /// Names of the current inside and outside media ("" is vacuum).
     pub(super) media: (String, String),
 }
 
