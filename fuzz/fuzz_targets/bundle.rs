@@ -6,6 +6,11 @@ fuzz_target!(|data: &[u8]| {
     if kiln_farm::bundle::entries(data).is_ok() {
         let dir = tempfile::tempdir().unwrap();
         let digest = kiln_farm::bundle::digest_of(data);
-        let _ = kiln_farm::bundle::unpack_into_cache(data, &digest, dir.path(), true);
+        let _ = kiln_farm::bundle::unpack_into_cache(
+            kiln_farm::bundle::Source::Bytes(data),
+            &digest,
+            dir.path(),
+            true,
+        );
     }
 });

@@ -9,6 +9,7 @@
 //! [`unpack_into_cache`]: a subfolder is complete once its [`SCENE_MARKER`] exists.
 
 use sha2::{Digest, Sha256};
+use std::io::{Cursor, Read, Seek, SeekFrom};
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -155,57 +156,111 @@ fn check_names(names: &[&Path]) -> Result<(), BundleError> {
 }
 
 /// The entries of a bundle: (relative path, data). Checks the structure, never panics.
-pub fn entries(bytes: &[u8]) -> Result<Vec<(PathBuf, &[u8])>, BundleError> {
+/// Where a bundle's bytes are: in memory (a download), or in a file (an upload streamed
+/// to disk, so that a large bundle is never held in memory whole).
+#[derive(Debug, Clone, Copy)]
+pub enum Source<'a> {
+    Bytes(&'a [u8]),
+    File(&'a Path),
+}
+
+/// A bundle's entries: each path, with where its contents lie (offset, length).
+type Index = Vec<(PathBuf, u64, u64)>;
+
+/// Reads a bundle's table of entries from `r` (`len` bytes long), checking every name and
+/// that the entries exactly fill it, without reading their contents.
+fn index(r: &mut (impl Read + Seek), len: u64) -> Result<Index, BundleError> {
     let corrupt = |m: &str| BundleError::Corrupt(m.to_string());
-    if bytes.len() < 12 || &bytes[..8] != MAGIC {
+    let truncated = |_| corrupt("it is truncated");
+    let mut head = [0u8; 12];
+    if len < 12 || r.read_exact(&mut head).is_err() || &head[..8] != MAGIC {
         return Err(corrupt("it does not start with KILNBDL1"));
     }
-    let count = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
-    let mut pos = 12;
+    let count = u32::from_le_bytes(head[8..12].try_into().unwrap());
+    let mut pos = 12u64;
     let mut out = Vec::new();
-    let take = |pos: &mut usize, n: usize| -> Result<&[u8], BundleError> {
-        let end = pos
-            .checked_add(n)
-            .filter(|&e| e <= bytes.len())
-            .ok_or_else(|| corrupt("it is truncated"))?;
-        let s = &bytes[*pos..end];
-        *pos = end;
-        Ok(s)
-    };
     for _ in 0..count {
-        let n = u16::from_le_bytes(take(&mut pos, 2)?.try_into().unwrap()) as usize;
-        let rel =
-            std::str::from_utf8(take(&mut pos, n)?).map_err(|_| corrupt("a path is not UTF-8"))?;
+        let mut n = [0u8; 2];
+        r.read_exact(&mut n).map_err(truncated)?;
+        let n = u16::from_le_bytes(n);
+        if pos + 2 + u64::from(n) + 8 > len {
+            return Err(corrupt("it is truncated"));
+        }
+        let mut name = vec![0u8; usize::from(n)];
+        r.read_exact(&mut name).map_err(truncated)?;
+        let rel = std::str::from_utf8(&name).map_err(|_| corrupt("a path is not UTF-8"))?;
         let path = safe_relative(rel)
             .ok_or_else(|| BundleError::Corrupt(format!("path '{rel}' escapes the bundle")))?;
-        let len = u64::from_le_bytes(take(&mut pos, 8)?.try_into().unwrap()) as usize;
-        out.push((path, take(&mut pos, len)?));
+        let mut size = [0u8; 8];
+        r.read_exact(&mut size).map_err(truncated)?;
+        let size = u64::from_le_bytes(size);
+        pos += 2 + u64::from(n) + 8;
+        if size > len - pos {
+            return Err(corrupt("it is truncated"));
+        }
+        out.push((path, pos, size));
+        pos += size;
+        r.seek(SeekFrom::Start(pos)).map_err(truncated)?;
     }
-    if pos != bytes.len() {
+    if pos != len {
         return Err(corrupt("it has bytes after its last entry"));
     }
     if out.is_empty() {
         return Err(corrupt("it has no scene file"));
     }
-    check_names(&out.iter().map(|(p, _)| p.as_path()).collect::<Vec<_>>())?;
+    check_names(&out.iter().map(|(p, _, _)| p.as_path()).collect::<Vec<_>>())?;
     Ok(out)
+}
+
+pub fn entries(bytes: &[u8]) -> Result<Vec<(PathBuf, &[u8])>, BundleError> {
+    let index = index(&mut Cursor::new(bytes), bytes.len() as u64)?;
+    Ok(index
+        .into_iter()
+        .map(|(path, at, len)| (path, &bytes[at as usize..(at + len) as usize]))
+        .collect())
 }
 
 /// Unpacks a bundle into `dir` (created) and returns the path of its scene file.
 pub fn unpack(bytes: &[u8], dir: &Path) -> Result<PathBuf, BundleError> {
-    let entries = entries(bytes)?;
+    unpack_from(Source::Bytes(bytes), dir)
+}
+
+/// [`unpack`] from either kind of [`Source`]: a file's entries are copied from it piece by
+/// piece.
+fn unpack_from(source: Source, dir: &Path) -> Result<PathBuf, BundleError> {
     let io = |path: &Path, source| BundleError::Io {
         path: path.to_path_buf(),
         source,
     };
-    for (rel, data) in &entries {
+    let write = |rel: &Path, contents: &mut dyn Read| {
         let path = dir.join(rel);
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
         }
-        std::fs::write(&path, data).map_err(|e| io(&path, e))?;
-    }
-    Ok(dir.join(&entries[0].0))
+        let mut out = std::fs::File::create(&path).map_err(|e| io(&path, e))?;
+        std::io::copy(contents, &mut out).map_err(|e| io(&path, e))?;
+        Ok::<_, BundleError>(())
+    };
+    let index = match source {
+        Source::Bytes(bytes) => {
+            let index = index(&mut Cursor::new(bytes), bytes.len() as u64)?;
+            for (rel, at, len) in &index {
+                write(rel, &mut &bytes[*at as usize..(*at + *len) as usize])?;
+            }
+            index
+        }
+        Source::File(file) => {
+            let mut f = std::fs::File::open(file).map_err(|e| io(file, e))?;
+            let len = f.metadata().map_err(|e| io(file, e))?.len();
+            let index = index(&mut std::io::BufReader::new(&mut f), len)?;
+            for (rel, at, size) in &index {
+                f.seek(SeekFrom::Start(*at)).map_err(|e| io(file, e))?;
+                write(rel, &mut (&mut f).take(*size))?;
+            }
+            index
+        }
+    };
+    Ok(dir.join(&index[0].0))
 }
 
 /// Whether `text` has the form of a digest (hexadecimal), and so is safe as a folder name.
@@ -231,7 +286,7 @@ pub fn cached_scene(cache: &Path, digest: &str) -> Option<PathBuf> {
 /// same bundle at once both succeed. A folder left without a marker (by an older layout) is
 /// replaced. With `keep_bundle` the bundle's bytes are kept too, as [`BUNDLE_FILE`].
 pub fn unpack_into_cache(
-    bytes: &[u8],
+    source: Source,
     digest: &str,
     cache: &Path,
     keep_bundle: bool,
@@ -253,13 +308,17 @@ pub fn unpack_into_cache(
         UNIQUE.fetch_add(1, Ordering::Relaxed)
     ));
     let result = (|| {
-        let scene = unpack(bytes, &tmp)?;
+        let scene = unpack_from(source, &tmp)?;
         let rel = scene
             .strip_prefix(&tmp)
             .expect("unpack writes inside its folder");
         if keep_bundle {
             let path = tmp.join(BUNDLE_FILE);
-            std::fs::write(&path, bytes).map_err(|e| io(&path, e))?;
+            match source {
+                Source::Bytes(bytes) => std::fs::write(&path, bytes).map(|_| ()),
+                Source::File(file) => std::fs::copy(file, &path).map(|_| ()),
+            }
+            .map_err(|e| io(&path, e))?;
         }
         let marker = tmp.join(SCENE_MARKER);
         std::fs::write(&marker, rel.to_string_lossy().as_bytes()).map_err(|e| io(&marker, e))?;
@@ -344,7 +403,7 @@ mod tests {
         let cache = dir.join("cache");
         std::fs::create_dir_all(&cache).unwrap();
         assert_eq!(cached_scene(&cache, &b.digest), None);
-        let scene = unpack_into_cache(&b.bytes, &b.digest, &cache, true).unwrap();
+        let scene = unpack_into_cache(Source::Bytes(&b.bytes), &b.digest, &cache, true).unwrap();
         assert_eq!(scene, cache.join(&b.digest).join("scene.pbrt"));
         assert_eq!(cached_scene(&cache, &b.digest), Some(scene.clone()));
         assert!(kiln_scene::load_file(&scene).is_ok());
@@ -355,7 +414,7 @@ mod tests {
         // A second unpack finds it and writes nothing; no temporary folder is left.
         std::fs::write(cache.join(&b.digest).join("models/inc.pbrt"), "# kept\n").unwrap();
         assert_eq!(
-            unpack_into_cache(&b.bytes, &b.digest, &cache, true).unwrap(),
+            unpack_into_cache(Source::Bytes(&b.bytes), &b.digest, &cache, true).unwrap(),
             scene
         );
         assert_eq!(
@@ -369,7 +428,7 @@ mod tests {
         assert_eq!(names, [b.digest.as_str()]);
         // Without keep_bundle only the scene's files and the marker are written.
         let other = dir.join("other");
-        unpack_into_cache(&b.bytes, &b.digest, &other, false).unwrap();
+        unpack_into_cache(Source::Bytes(&b.bytes), &b.digest, &other, false).unwrap();
         assert!(!other.join(&b.digest).join(BUNDLE_FILE).exists());
         std::fs::remove_dir_all(&dir).ok();
     }
@@ -382,15 +441,15 @@ mod tests {
         std::fs::create_dir_all(cache.join(&b.digest)).unwrap();
         std::fs::write(cache.join(&b.digest).join(".kiln-scene"), "scene.pbrt").unwrap();
         assert_eq!(cached_scene(&cache, &b.digest), None);
-        let scene = unpack_into_cache(&b.bytes, &b.digest, &cache, false).unwrap();
+        let scene = unpack_into_cache(Source::Bytes(&b.bytes), &b.digest, &cache, false).unwrap();
         assert_eq!(cached_scene(&cache, &b.digest), Some(scene));
         assert!(!cache.join(&b.digest).join(".kiln-scene").exists());
         // A corrupt bundle or a digest that is not one writes nothing.
         let bad = dir.join("bad");
         std::fs::create_dir_all(&bad).unwrap();
         let cut = &b.bytes[..b.bytes.len() - 3];
-        assert!(unpack_into_cache(cut, "abc", &bad, false).is_err());
-        assert!(unpack_into_cache(&b.bytes, "../escape", &bad, false).is_err());
+        assert!(unpack_into_cache(Source::Bytes(cut), "abc", &bad, false).is_err());
+        assert!(unpack_into_cache(Source::Bytes(&b.bytes), "../escape", &bad, false).is_err());
         assert_eq!(cached_scene(&bad, "../escape"), None);
         assert_eq!(std::fs::read_dir(&bad).unwrap().count(), 0);
         std::fs::remove_dir_all(&dir).ok();

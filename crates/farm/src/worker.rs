@@ -199,7 +199,7 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
             }
             let cache = config.cache_dir.clone();
             tokio::task::spawn_blocking(move || {
-                bundle::unpack_into_cache(&bytes, &digest, &cache, false)
+                bundle::unpack_into_cache(bundle::Source::Bytes(&bytes), &digest, &cache, false)
             })
             .await
             .map_err(LoadError::Task)?

@@ -49,6 +49,10 @@ pub enum Error {
     StaleTile(u64),
     #[error("job {0} is no longer running")]
     JobEnded(u64),
+    #[error("the upload is larger than the {limit} bytes this coordinator accepts")]
+    TooLarge { limit: usize },
+    #[error("the upload broke off: {0}")]
+    BrokenUpload(String),
     #[error("a tile upload must give the SHA-256 of its bytes in the X-Kiln-Tile-SHA256 header")]
     NoTileDigest,
     #[error("rejected tile: {0}")]

@@ -21,13 +21,10 @@ use tokio::sync::broadcast;
 
 /// The coordinator's HTTP routes.
 pub fn app(c: Coordinator) -> Router {
-    let max_scene = c.config().max_scene_bytes;
     let max_tile = c.config().max_tile_bytes;
     let api = Router::new()
-        .route(
-            "/v1/scenes",
-            post(upload_scene).layer(DefaultBodyLimit::max(max_scene)),
-        )
+        // Streamed to disk, and limited as it streams (save_scene_stream).
+        .route("/v1/scenes", post(upload_scene))
         .route("/v1/scenes/{digest}", get(download_scene))
         .route("/v1/jobs", post(create_job).get(list_jobs))
         .route("/v1/jobs/{id}", get(get_job))
@@ -89,6 +86,7 @@ impl Error {
     fn status(&self) -> StatusCode {
         match self {
             Error::Unauthorized => StatusCode::UNAUTHORIZED,
+            Error::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             Error::NoRoute | Error::UnknownScene(_) | Error::UnknownJob(_) => StatusCode::NOT_FOUND,
             Error::BadId(_)
             | Error::BadBody(_)
@@ -96,6 +94,7 @@ impl Error {
             | Error::BadBundle(_)
             | Error::BadDigest
             | Error::NoTileDigest
+            | Error::BrokenUpload(_)
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
             Error::Unplannable(_) => StatusCode::UNPROCESSABLE_ENTITY,
             Error::NotDone { .. } | Error::UnknownLease(_) | Error::StaleTile(_) => {
@@ -157,9 +156,9 @@ fn parse_json<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, Error> {
 
 async fn upload_scene(
     State(c): State<Coordinator>,
-    body: Bytes,
+    body: axum::body::Body,
 ) -> Result<Json<SceneUploaded>, Error> {
-    let digest = c.save_scene(body).await?;
+    let digest = c.save_scene_stream(body).await?;
     Ok(Json(SceneUploaded { digest }))
 }
 

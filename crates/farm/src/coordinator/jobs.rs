@@ -16,6 +16,62 @@ impl Coordinator {
         tokio::task::spawn_blocking(move || files.save_bundle(&bundle)).await?
     }
 
+    /// Keeps a scene bundle as it arrives: the body is written to a file and hashed chunk by
+    /// chunk, refused past the configured size as soon as it passes it, and unpacked from
+    /// the file, so no upload is ever held in memory whole. Nothing is left of a refused
+    /// or broken upload.
+    pub async fn save_scene_stream(&self, body: axum::body::Body) -> Result<String, Error> {
+        use sha2::{Digest, Sha256};
+        use tokio::io::AsyncWriteExt;
+        use tokio_stream::StreamExt;
+        let files = self.files().clone();
+        let limit = self.config().max_scene_bytes;
+        let path = files.upload_path();
+        let received = async {
+            let mut file = tokio::fs::File::create(&path)
+                .await
+                .map_err(|e| Error::io(&path, e))?;
+            let (mut hasher, mut total) = (Sha256::new(), 0usize);
+            let mut chunks = body.into_data_stream();
+            while let Some(chunk) = chunks.next().await {
+                let chunk = chunk.map_err(|e| Error::BrokenUpload(e.to_string()))?;
+                total += chunk.len();
+                if total > limit {
+                    return Err(Error::TooLarge { limit });
+                }
+                hasher.update(&chunk);
+                file.write_all(&chunk)
+                    .await
+                    .map_err(|e| Error::io(&path, e))?;
+            }
+            file.flush().await.map_err(|e| Error::io(&path, e))?;
+            Ok::<_, Error>(
+                hasher
+                    .finalize()
+                    .iter()
+                    .map(|b| format!("{b:02x}"))
+                    .collect::<String>(),
+            )
+        }
+        .await;
+        let saved = match received {
+            Ok(digest) => {
+                let (files, path2) = (files.clone(), path.clone());
+                tokio::task::spawn_blocking(move || {
+                    files
+                        .save_bundle_from(crate::bundle::Source::File(&path2), &digest)
+                        .map(|()| digest)
+                })
+                .await
+                .map_err(Error::from)
+                .and_then(|r| r)
+            }
+            Err(e) => Err(e),
+        };
+        let _ = tokio::fs::remove_file(&path).await;
+        saved
+    }
+
     /// A kept scene bundle's bytes.
     pub async fn scene_bundle(&self, digest: &str) -> Result<Vec<u8>, Error> {
         self.files().bundle(digest).await

@@ -48,6 +48,14 @@ impl DataDir {
         Ok(ids)
     }
 
+    /// A private file name for an upload in progress (beside the bundles it becomes one of).
+    pub fn upload_path(&self) -> PathBuf {
+        static UNIQUE: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = UNIQUE.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.scenes()
+            .join(format!(".upload.{}.{n}", std::process::id()))
+    }
+
     pub fn result_path(&self, job: u64) -> PathBuf {
         self.root
             .join("jobs")
@@ -59,8 +67,15 @@ impl DataDir {
     /// returns its digest. Blocking.
     pub fn save_bundle(&self, bytes: &[u8]) -> Result<String, Error> {
         let digest = bundle::digest_of(bytes);
-        match bundle::unpack_into_cache(bytes, &digest, &self.scenes(), true) {
-            Ok(_) => Ok(digest),
+        self.save_bundle_from(bundle::Source::Bytes(bytes), &digest)?;
+        Ok(digest)
+    }
+
+    /// Keeps a bundle whose digest is known (an upload hashed as it streamed to disk).
+    /// Blocking.
+    pub fn save_bundle_from(&self, source: bundle::Source, digest: &str) -> Result<(), Error> {
+        match bundle::unpack_into_cache(source, digest, &self.scenes(), true) {
+            Ok(_) => Ok(()),
             Err(e @ bundle::BundleError::Corrupt(_)) => Err(Error::BadBundle(e)),
             Err(e) => Err(Error::Unpack(e)),
         }

@@ -803,6 +803,9 @@ async fn every_error_answer_is_json() {
             .unwrap();
         assert!(!error_of(&body).is_empty(), "{method} {uri}");
     }
+    // The refused upload streamed to disk left nothing behind.
+    let scenes = dir.path().join("data").join("scenes");
+    assert_eq!(std::fs::read_dir(&scenes).unwrap().count(), 0);
 }
 
 /// Bundles whose entry names the file system would refuse (a file that is also a folder, a
