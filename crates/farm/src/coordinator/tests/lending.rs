@@ -1,0 +1,289 @@
+//! Lending tiles: leases, heartbeats, expiry on the paused clock, uploads right, stale, damaged and hostile, and lease ids across restarts.
+
+use super::*;
+
+#[tokio::test]
+async fn tiles_go_from_lease_to_upload_to_a_finished_job() {
+    let f = farm(None);
+    let job = submit(&f, 32, 16, 16).await;
+    let frame = (32, 16);
+    let a = lease(&f.app, "w").await.expect("two tiles to lend");
+    let b = lease(&f.app, "w").await.expect("two tiles to lend");
+    assert_eq!((a.job, b.job), (job, job));
+    assert_ne!(a.tile_index, b.tile_index);
+    assert_eq!(a.ttl_ms, TTL.as_millis() as u64);
+    assert!(lease(&f.app, "w").await.is_none(), "both tiles are lent");
+    let (tile_a, tile_b) = (tile_of(&a, frame, 0.25), tile_of(&b, frame, 4.0));
+    let (status, body) = upload(&f.app, b.lease, exr(&tile_b)).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let s = job_status(&f.app, job).await;
+    assert_eq!(
+        (s.state, s.tiles_done, s.tiles_total),
+        (JobState::Running, 1, 2)
+    );
+    assert_eq!(s.progress, 0.5);
+    let (status, _) = upload(&f.app, a.lease, exr(&tile_a)).await;
+    assert_eq!(status, StatusCode::OK);
+    // The last upload is answered once the frame is written.
+    let s = job_status(&f.app, job).await;
+    assert_eq!(
+        (s.state, s.tiles_done, s.progress),
+        (JobState::Done, 2, 1.0)
+    );
+    assert!(s.merge_seconds.is_some());
+    let (status, body) = call(
+        &f.app,
+        "GET",
+        &format!("/v1/jobs/{job}/result.exr"),
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    let mut expected = RgbBuffer::new(32, 16, 0, 0, 32, 16);
+    expected.paste(&tile_a).unwrap();
+    expected.paste(&tile_b).unwrap();
+    assert_eq!(
+        body,
+        exr(&expected),
+        "the merged EXR is the tiles' frame, byte for byte"
+    );
+    let m = metrics(&f.app).await;
+    for line in [
+        "kiln_leases_issued_total 2\n",
+        "kiln_tiles_accepted_total 2\n",
+        "kiln_jobs{state=\"done\"} 1\n",
+        "kiln_leases_active 0\n",
+    ] {
+        assert!(m.contains(line), "{line} in\n{m}");
+    }
+    // The lease is spent: a heartbeat on it is a conflict.
+    assert_eq!(heartbeat(&f.app, a.lease).await, StatusCode::CONFLICT);
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_lease_expires_after_its_ttl_and_its_tile_is_lent_again() {
+    let f = farm(None);
+    let job = submit(&f, 32, 16, 32).await;
+    let first = lease(&f.app, "slow").await.expect("one tile");
+    assert!(lease(&f.app, "other").await.is_none());
+    // Just before the deadline a heartbeat renews the lease for another ttl.
+    tokio::time::advance(TTL - Duration::from_millis(1)).await;
+    f.c.expire_leases();
+    assert_eq!(heartbeat(&f.app, first.lease).await, StatusCode::NO_CONTENT);
+    tokio::time::advance(TTL).await;
+    f.c.expire_leases();
+    assert!(
+        lease(&f.app, "other").await.is_none(),
+        "due at the renewed deadline, not before"
+    );
+    tokio::time::advance(Duration::from_millis(1)).await;
+    f.c.expire_leases();
+    let again = lease(&f.app, "other")
+        .await
+        .expect("the expired tile is lent again");
+    assert_eq!((again.job, again.tile_index), (job, first.tile_index));
+    assert_ne!(again.lease, first.lease);
+    assert_eq!(heartbeat(&f.app, first.lease).await, StatusCode::CONFLICT);
+    assert!(
+        metrics(&f.app)
+            .await
+            .contains("kiln_leases_expired_total 1\n")
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn serve_s_expiry_loop_expires_leases_on_the_paused_clock() {
+    let f = farm(None);
+    submit(&f, 32, 16, 32).await;
+    let expirer = tokio::spawn(crate::coordinator::expire_leases_every_tick(f.c.clone()));
+    let first = lease(&f.app, "w").await.unwrap();
+    // The loop ticks every ttl/4; sleeping on the paused clock (which jumps to each
+    // timer) lets it run.
+    tokio::time::sleep(TTL).await;
+    assert!(
+        lease(&f.app, "w").await.is_none(),
+        "not expired at its deadline"
+    );
+    tokio::time::sleep(TTL / 2).await;
+    let again = lease(&f.app, "w").await.expect("expired by the loop");
+    assert_eq!(again.tile_index, first.tile_index);
+    expirer.abort();
+}
+
+#[tokio::test(start_paused = true)]
+async fn an_upload_under_an_expired_lease_is_kept_only_if_it_is_the_tile_kept() {
+    let f = farm(None);
+    let job = submit(&f, 32, 16, 16).await;
+    let frame = (32, 16);
+    let late = lease(&f.app, "late").await.unwrap();
+    tokio::time::advance(TTL + Duration::from_millis(1)).await;
+    f.c.expire_leases();
+    let on_time = lease(&f.app, "on-time").await.unwrap();
+    assert_eq!(on_time.tile_index, late.tile_index, "lost tiles go first");
+    let tile = tile_of(&late, frame, 1.5);
+    // Before anyone delivered the tile, a late upload conflicts.
+    let (status, body) = upload(&f.app, late.lease, exr(&tile)).await;
+    assert_eq!(status, StatusCode::CONFLICT);
+    assert_eq!(
+        error_of(&body),
+        format!(
+            "lease {} has expired or is unknown, and the tile differs from the one kept",
+            late.lease
+        )
+    );
+    let (status, _) = upload(&f.app, on_time.lease, exr(&tile)).await;
+    assert_eq!(status, StatusCode::OK);
+    // The same bytes late are fine (the worker finished anyway); other bytes are not.
+    assert_eq!(
+        upload(&f.app, late.lease, exr(&tile)).await.0,
+        StatusCode::OK
+    );
+    let other = tile_of(&late, frame, 2.5);
+    assert_eq!(
+        upload(&f.app, late.lease, exr(&other)).await.0,
+        StatusCode::CONFLICT
+    );
+    let (status, body) = upload(&f.app, late.lease, b"garbage".to_vec()).await;
+    assert_eq!(status, StatusCode::CONFLICT);
+    assert_eq!(
+        error_of(&body),
+        format!("lease {} has expired or is unknown", late.lease)
+    );
+    // None of it counted as a failure or a second acceptance.
+    let s = job_status(&f.app, job).await;
+    assert_eq!(
+        (s.tiles_done, s.failures, s.state),
+        (1, 0, JobState::Running)
+    );
+    assert!(
+        metrics(&f.app)
+            .await
+            .contains("kiln_tiles_accepted_total 1\n")
+    );
+}
+
+#[tokio::test]
+async fn a_rejected_upload_counts_as_a_failed_attempt_and_the_tile_is_lent_again() {
+    let f = farm(None);
+    let job = submit(&f, 32, 16, 32).await;
+    let first = lease(&f.app, "w").await.unwrap();
+    let mut nan = tile_of(&first, (32, 16), 1.0);
+    nan.pixels[3] = [f32::NAN, 0.0, 0.0];
+    let (status, body) = upload(&f.app, first.lease, exr(&nan)).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(
+        error_of(&body),
+        "rejected tile: the tile has NaN or infinite pixels"
+    );
+    let second = lease(&f.app, "w").await.expect("lent again");
+    assert_eq!(second.tile_index, first.tile_index);
+    let mut wrong = tile_of(&second, (32, 16), 1.0);
+    wrong.frame_width = 64;
+    let (status, body) = upload(&f.app, second.lease, exr(&wrong)).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(
+        error_of(&body).contains("64x16 frame"),
+        "{}",
+        error_of(&body)
+    );
+    let s = job_status(&f.app, job).await;
+    assert_eq!((s.failures, s.state), (2, JobState::Running));
+    assert!(
+        metrics(&f.app)
+            .await
+            .contains("kiln_tiles_rejected_total 2\n")
+    );
+}
+
+/// A flipped bit in an uploaded tile (one the EXR decoder would accept) is caught by the
+/// tile's digest: the upload is refused, the attempt counts as failed, the tile is lent
+/// again, and the merged frame holds the worker's real pixels. An upload without a digest
+/// is refused outright.
+#[tokio::test]
+async fn a_tile_damaged_on_the_way_is_refused_and_lent_again() {
+    let f = farm(None);
+    let job = submit(&f, 16, 16, 16).await;
+    let first = lease(&f.app, "w").await.unwrap();
+    let tile = tile_of(&first, (16, 16), 0.25);
+    let good = exr(&tile);
+    let digest = crate::bundle::digest_of(&good);
+    // One flipped bit, the last one whose file still decodes, to other pixels.
+    let damaged = (0..good.len() * 8)
+        .rev()
+        .map(|bit| {
+            let mut d = good.clone();
+            d[bit / 8] ^= 1 << (bit % 8);
+            d
+        })
+        .find(|d| kiln_image::decode_exr(d).is_ok_and(|t| t.pixels != tile.pixels))
+        .expect("some single-bit damage decodes to other pixels");
+    let (status, body) = upload_with_digest(&f.app, first.lease, damaged, Some(&digest)).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(error_of(&body).contains("SHA-256"), "{}", error_of(&body));
+    let (status, body) = upload_with_digest(&f.app, first.lease, good.clone(), None).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(error_of(&body).contains("X-Kiln-Tile-SHA256"));
+    // The damaged upload ended the lease; the tile is lent again and finishes the job.
+    let again = lease(&f.app, "w").await.unwrap();
+    assert_eq!(again.tile_index, first.tile_index);
+    assert_eq!(upload(&f.app, again.lease, good).await.0, StatusCode::OK);
+    let s = job_status(&f.app, job).await;
+    assert_eq!((s.state, s.failures), (JobState::Done, 1));
+    let (_, body) = call(
+        &f.app,
+        "GET",
+        &format!("/v1/jobs/{job}/result.exr"),
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(kiln_image::decode_exr(&body).unwrap().pixels, tile.pixels);
+}
+
+/// An EXR of a few hundred bytes whose header claims billions of pixels is refused, under
+/// a live lease and under an unknown one, without decoding it; the coordinator goes on.
+#[tokio::test]
+async fn a_tile_claiming_a_huge_image_is_refused_without_decoding_it() {
+    let f = farm(None);
+    let job = submit(&f, 16, 16, 16).await;
+    let held = lease(&f.app, "w").await.unwrap();
+    let mut evil = exr(&tile_of(&held, (16, 16), 1.0));
+    let name = b"dataWindow\0box2i\0";
+    let at = evil.windows(name.len()).position(|w| w == name).unwrap() + name.len() + 4;
+    evil[at + 8..at + 12].copy_from_slice(&99_999i32.to_le_bytes());
+    evil[at + 12..at + 16].copy_from_slice(&99_999i32.to_le_bytes());
+    assert!(evil.len() < 1000);
+    for id in [held.lease, held.lease + 1000] {
+        let (status, body) = upload(&f.app, id, evil.clone()).await;
+        assert!(status.is_client_error(), "{status}: {}", error_of(&body));
+    }
+    assert_eq!(job_status(&f.app, job).await.state, JobState::Running);
+    assert!(lease(&f.app, "w").await.is_some(), "the tile is lent again");
+}
+
+/// Lease ids are never reused, across restarts too: a worker still holding an id from
+/// before a restart cannot heartbeat, upload to or fail a lease granted after it.
+#[tokio::test]
+async fn lease_ids_from_before_a_restart_name_no_new_lease() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    submit(&f, 32, 16, 16).await;
+    let old = lease(&f.app, "old").await.unwrap();
+    let Farm { dir: _dir, c, app } = f;
+    drop((c, app));
+    let (_c, app) = open(&data, None);
+    let new = lease(&app, "new").await.unwrap();
+    assert_ne!(new.lease, old.lease);
+    let other = lease(&app, "new").await.unwrap();
+    assert!(![new.lease, other.lease].contains(&old.lease));
+    assert_eq!(heartbeat(&app, old.lease).await, StatusCode::CONFLICT);
+    let tile = tile_of(&old, (32, 16), 1.0);
+    assert_eq!(
+        upload(&app, old.lease, exr(&tile)).await.0,
+        StatusCode::CONFLICT
+    );
+    // The new leases are untouched.
+    assert_eq!(heartbeat(&app, new.lease).await, StatusCode::NO_CONTENT);
+    assert_eq!(heartbeat(&app, other.lease).await, StatusCode::NO_CONTENT);
+}
