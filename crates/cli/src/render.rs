@@ -98,7 +98,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "kiln: {} ({} triangles, {} spheres, {} lights), {}x{} ({}x{} rendered), {} spp, {} tiles, {} threads",
         args.scene.display(),
         scene.geometry.triangle_count(),
-        scene.geometry.spheres.len(),
+        scene.geometry.prims.spheres.len(),
         scene.lights.len(),
         film.xresolution,
         film.yresolution,

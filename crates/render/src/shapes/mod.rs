@@ -94,20 +94,13 @@ pub struct Primitives {
 
 /// All the geometry of a scene, ready to trace.
 pub struct Geometry {
-    pub positions: Vec<Vec3A>,
-    pub normals: Vec<Vec3A>,
-    pub uvs: Vec<Vec2>,
-    pub meshes: Vec<MeshInfo>,
-    /// Vertex indices per triangle, in the order the scene declared them.
-    pub triangle_vertices: Vec<[u32; 3]>,
-    /// The mesh each triangle belongs to.
-    pub triangle_mesh: Vec<u32>,
+    /// The primitives, in the order the scene declared them.
+    pub prims: Primitives,
     triangle_bvh: Option<CwBvh>,
     /// Triangles in BVH order, for traversal.
     bvh_triangles: Vec<RtTriangle>,
     /// For each BVH slot, the triangle's index in declaration order.
     bvh_triangle_ids: Vec<u32>,
-    pub spheres: Vec<Sphere>,
     sphere_bvh: Option<CwBvh>,
     /// Time spent building BVHs.
     pub build_time: Duration,
@@ -136,13 +129,10 @@ impl Geometry {
     pub fn new(primitives: Primitives) -> Geometry {
         let Primitives {
             positions,
-            normals,
-            uvs,
-            meshes,
             triangle_vertices,
-            triangle_mesh,
             spheres,
-        } = primitives;
+            ..
+        } = &primitives;
         let mut build_time = Duration::ZERO;
         let tris: Vec<RtTriangle> = triangle_vertices
             .iter()
@@ -195,30 +185,24 @@ impl Geometry {
         if !spheres.is_empty() {
             build(&mut || {
                 sphere_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
-                    &spheres,
+                    spheres,
                     BvhBuildParams::medium_build(),
                     &mut build_time,
                 ));
             });
         }
         Geometry {
-            positions,
-            normals,
-            uvs,
-            meshes,
-            triangle_vertices,
-            triangle_mesh,
+            prims: primitives,
             triangle_bvh,
             bvh_triangles,
             bvh_triangle_ids,
-            spheres,
             sphere_bvh,
             build_time,
         }
     }
 
     pub fn triangle_count(&self) -> usize {
-        self.triangle_vertices.len()
+        self.prims.triangle_vertices.len()
     }
 
     /// The closest hit along `ray` within (0, tmax).
@@ -254,7 +238,7 @@ impl Geometry {
             let mut hit = RayHit::none();
             let sray = bvh_ray(ray.origin, ray.dir, 0.0, best_t);
             if bvh.ray_traverse(sray, &mut hit, |r, id| {
-                let s = &self.spheres[bvh.primitive_indices[id] as usize];
+                let s = &self.prims.spheres[bvh.primitive_indices[id] as usize];
                 s.intersect(r.origin, r.direction, r.tmin.max(1e-7), r.tmax)
             }) && hit.t < best_t
             {
@@ -276,7 +260,7 @@ impl Geometry {
         }
         if let Some(bvh) = &self.sphere_bvh {
             if !bvh.ray_traverse_miss(bray, |r, id| {
-                let s = &self.spheres[bvh.primitive_indices[id] as usize];
+                let s = &self.prims.spheres[bvh.primitive_indices[id] as usize];
                 s.intersect(r.origin, r.direction, 1e-7, r.tmax)
             }) {
                 return false;
@@ -289,11 +273,11 @@ impl Geometry {
     pub fn bounds(&self) -> (Vec3A, Vec3A) {
         let mut lo = Vec3A::splat(f32::INFINITY);
         let mut hi = Vec3A::splat(f32::NEG_INFINITY);
-        for p in &self.positions {
+        for p in &self.prims.positions {
             lo = lo.min(*p);
             hi = hi.max(*p);
         }
-        for s in &self.spheres {
+        for s in &self.prims.spheres {
             lo = lo.min(s.center - Vec3A::splat(s.radius));
             hi = hi.max(s.center + Vec3A::splat(s.radius));
         }

@@ -58,7 +58,7 @@ impl Boundable for Sphere {
 
 impl Geometry {
     pub(super) fn sphere_hit(&self, ray: &Ray, t: f32, id: u32) -> SurfaceHit {
-        let s = &self.spheres[id as usize];
+        let s = &self.prims.spheres[id as usize];
         let mut n = (ray.at(t) - s.center).normalize();
         // Put the point back on the surface to limit self-intersection.
         let p = s.center + n * s.radius;

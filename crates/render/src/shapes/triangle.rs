@@ -8,9 +8,9 @@ use glam::{Vec2, Vec3A};
 impl Geometry {
     /// Triangle `tri`'s vertex indices, its mesh and its vertex positions.
     fn triangle(&self, tri: u32) -> ([u32; 3], &MeshInfo, [Vec3A; 3]) {
-        let v = self.triangle_vertices[tri as usize];
-        let mesh = &self.meshes[self.triangle_mesh[tri as usize] as usize];
-        (v, mesh, v.map(|i| self.positions[i as usize]))
+        let v = self.prims.triangle_vertices[tri as usize];
+        let mesh = &self.prims.meshes[self.prims.triangle_mesh[tri as usize] as usize];
+        (v, mesh, v.map(|i| self.prims.positions[i as usize]))
     }
 
     pub(super) fn triangle_hit(&self, ray: &Ray, t: f32, tri: u32) -> SurfaceHit {
@@ -20,9 +20,9 @@ impl Geometry {
         let (ng, ns) = self.oriented_normals(mesh, [i0, i1, i2], [p0, p1, p2], b);
         let (uv0, uv1, uv2) = if mesh.has_uvs {
             (
-                self.uvs[i0 as usize],
-                self.uvs[i1 as usize],
-                self.uvs[i2 as usize],
+                self.prims.uvs[i0 as usize],
+                self.prims.uvs[i1 as usize],
+                self.prims.uvs[i2 as usize],
             )
         } else {
             (Vec2::ZERO, Vec2::X, Vec2::ONE)
@@ -74,9 +74,9 @@ impl Geometry {
         }
         let mut ns = ng;
         if mesh.has_normals {
-            let n = self.normals[v[0] as usize] * b[0]
-                + self.normals[v[1] as usize] * b[1]
-                + self.normals[v[2] as usize] * b[2];
+            let n = self.prims.normals[v[0] as usize] * b[0]
+                + self.prims.normals[v[1] as usize] * b[1]
+                + self.prims.normals[v[2] as usize] * b[2];
             if n.length_squared() > 0.0 {
                 ns = n.normalize();
                 if ng.dot(ns) < 0.0 {

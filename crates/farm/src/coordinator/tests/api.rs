@@ -230,12 +230,7 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
                     .header("idempotency-key", key)
                     .body(Body::from(serde_json::to_vec(&spec).unwrap()))
                     .unwrap();
-                let response = app.oneshot(req).await.unwrap();
-                let status = response.status();
-                let body = axum::body::to_bytes(response.into_body(), usize::MAX)
-                    .await
-                    .unwrap();
-                (status, body)
+                send(&app, req).await
             })
         });
         let mut ids = Vec::new();

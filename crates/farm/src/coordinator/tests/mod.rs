@@ -70,11 +70,12 @@ async fn call(
     if let Some(t) = token {
         req = req.header(header::AUTHORIZATION, format!("Bearer {t}"));
     }
-    let response = app
-        .clone()
-        .oneshot(req.body(body.into()).unwrap())
-        .await
-        .unwrap();
+    send(app, req.body(body.into()).unwrap()).await
+}
+
+/// Sends a built request through the app: (status, body).
+async fn send(app: &Router, req: Request<Body>) -> (StatusCode, Bytes) {
+    let response = app.clone().oneshot(req).await.unwrap();
     let status = response.status();
     let body = axum::body::to_bytes(response.into_body(), usize::MAX)
         .await
@@ -170,16 +171,7 @@ async fn upload_with_digest(
     if let Some(d) = digest {
         req = req.header(crate::api::TILE_DIGEST_HEADER, d);
     }
-    let response = app
-        .clone()
-        .oneshot(req.body(Body::from(exr)).unwrap())
-        .await
-        .unwrap();
-    let status = response.status();
-    let body = axum::body::to_bytes(response.into_body(), usize::MAX)
-        .await
-        .unwrap();
-    (status, body)
+    send(app, req.body(Body::from(exr)).unwrap()).await
 }
 
 async fn heartbeat(app: &Router, lease: u64) -> StatusCode {
