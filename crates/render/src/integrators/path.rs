@@ -286,7 +286,7 @@ fn surface_emission(
     let light = &scene.lights[light_id as usize];
     // Reached through specular bounces from a vertex that gathered caustic photons: the
     // photon map has already counted the lights that shoot photons.
-    if light.shoots_photons() && matches!(state.specular_since_gather, Some(k) if k > 0) {
+    if matches!(state.specular_since_gather, Some(k) if k > 0) && light.shoots_photons() {
         return;
     }
     let (le, traced) = light.le(&scene.light_context(), hit.p, hit.ng, hit.ns, -ray.dir);
