@@ -82,6 +82,12 @@ fn every_material_and_light_is_bit_identical_across_tiles_and_threads() {
 }
 
 #[test]
+fn every_texture_kind_is_bit_identical_across_tiles_and_threads() {
+    let path = scene("textures/scene.pbrt");
+    assert_same_bits_for_any_split("textures", load(&path, 4, Some((96, 64))));
+}
+
+#[test]
 fn mis_scene_is_bit_identical_across_tiles_and_threads() {
     let path = scene("mis/scene.pbrt");
     assert_same_bits_for_any_split("mis", load(&path, 4, Some((80, 45))));

@@ -10,4 +10,5 @@ mod estimators;
 mod farm;
 mod media;
 mod reference;
+mod textures;
 mod volume_light;

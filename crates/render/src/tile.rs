@@ -60,6 +60,12 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
+    /// The scale of a pixel's footprint for texture filtering: with many samples per pixel
+    /// each filters over less than a pixel, as pbrt-v4 does (1/sqrt(spp), at least 1/8).
+    pub fn footprint(&self) -> f32 {
+        (1.0 / (self.samples_per_pixel.max(1) as f32).sqrt()).max(0.125)
+    }
+
     /// Settings as the scene file gives them.
     pub fn from_description(desc: &kiln_scene::SceneDescription) -> RenderSettings {
         RenderSettings {
@@ -255,9 +261,14 @@ pub fn render_sample(
     let lens = sampler.get_2d();
     let ray = scene.camera.generate_ray(film, lens);
     let mut work = Work::default();
-    let mut l = settings
-        .integrator
-        .li(&renderer.prepass, scene, ray, &mut sampler, &mut work);
+    let mut l = settings.integrator.li(
+        &renderer.prepass,
+        scene,
+        settings.footprint(),
+        ray,
+        &mut sampler,
+        &mut work,
+    );
     stats.samples += 1;
     stats.rays += work.rays;
     if work.cut_walks > 0 {

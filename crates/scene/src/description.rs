@@ -5,6 +5,7 @@
 //! will be rendered.
 
 use crate::error::{Diagnostic, Loc};
+use crate::textures::{FloatTextureDesc, FloatValue, RgbValue, SpectrumTextureDesc};
 use glam::{DMat4, DVec3};
 use std::sync::Arc;
 
@@ -20,6 +21,9 @@ pub struct SceneDescription {
     pub filter: FilterDesc,
     pub integrator: IntegratorDesc,
     pub materials: Vec<MaterialDesc>,
+    /// Textures in definition order; a texture refers only to textures before it.
+    pub float_textures: Vec<FloatTextureDesc>,
+    pub spectrum_textures: Vec<SpectrumTextureDesc>,
     pub media: Vec<MediumDesc>,
     /// The medium the camera sits in (the outside medium current at the Camera directive).
     pub camera_medium: Option<MediumId>,
@@ -125,17 +129,13 @@ pub struct IntegratorDesc {
     pub loc: Loc,
 }
 
-/// A texture reference or constant. Only constants are supported for now.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RgbValue {
-    Constant(Rgb),
-}
-
-/// Microfacet roughness along u and v, already remapped when the scene asked for it.
+/// Microfacet roughness along u and v, as the scene gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Roughness {
-    pub u: f32,
-    pub v: f32,
+    pub u: FloatValue,
+    pub v: FloatValue,
+    /// pbrt-v4's "remaproughness": the microfacet alpha is the square root of the value.
+    pub remap: bool,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -151,22 +151,22 @@ pub enum MaterialKind {
         eta: f32,
     },
     Conductor {
-        eta: Rgb,
-        k: Rgb,
+        eta: RgbValue,
+        k: RgbValue,
         roughness: Roughness,
     },
     /// A conductor given by its reflectance at normal incidence instead of eta and k.
     ConductorReflectance {
-        reflectance: Rgb,
+        reflectance: RgbValue,
         roughness: Roughness,
     },
     CoatedDiffuse {
         reflectance: RgbValue,
         roughness: Roughness,
         eta: f32,
-        thickness: f32,
-        albedo: Rgb,
-        g: f32,
+        thickness: FloatValue,
+        albedo: RgbValue,
+        g: FloatValue,
     },
     /// Marks a boundary between media; rays pass through it unchanged.
     Interface,

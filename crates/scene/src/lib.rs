@@ -29,7 +29,9 @@ mod lexer;
 mod params;
 mod parser;
 pub mod spectrum;
+pub mod textures;
 
 pub use description::*;
 pub use error::{Diagnostic, Loc, SceneError, Severity};
 pub use parser::{load_file, load_file_within, load_str};
+pub use textures::*;

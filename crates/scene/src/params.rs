@@ -316,8 +316,28 @@ impl ParamSet {
                 ))),
             },
             _ => Err(at(format!(
-                "textures are not supported yet ('texture {name}'); give a constant value instead"
+                "'texture {name}': a texture is not accepted here; give a value"
             ))),
+        }
+    }
+
+    /// The texture a parameter names, with its location, if it is given as
+    /// `"texture NAME" "texture-name"`; None if it is absent or given as a value.
+    pub fn texture_name(&self, name: &str) -> Result<Option<(String, Loc)>> {
+        let Some(p) = self
+            .params
+            .iter()
+            .find(|p| p.name == name && p.ty == "texture")
+        else {
+            return Ok(None);
+        };
+        p.used.set(true);
+        match &p.values {
+            ParamValues::Strings(s) if s.len() == 1 => Ok(Some((s[0].clone(), p.loc.clone()))),
+            _ => Err(SceneError::at(
+                &p.loc,
+                format!("'texture {name}' needs one texture name"),
+            )),
         }
     }
 

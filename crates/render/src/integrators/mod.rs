@@ -116,11 +116,14 @@ impl Integrator {
         }
     }
 
-    /// Radiance arriving along `ray`; `work` counts what it cost.
+    /// Radiance arriving along `ray`; `work` counts what it cost. Textures filter over the
+    /// camera's pixel footprint times `footprint`.
+    #[allow(clippy::too_many_arguments)]
     pub fn li(
         &self,
         prepass: &Prepass,
         scene: &Scene,
+        footprint: f32,
         ray: Ray,
         sampler: &mut PixelSampler,
         work: &mut Work,
@@ -133,6 +136,7 @@ impl Integrator {
                     scene,
                     settings,
                     prepass,
+                    footprint,
                 };
                 path::path_li(&ctx, ray, sampler, work)
             }

@@ -14,7 +14,6 @@ use crate::media::{Emitted, MediumEvent};
 use crate::sampling::{PixelSampler, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
-use crate::textures::TextureEvalContext;
 use crate::work::Work;
 use glam::Vec3A;
 use kiln_scene::LightStrategy;
@@ -24,6 +23,8 @@ pub(super) struct PathContext<'a> {
     pub scene: &'a Scene,
     pub settings: &'a PathSettings,
     pub prepass: &'a Prepass,
+    /// The scale of the camera's pixel footprint for texture filtering.
+    pub footprint: f32,
 }
 
 /// Everything a path carries from one segment to the next.
@@ -313,9 +314,7 @@ fn surface_step(
     work: &mut Work,
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
-    let Some(bsdf) =
-        scene.materials[hit.surface.material as usize].bsdf(&TextureEvalContext::at(hit))
-    else {
+    let Some(bsdf) = scene.bsdf(hit, ctx.footprint) else {
         // An interface: continue straight through without counting a bounce.
         state.pass_throughs += 1;
         if state.pass_throughs > 256 {

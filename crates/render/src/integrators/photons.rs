@@ -16,7 +16,6 @@ use crate::media::MediumEvent;
 use crate::sampling::{AliasTable, TrackingRng, cosine_hemisphere};
 use crate::scene::Scene;
 use crate::shapes::{NO_MEDIUM, SurfaceHit};
-use crate::textures::TextureEvalContext;
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -273,9 +272,7 @@ fn trace_photon(
             }
         }
         let Some(hit) = found else { return };
-        let Some(bsdf) =
-            scene.materials[hit.surface.material as usize].bsdf(&TextureEvalContext::at(&hit))
-        else {
+        let Some(bsdf) = scene.bsdf(&hit, 1.0) else {
             // An interface: straight on, into the medium on the other side.
             if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
                 medium = next;

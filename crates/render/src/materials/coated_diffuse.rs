@@ -1,28 +1,31 @@
 //! pbrt-v4's "coateddiffuse" (albedo 0): a dielectric coat over a diffuse base of a
 //! (textured) reflectance.
 
-use super::distribution;
-use crate::bsdfs::{Bsdf, CoatedDiffuseBxdf, TrowbridgeReitz, internal_diffuse_reflectance};
+use super::RoughnessTexture;
+use crate::bsdfs::{Bsdf, CoatedDiffuseBxdf, internal_diffuse_reflectance};
 use crate::math::Color;
 use crate::textures::{SpectrumTexture, TextureEvalContext};
-use kiln_scene::{RgbValue, Roughness};
 
 #[derive(Debug, Clone)]
 pub struct CoatedDiffuseMaterial {
     pub reflectance: SpectrumTexture,
     pub eta: f32,
-    pub distrib: TrowbridgeReitz,
+    pub roughness: RoughnessTexture,
     /// The coat's internal diffuse reflectance, a numerical integral over angles computed
     /// once from `eta`.
     fdr_internal: f32,
 }
 
 impl CoatedDiffuseMaterial {
-    pub fn new(reflectance: &RgbValue, roughness: &Roughness, eta: f32) -> CoatedDiffuseMaterial {
+    pub fn new(
+        reflectance: SpectrumTexture,
+        roughness: RoughnessTexture,
+        eta: f32,
+    ) -> CoatedDiffuseMaterial {
         CoatedDiffuseMaterial {
-            reflectance: reflectance.into(),
+            reflectance,
             eta,
-            distrib: distribution(roughness),
+            roughness,
             fdr_internal: internal_diffuse_reflectance(eta),
         }
     }
@@ -34,7 +37,7 @@ impl CoatedDiffuseMaterial {
                 .evaluate(ctx)
                 .clamp(Color::ZERO, Color::ONE),
             eta: self.eta,
-            distrib: self.distrib,
+            distrib: self.roughness.distribution(ctx),
             fdr_internal: self.fdr_internal,
         })
     }

@@ -1,41 +1,72 @@
 //! pbrt-v4's "conductor": metals given by a complex index of refraction (eta, k) or by
-//! their reflectance at normal incidence, smooth or rough.
+//! their reflectance at normal incidence, smooth or rough, any of them textured.
 
-use super::distribution;
+use super::RoughnessTexture;
 use crate::bsdfs::{Bsdf, ConductorBxdf};
-use crate::math::{Color, rgb};
-use kiln_scene::{Rgb, Roughness};
+use crate::math::Color;
+use crate::textures::{SpectrumTexture, TextureEvalContext};
+
+#[derive(Debug, Clone)]
+pub enum ConductorSpec {
+    EtaK {
+        eta: SpectrumTexture,
+        k: SpectrumTexture,
+    },
+    Reflectance(SpectrumTexture),
+}
 
 #[derive(Debug, Clone)]
 pub struct ConductorMaterial {
-    bxdf: ConductorBxdf,
+    spec: ConductorSpec,
+    roughness: RoughnessTexture,
+    /// The BxDF, when nothing about it varies over the surface.
+    fixed: Option<ConductorBxdf>,
 }
 
 impl ConductorMaterial {
-    pub fn new(eta: Rgb, k: Rgb, roughness: &Roughness) -> ConductorMaterial {
-        ConductorMaterial {
-            bxdf: ConductorBxdf {
-                eta: rgb(eta),
-                k: rgb(k),
-                distrib: distribution(roughness),
+    pub fn new(spec: ConductorSpec, roughness: RoughnessTexture) -> ConductorMaterial {
+        let constant = match &spec {
+            ConductorSpec::EtaK { eta, k } => {
+                eta.as_constant().is_some() && k.as_constant().is_some()
+            }
+            ConductorSpec::Reflectance(r) => r.as_constant().is_some(),
+        };
+        let mut m = ConductorMaterial {
+            spec,
+            roughness,
+            fixed: None,
+        };
+        if constant && !m.roughness.is_textured() {
+            m.fixed = Some(m.bxdf(&TextureEvalContext::default()));
+        }
+        m
+    }
+
+    fn bxdf(&self, ctx: &TextureEvalContext) -> ConductorBxdf {
+        let distrib = self.roughness.distribution(ctx);
+        match &self.spec {
+            ConductorSpec::EtaK { eta, k } => ConductorBxdf {
+                eta: eta.evaluate(ctx),
+                k: k.evaluate(ctx),
+                distrib,
             },
+            // pbrt-v4: a conductor of reflectance r has eta = 1 and k = 2 sqrt(r) / sqrt(1 - r).
+            ConductorSpec::Reflectance(r) => {
+                let r = r.evaluate(ctx).clamp(Color::ZERO, Color::splat(0.9999));
+                ConductorBxdf {
+                    eta: Color::ONE,
+                    k: 2.0 * r.powf(0.5) / (Color::ONE - r).powf(0.5),
+                    distrib,
+                }
+            }
         }
     }
 
-    /// pbrt-v4: a conductor given by reflectance r has eta = 1 and k = 2 sqrt(r) / sqrt(1 - r).
-    pub fn from_reflectance(reflectance: Rgb, roughness: &Roughness) -> ConductorMaterial {
-        let r = rgb(reflectance).clamp(Color::ZERO, Color::splat(0.9999));
-        let k = 2.0 * r.powf(0.5) / (Color::ONE - r).powf(0.5);
-        ConductorMaterial {
-            bxdf: ConductorBxdf {
-                eta: Color::ONE,
-                k,
-                distrib: distribution(roughness),
-            },
-        }
+    pub fn is_textured(&self) -> bool {
+        self.fixed.is_none()
     }
 
-    pub fn bsdf(&self) -> Bsdf {
-        Bsdf::Conductor(self.bxdf)
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+        Bsdf::Conductor(self.fixed.unwrap_or_else(|| self.bxdf(ctx)))
     }
 }

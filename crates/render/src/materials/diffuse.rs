@@ -3,7 +3,6 @@
 use crate::bsdfs::{Bsdf, DiffuseBxdf};
 use crate::math::Color;
 use crate::textures::{SpectrumTexture, TextureEvalContext};
-use kiln_scene::RgbValue;
 
 #[derive(Debug, Clone)]
 pub struct DiffuseMaterial {
@@ -11,12 +10,6 @@ pub struct DiffuseMaterial {
 }
 
 impl DiffuseMaterial {
-    pub fn new(reflectance: &RgbValue) -> DiffuseMaterial {
-        DiffuseMaterial {
-            reflectance: reflectance.into(),
-        }
-    }
-
     pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
         Bsdf::Diffuse(DiffuseBxdf {
             r: self

@@ -9,18 +9,19 @@ mod coated_diffuse;
 mod conductor;
 mod dielectric;
 mod diffuse;
+mod roughness;
 mod thin_dielectric;
 
 pub use coated_diffuse::CoatedDiffuseMaterial;
-pub use conductor::ConductorMaterial;
+pub use conductor::{ConductorMaterial, ConductorSpec};
 pub use dielectric::DielectricMaterial;
 pub use diffuse::DiffuseMaterial;
+pub use roughness::RoughnessTexture;
 pub use thin_dielectric::ThinDielectricMaterial;
 
-use crate::bsdfs::{Bsdf, TrowbridgeReitz};
-use crate::shapes::SurfaceHit;
-use crate::textures::TextureEvalContext;
-use kiln_scene::{MaterialKind, Roughness};
+use crate::bsdfs::Bsdf;
+use crate::textures::{TextureEvalContext, Textures};
+use kiln_scene::MaterialKind;
 
 #[derive(Debug, Clone)]
 pub enum Material {
@@ -34,31 +35,49 @@ pub enum Material {
 }
 
 impl Material {
-    /// The material a scene description's Material or MakeNamedMaterial gives.
-    pub fn from_description(kind: &MaterialKind) -> Material {
+    /// The material a scene description's Material or MakeNamedMaterial gives, its
+    /// textures taken from the scene's.
+    pub fn from_description(kind: &MaterialKind, textures: &Textures) -> Material {
+        let rough = |r| RoughnessTexture::new(r, textures);
         match kind {
-            MaterialKind::Diffuse { reflectance } => {
-                Material::Diffuse(DiffuseMaterial::new(reflectance))
-            }
+            MaterialKind::Diffuse { reflectance } => Material::Diffuse(DiffuseMaterial {
+                reflectance: textures.rgb_value(reflectance),
+            }),
             MaterialKind::Dielectric { eta, roughness } => {
-                Material::Dielectric(DielectricMaterial::new(*eta, roughness))
+                Material::Dielectric(DielectricMaterial {
+                    eta: *eta,
+                    roughness: rough(roughness),
+                })
             }
             MaterialKind::ThinDielectric { eta } => {
                 Material::ThinDielectric(ThinDielectricMaterial { eta: *eta })
             }
             MaterialKind::Conductor { eta, k, roughness } => {
-                Material::Conductor(ConductorMaterial::new(*eta, *k, roughness))
+                Material::Conductor(ConductorMaterial::new(
+                    ConductorSpec::EtaK {
+                        eta: textures.rgb_value(eta),
+                        k: textures.rgb_value(k),
+                    },
+                    rough(roughness),
+                ))
             }
             MaterialKind::ConductorReflectance {
                 reflectance,
                 roughness,
-            } => Material::Conductor(ConductorMaterial::from_reflectance(*reflectance, roughness)),
+            } => Material::Conductor(ConductorMaterial::new(
+                ConductorSpec::Reflectance(textures.rgb_value(reflectance)),
+                rough(roughness),
+            )),
             MaterialKind::CoatedDiffuse {
                 reflectance,
                 roughness,
                 eta,
                 ..
-            } => Material::CoatedDiffuse(CoatedDiffuseMaterial::new(reflectance, roughness, *eta)),
+            } => Material::CoatedDiffuse(CoatedDiffuseMaterial::new(
+                textures.rgb_value(reflectance),
+                rough(roughness),
+                *eta,
+            )),
             MaterialKind::Interface => Material::Interface,
         }
     }
@@ -67,11 +86,25 @@ impl Material {
     pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf> {
         match self {
             Material::Diffuse(m) => Some(m.bsdf(ctx)),
-            Material::Conductor(m) => Some(m.bsdf()),
-            Material::Dielectric(m) => Some(m.bsdf()),
+            Material::Conductor(m) => Some(m.bsdf(ctx)),
+            Material::Dielectric(m) => Some(m.bsdf(ctx)),
             Material::ThinDielectric(m) => Some(m.bsdf()),
             Material::CoatedDiffuse(m) => Some(m.bsdf(ctx)),
             Material::Interface => None,
+        }
+    }
+
+    /// Whether the material varies over its surface: its BSDF then needs the hit's full
+    /// texture context, footprint included; otherwise any context gives the same BSDF.
+    pub fn is_textured(&self) -> bool {
+        match self {
+            Material::Diffuse(m) => m.reflectance.as_constant().is_none(),
+            Material::Conductor(m) => m.is_textured(),
+            Material::Dielectric(m) => m.roughness.is_textured(),
+            Material::CoatedDiffuse(m) => {
+                m.reflectance.as_constant().is_none() || m.roughness.is_textured()
+            }
+            Material::ThinDielectric(_) | Material::Interface => false,
         }
     }
 
@@ -79,18 +112,4 @@ impl Material {
     pub fn is_interface(&self) -> bool {
         matches!(self, Material::Interface)
     }
-}
-
-impl TextureEvalContext {
-    /// The context at a surface hit.
-    pub fn at(hit: &SurfaceHit) -> TextureEvalContext {
-        TextureEvalContext {
-            p: hit.p,
-            uv: hit.uv,
-        }
-    }
-}
-
-fn distribution(r: &Roughness) -> TrowbridgeReitz {
-    TrowbridgeReitz::new(r.u, r.v)
 }

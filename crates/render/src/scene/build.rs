@@ -10,14 +10,15 @@ use crate::lights::{
     Light, MediumLight, SphereLight, TriangleLight, VolumeInterior, VolumeSphereLight,
     VolumeTriangleLight,
 };
-use crate::materials::{DielectricMaterial, Material};
+use crate::materials::{DielectricMaterial, Material, RoughnessTexture};
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::sampling::AliasTable;
 use crate::shapes::{Geometry, MeshInfo, NO_MEDIUM, Primitives, Sphere, SurfaceInfo};
+use crate::textures::Textures;
 use glam::{Affine3A, DMat4, Vec2, Vec3A};
 use kiln_scene::{
-    AreaLightDesc, MediumKind, Roughness, SceneDescription, ShapeDesc, ShapeKind, TriangleMeshData,
+    AreaLightDesc, MediumKind, SceneDescription, ShapeDesc, ShapeKind, TriangleMeshData,
     VolumeLightDesc,
 };
 
@@ -101,9 +102,11 @@ impl Builder {
         };
         // An interface around a VolumeLight is a dielectric of eta 1: rays cross it unbent.
         let material = if eta == 1.0 {
-            let smooth = Roughness { u: 0.0, v: 0.0 };
             self.materials
-                .push(Material::Dielectric(DielectricMaterial::new(1.0, &smooth)));
+                .push(Material::Dielectric(DielectricMaterial {
+                    eta: 1.0,
+                    roughness: RoughnessTexture::smooth(),
+                }));
             (self.materials.len() - 1) as u32
         } else {
             material
@@ -357,10 +360,11 @@ impl Builder {
 impl Scene {
     /// Builds the scene `desc` describes, with or without its participating media.
     pub fn build(desc: &SceneDescription, media: MediaPolicy) -> Result<Scene, BuildError> {
+        let textures = Textures::from_description(&desc.float_textures, &desc.spectrum_textures);
         let materials: Vec<Material> = desc
             .materials
             .iter()
-            .map(|m| Material::from_description(&m.kind))
+            .map(|m| Material::from_description(&m.kind, &textures))
             .collect();
         let mut b = Builder {
             prims: Primitives::default(),

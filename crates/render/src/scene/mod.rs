@@ -9,6 +9,7 @@ mod build;
 
 pub use build::{BuildError, MediaPolicy};
 
+use crate::bsdfs::Bsdf;
 use crate::camera::Camera;
 use crate::filter::Filter;
 use crate::lights::{Light, LightContext, VolumeInterior};
@@ -16,7 +17,8 @@ use crate::materials::Material;
 use crate::math::{Color, Ray};
 use crate::media::Medium;
 use crate::sampling::{AliasTable, TrackingRng};
-use crate::shapes::Geometry;
+use crate::shapes::{Geometry, SurfaceHit};
+use crate::textures::TextureEvalContext;
 use crate::work::Work;
 use glam::Vec3A;
 
@@ -47,6 +49,21 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The BSDF of the surface at `hit`; None for an interface. A textured material is
+    /// evaluated with the hit's footprint as the camera sees it, scaled by `footprint`.
+    pub fn bsdf(&self, hit: &SurfaceHit, footprint: f32) -> Option<Bsdf> {
+        let material = &self.materials[hit.surface.material as usize];
+        let ctx = if material.is_textured() {
+            let (dpdx, dpdy) = self.camera.approximate_dp_dxy(hit.p, hit.ng, footprint);
+            TextureEvalContext::with_footprint(
+                hit.p, hit.ng, hit.uv, hit.dpdu, hit.dpdv, dpdx, dpdy,
+            )
+        } else {
+            TextureEvalContext::default()
+        };
+        material.bsdf(&ctx)
+    }
+
     /// What lights need of the scene to be sampled and evaluated.
     pub fn light_context(&self) -> LightContext<'_> {
         LightContext {

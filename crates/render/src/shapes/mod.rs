@@ -69,8 +69,10 @@ pub struct SurfaceHit {
     pub ng: Vec3A,
     /// Shading normal, on the same side as `ng`.
     pub ns: Vec3A,
-    /// dp/du, for anisotropic materials.
+    /// dp/du and dp/dv, as pbrt-v4 defines them for the shape (for anisotropic materials
+    /// and texture filtering).
     pub dpdu: Vec3A,
+    pub dpdv: Vec3A,
     pub uv: Vec2,
     pub surface: SurfaceInfo,
     /// The light this point emits as, if any.

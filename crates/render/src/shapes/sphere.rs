@@ -62,11 +62,20 @@ impl Geometry {
         let mut n = (ray.at(t) - s.center).normalize();
         // Put the point back on the surface to limit self-intersection.
         let p = s.center + n * s.radius;
-        let dpdu = Vec3A::new(-n.y, n.x, 0.0);
-        let uv = Vec2::new(
-            (n.y.atan2(n.x) / std::f32::consts::TAU).rem_euclid(1.0),
-            n.z.clamp(-1.0, 1.0).acos() / std::f32::consts::PI,
-        );
+        // pbrt-v4's parametrisation of a whole sphere: u = φ / 2π, v = 1 − θ / π (0 at the
+        // bottom), with dp/du and dp/dv to match.
+        use std::f32::consts::{PI, TAU};
+        let q = p - s.center;
+        let r_xy = (q.x * q.x + q.y * q.y).sqrt();
+        let (cos_phi, sin_phi) = if r_xy > 0.0 {
+            (q.x / r_xy, q.y / r_xy)
+        } else {
+            (1.0, 0.0)
+        };
+        let theta = n.z.clamp(-1.0, 1.0).acos();
+        let dpdu = Vec3A::new(-TAU * q.y, TAU * q.x, 0.0);
+        let dpdv = -PI * Vec3A::new(q.z * cos_phi, q.z * sin_phi, -s.radius * theta.sin());
+        let uv = Vec2::new((n.y.atan2(n.x) / TAU).rem_euclid(1.0), 1.0 - theta / PI);
         if s.flip {
             n = -n;
         }
@@ -76,6 +85,7 @@ impl Geometry {
             ng: n,
             ns: n,
             dpdu,
+            dpdv,
             uv,
             surface: s.surface,
             light: s.surface.light,

@@ -1,7 +1,7 @@
 //! Triangles of meshes: hit records, points at barycentrics, and uniform area sampling.
 
 use super::{Geometry, MeshInfo, ShapeSample, SurfaceHit};
-use crate::math::Ray;
+use crate::math::{Frame, Ray};
 use crate::sampling::uniform_triangle;
 use glam::{Vec2, Vec3A};
 
@@ -28,14 +28,19 @@ impl Geometry {
             (Vec2::ZERO, Vec2::X, Vec2::ONE)
         };
         let uv = uv0 * b[0] + uv1 * b[1] + uv2 * b[2];
-        let duv02 = uv0 - uv2;
-        let duv12 = uv1 - uv2;
+        let (duv02, duv12) = (uv0 - uv2, uv1 - uv2);
+        let (dp02, dp12) = (p0 - p2, p1 - p2);
         let det = duv02.x * duv12.y - duv02.y * duv12.x;
-        let dpdu = if det.abs() > 1e-12 {
-            ((p0 - p2) * duv12.y - (p1 - p2) * duv02.y) / det
-        } else {
-            p1 - p0
-        };
+        let (mut dpdu, mut dpdv) = (Vec3A::ZERO, Vec3A::ZERO);
+        if det.abs() >= 1e-9 {
+            dpdu = (dp02 * duv12.y - dp12 * duv02.y) / det;
+            dpdv = (dp12 * duv02.x - dp02 * duv12.x) / det;
+        }
+        if det.abs() < 1e-9 || dpdu.cross(dpdv).length_squared() == 0.0 {
+            // Degenerate uvs: any frame of the plane (pbrt-v4 does the same).
+            let f = Frame::from_z((p2 - p0).cross(p1 - p0).normalize_or_zero());
+            (dpdu, dpdv) = (f.x, f.y);
+        }
         let local = tri - mesh.first_triangle;
         SurfaceHit {
             p,
@@ -43,6 +48,7 @@ impl Geometry {
             ng,
             ns,
             dpdu,
+            dpdv,
             uv,
             surface: mesh.surface,
             light: mesh.surface.light.map(|l| l + local),

@@ -5,6 +5,7 @@ use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
 use crate::params::ParamSet;
 use crate::spectrum::{self, SpectrumUse};
+use crate::textures::{FloatValue, RgbValue};
 
 impl Parser {
     pub(super) fn make_named_material(
@@ -30,16 +31,20 @@ impl Parser {
         Ok(())
     }
 
+    /// "uroughness" and "vroughness", each falling back to "roughness" (default 0), as
+    /// pbrt-v4 reads them; any of them may be a float texture.
     fn roughness(&self, params: &ParamSet) -> Result<Roughness> {
-        let r = params.float_opt("roughness")?;
-        let u = params.float_opt("uroughness")?.or(r).unwrap_or(0.0);
-        let v = params.float_opt("vroughness")?.or(r).unwrap_or(0.0);
-        let remap = params.bool("remaproughness", true)?;
-        // pbrt-v4 maps "roughness" to the microfacet alpha by a square root.
-        let map = |x: f64| if remap { x.max(0.0).sqrt() } else { x.max(0.0) } as f32;
+        let either = |name: &str| -> Result<FloatValue> {
+            if params.loc_of(name).is_some() {
+                self.float_value(params, name, 0.0)
+            } else {
+                self.float_value(params, "roughness", 0.0)
+            }
+        };
         Ok(Roughness {
-            u: map(u),
-            v: map(v),
+            u: either("uroughness")?,
+            v: either("vroughness")?,
+            remap: params.bool("remaproughness", true)?,
         })
     }
 
@@ -59,11 +64,7 @@ impl Parser {
         loc: &Loc,
     ) -> Result<MaterialId> {
         let reflectance = |default: f32| -> Result<RgbValue> {
-            Ok(RgbValue::Constant(
-                params
-                    .rgb("reflectance", SpectrumUse::Albedo)?
-                    .unwrap_or([default; 3]),
-            ))
+            self.rgb_value_or(params, "reflectance", SpectrumUse::Albedo, [default; 3])
         };
         let kind = match ty {
             "diffuse" => MaterialKind::Diffuse {
@@ -78,29 +79,33 @@ impl Parser {
             },
             "conductor" => {
                 let roughness = self.roughness(params)?;
-                match params.rgb("reflectance", SpectrumUse::Albedo)? {
+                match self.rgb_value(params, "reflectance", SpectrumUse::Albedo)? {
                     Some(reflectance) => MaterialKind::ConductorReflectance {
                         reflectance,
                         roughness,
                     },
                     None => MaterialKind::Conductor {
-                        eta: params
-                            .rgb("eta", SpectrumUse::Unbounded)?
-                            .unwrap_or_else(|| named("metal-Cu-eta")),
-                        k: params
-                            .rgb("k", SpectrumUse::Unbounded)?
-                            .unwrap_or_else(|| named("metal-Cu-k")),
+                        eta: self.rgb_value_or(
+                            params,
+                            "eta",
+                            SpectrumUse::Unbounded,
+                            named("metal-Cu-eta"),
+                        )?,
+                        k: self.rgb_value_or(
+                            params,
+                            "k",
+                            SpectrumUse::Unbounded,
+                            named("metal-Cu-k"),
+                        )?,
                         roughness,
                     },
                 }
             }
             "coateddiffuse" => {
-                let thickness = params.float("thickness", 0.01)? as f32;
-                let g = params.float("g", 0.0)? as f32;
-                let albedo = params
-                    .rgb("albedo", SpectrumUse::Albedo)?
-                    .unwrap_or([0.0; 3]);
-                if albedo != [0.0; 3] {
+                let thickness = self.float_value(params, "thickness", 0.01)?;
+                let g = self.float_value(params, "g", 0.0)?;
+                let albedo = self.rgb_value_or(params, "albedo", SpectrumUse::Albedo, [0.0; 3])?;
+                if albedo != RgbValue::Constant([0.0; 3]) {
                     return Err(SceneError::at(
                         &params.loc_of("albedo").unwrap_or_else(|| loc.clone()),
                         "coateddiffuse: a scattering layer (\"albedo\" > 0) is not supported yet",

@@ -21,11 +21,13 @@ mod media;
 mod options;
 mod shapes;
 mod state;
+mod textures;
 
 use crate::description::*;
 use crate::error::{Diagnostic, Loc, Result, SceneError, Severity};
 use crate::lexer::{Token, TokenKind, tokenize};
 use crate::params::ParamSet;
+use crate::textures::*;
 use cursor::{Cursor, describe};
 use glam::DMat4;
 use state::{ActiveTransform, GraphicsState};
@@ -110,6 +112,12 @@ struct Parser {
     integrator: Option<IntegratorDesc>,
     materials: Vec<MaterialDesc>,
     named_materials: HashMap<String, MaterialId>,
+    float_textures: Vec<FloatTextureDesc>,
+    float_texture_names: HashMap<String, FloatTextureId>,
+    spectrum_textures: Vec<SpectrumTextureDesc>,
+    spectrum_texture_names: HashMap<String, SpectrumTextureId>,
+    /// Texture images by file and encoding: each is read once however many textures use it.
+    images: HashMap<(PathBuf, String), Arc<TextureImage>>,
     shapes: Vec<ShapeDesc>,
     lights: Vec<LightDesc>,
     objects: Vec<ObjectDesc>,
@@ -153,6 +161,11 @@ impl Parser {
             integrator: None,
             materials: vec![default_material],
             named_materials: HashMap::new(),
+            float_textures: Vec::new(),
+            float_texture_names: HashMap::new(),
+            spectrum_textures: Vec::new(),
+            spectrum_texture_names: HashMap::new(),
+            images: HashMap::new(),
             shapes: Vec::new(),
             lights: Vec::new(),
             objects: Vec::new(),
@@ -351,10 +364,10 @@ impl Parser {
             }
             "Texture" => {
                 let name = c.string(directive, "texture name")?;
-                return Err(SceneError::at(
-                    loc,
-                    format!("Texture '{name}': textures are not supported yet"),
-                ));
+                let ty = c.string(directive, "texture type")?;
+                let class = c.string(directive, "texture class")?;
+                let params = c.params()?;
+                self.texture(name, &ty, &class, &params, loc)?;
             }
             "LightSource" => {
                 let ty = c.string(directive, "light type")?;
@@ -468,6 +481,8 @@ impl Parser {
                 loc: Loc::synthetic("default integrator"),
             }),
             materials: self.materials,
+            float_textures: self.float_textures,
+            spectrum_textures: self.spectrum_textures,
             media: self.media,
             camera_medium: self.camera_medium,
             shapes: self.shapes,

@@ -1,0 +1,328 @@
+//! Textures, checked against what they must be: an image's texels where its uvs put them,
+//! combinations of constants to their closed forms, a checkerboard receding to the horizon
+//! fading to its mean instead of aliasing, and every bad input an error that names the
+//! scene file and line.
+
+use crate::util::{failing, failing_in, render, write_scene};
+use glam::Vec3A;
+use kiln_render::bsdfs::Bsdf;
+use kiln_render::math::Ray;
+use kiln_render::{MediaPolicy, Scene};
+use std::path::Path;
+
+/// Writes an 8-bit RGB PNG.
+fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) {
+    let file = std::fs::File::create(path).unwrap();
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header().unwrap().write_image_data(rgb).unwrap();
+}
+
+fn srgb_to_linear(b: u8) -> f32 {
+    let v = b as f32 / 255.0;
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A unit quad in the z = 0 plane with uv = (x, y), looked at from +z by a camera far enough
+/// away that a pixel covers a small fraction of a texel.
+fn quad_scene(material: &str) -> String {
+    format!(
+        r#"Film "rgb" "integer xresolution" [ 512 ] "integer yresolution" [ 512 ]
+LookAt 0.5 0.5 4  0.5 0.5 0  0 1 0
+Camera "perspective" "float fov" [ 20 ]
+WorldBegin
+{material}
+Shape "trianglemesh" "point3 P" [ 0 0 0  1 0 0  1 1 0  0 1 0 ] "integer indices" [ 0 1 2 0 2 3 ]
+    "point2 uv" [ 0 0  1 0  1 1  0 1 ]
+"#
+    )
+}
+
+/// The diffuse reflectance the scene's material has where a ray down -z meets (x, y).
+fn reflectance_at(scene: &Scene, x: f32, y: f32) -> Vec3A {
+    let ray = Ray::new(Vec3A::new(x, y, 4.0), -Vec3A::Z);
+    let hit = scene
+        .geometry
+        .intersect(&ray, f32::INFINITY)
+        .expect("a hit");
+    match scene.bsdf(&hit, 1.0) {
+        Some(Bsdf::Diffuse(d)) => d.r,
+        other => panic!("expected a diffuse BSDF, got {other:?}"),
+    }
+}
+
+fn build(dir: &Path, text: &str) -> Scene {
+    let path = write_scene(dir, "scene.pbrt", text);
+    let desc = kiln_scene::load_file(&path).unwrap();
+    Scene::build(&desc, MediaPolicy::Render).unwrap()
+}
+
+#[test]
+fn an_image_shows_its_texels_where_its_uvs_put_them() {
+    let dir = tempfile::tempdir().unwrap();
+    // 4x4 texels, each a different colour; the file's first row is the image's top.
+    let texel = |x: u32, y: u32| {
+        [
+            (x * 60 + 10) as u8,
+            (y * 60 + 20) as u8,
+            ((x + y) * 25) as u8,
+        ]
+    };
+    let rgb: Vec<u8> = (0..4)
+        .flat_map(|y| (0..4).flat_map(move |x| texel(x, y)))
+        .collect();
+    write_png(&dir.path().join("texels.png"), 4, 4, &rgb);
+    // (EWA always blurs over about a texel, so it is not exact at texel centres.)
+    for filter in ["point", "bilinear", "trilinear"] {
+        let scene = build(
+            dir.path(),
+            &quad_scene(&format!(
+                r#"Texture "img" "spectrum" "imagemap" "string filename" "texels.png" "string filter" "{filter}"
+Material "diffuse" "texture reflectance" "img""#
+            )),
+        );
+        for ty in 0..4 {
+            for tx in 0..4 {
+                // Texel (tx, ty) is centred at u = (tx + 0.5) / 4 and, since t = 1 - v runs
+                // down the image, at v = 1 - (ty + 0.5) / 4.
+                let (u, v) = ((tx as f32 + 0.5) / 4.0, 1.0 - (ty as f32 + 0.5) / 4.0);
+                let got = reflectance_at(&scene, u, v);
+                let want = Vec3A::from(texel(tx, ty).map(srgb_to_linear));
+                assert!(
+                    (got - want).abs().max_element() < 2e-3,
+                    "{filter}: texel ({tx}, {ty}) at uv ({u}, {v}): {got} vs {want}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn scale_invert_and_encoding_apply_as_pbrt_applies_them() {
+    let dir = tempfile::tempdir().unwrap();
+    write_png(&dir.path().join("grey.png"), 1, 1, &[128, 128, 128]);
+    let at_centre = |params: &str| {
+        let scene = build(
+            dir.path(),
+            &quad_scene(&format!(
+                r#"Texture "img" "spectrum" "imagemap" "string filename" "grey.png" {params}
+Material "diffuse" "texture reflectance" "img""#
+            )),
+        );
+        reflectance_at(&scene, 0.5, 0.5).x
+    };
+    let srgb = srgb_to_linear(128);
+    assert!((at_centre("") - srgb).abs() < 1e-5);
+    assert!((at_centre(r#""string encoding" "linear""#) - 128.0 / 255.0).abs() < 1e-5);
+    assert!(
+        (at_centre(r#""string encoding" "gamma 2.2""#) - (128.0f32 / 255.0).powf(2.2)).abs() < 1e-5
+    );
+    assert!((at_centre(r#""float scale" [ 0.5 ]"#) - 0.5 * srgb).abs() < 1e-5);
+    // pbrt-v4 scales before it inverts.
+    assert!(
+        (at_centre(r#""float scale" [ 0.5 ] "bool invert" true"#) - (1.0 - 0.5 * srgb)).abs()
+            < 1e-5
+    );
+}
+
+#[test]
+fn combinations_of_constants_give_their_closed_forms() {
+    let dir = tempfile::tempdir().unwrap();
+    let value = |textures: &str| {
+        let scene = build(
+            dir.path(),
+            &quad_scene(&format!(
+                "{textures}\nMaterial \"diffuse\" \"texture reflectance\" \"t\""
+            )),
+        );
+        reflectance_at(&scene, 0.3, 0.6)
+    };
+    // A mix at amount 0.3 is 0.7 of tex1 and 0.3 of tex2.
+    let mix = value(
+        r#"Texture "a" "float" "constant" "float value" [ 0.3 ]
+Texture "t" "spectrum" "mix" "rgb tex1" [ 0.2 0.4 0.6 ] "rgb tex2" [ 1 0 0.5 ] "texture amount" "a""#,
+    );
+    assert!(
+        (mix - Vec3A::new(0.44, 0.28, 0.57)).abs().max_element() < 1e-6,
+        "{mix}"
+    );
+    // Scale multiplies; bilerp at (s, t) = (0.3, 0.6) weighs its corners bilinearly.
+    let scaled =
+        value(r#"Texture "t" "spectrum" "scale" "rgb tex" [ 0.5 0.5 0.5 ] "float scale" [ 0.5 ]"#);
+    assert!((scaled - Vec3A::splat(0.25)).abs().max_element() < 1e-6);
+    let bilerp = value(
+        r#"Texture "t" "spectrum" "bilerp" "rgb v00" [ 1 0 0 ] "rgb v10" [ 0 1 0 ] "rgb v01" [ 0 0 1 ] "rgb v11" [ 0 0 0 ]"#,
+    );
+    let want = Vec3A::new(0.7 * 0.4, 0.3 * 0.4, 0.7 * 0.6);
+    assert!((bilerp - want).abs().max_element() < 1e-6, "{bilerp}");
+    // The quad faces +z: a direction mix along z takes tex1, along x tex2.
+    let dmix = |dir: &str| {
+        value(&format!(
+            r#"Texture "t" "spectrum" "directionmix" "rgb tex1" [ 1 0 0 ] "rgb tex2" [ 0 1 0 ] "vector3 dir" [ {dir} ]"#
+        ))
+    };
+    assert_eq!(dmix("0 0 1"), Vec3A::X);
+    assert_eq!(dmix("1 0 0"), Vec3A::Y);
+    // A checkerboard of 2x2 cells over the quad: (0.3, 0.6) lies in cell (0, 1), odd: tex2.
+    let checks = value(
+        r#"Texture "t" "spectrum" "checkerboard" "float uscale" [ 2 ] "float vscale" [ 2 ] "rgb tex1" [ 1 1 1 ] "rgb tex2" [ 0 0 0 ]"#,
+    );
+    assert_eq!(checks, Vec3A::ZERO);
+}
+
+/// A checkerboard plane under a uniform sky, seen from just above it: every pixel is the
+/// checkerboard's value averaged over the pixel. Far away the cells are much smaller than
+/// a pixel, and the pixels must settle on the mean of the two values (0.5), not alias into
+/// moiré. One sample per pixel shows whether the texture filters: unfiltered, each far
+/// pixel would be 0 or 1 at random.
+#[test]
+fn a_checkerboard_receding_to_the_horizon_fades_to_its_mean() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "bsdf"
+Film "rgb" "integer xresolution" [ 128 ] "integer yresolution" [ 64 ] "string filename" "plane.exr"
+PixelFilter "box" "float xradius" [ 0.5 ] "float yradius" [ 0.5 ]
+LookAt 0 0.5 0   0 0.38 -10   0 1 0
+Camera "perspective" "float fov" [ 30 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+Texture "checks" "spectrum" "checkerboard" "float uscale" [ 400000 ] "float vscale" [ 400000 ]
+    "rgb tex1" [ 1 1 1 ] "rgb tex2" [ 0 0 0 ]
+Material "diffuse" "texture reflectance" "checks"
+Shape "trianglemesh" "point3 P" [ -1000 0 -1000  1000 0 -1000  1000 0 1000  -1000 0 1000 ]
+    "integer indices" [ 0 1 2 0 2 3 ] "point2 uv" [ 0 0  1 0  1 1  0 1 ]
+"#;
+    let path = write_scene(dir.path(), "plane.pbrt", text);
+    let one = render(&path, dir.path(), "one", &["--spp", "1"]).image;
+    let many = render(&path, dir.path(), "many", &["--spp", "256"]).image;
+    // Above the horizon is the sky (1); the rows just below it see the plane (cells of
+    // 0.005 units) from 9 to 30 units away, where a pixel spans tens of cells each way.
+    let horizon = (0..64)
+        .find(|&y| px(&one, 64, y) < 0.9)
+        .expect("the plane is in view");
+    let far: Vec<(u32, u32)> = (horizon + 2..horizon + 8)
+        .flat_map(|y| (0..128).map(move |x| (x, y)))
+        .collect();
+    let stats = |img: &kiln_image::RgbBuffer| {
+        let v: Vec<f64> = far.iter().map(|&(x, y)| px(img, x, y) as f64).collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let sd = (v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / v.len() as f64).sqrt();
+        (mean, sd)
+    };
+    let (m1, sd1) = stats(&one);
+    let (m256, sd256) = stats(&many);
+    assert!(
+        (m256 - 0.5).abs() < 0.005,
+        "reference far field {m256} ± {sd256}"
+    );
+    assert!(
+        (m1 - m256).abs() < 0.01 * m256,
+        "far field at 1 spp {m1} against {m256} at 256 spp"
+    );
+    assert!(
+        sd1 < 0.05,
+        "the far field at 1 spp varies by {sd1}: aliasing"
+    );
+}
+
+/// Red at (x, y) of a whole-frame image.
+fn px(img: &kiln_image::RgbBuffer, x: u32, y: u32) -> f32 {
+    img.pixels[(y * img.width + x) as usize][0]
+}
+
+#[test]
+fn bad_textures_are_errors_that_name_the_line() {
+    let scene = |body: &str| format!("WorldBegin\n{body}\nShape \"sphere\"\n");
+    let cases = [
+        (
+            "Material \"diffuse\" \"texture reflectance\" \"nowhere\"",
+            "scene.pbrt:2:",
+            "texture 'nowhere', which is not defined",
+        ),
+        (
+            "Texture \"f\" \"float\" \"constant\"\nMaterial \"diffuse\" \"texture reflectance\" \"f\"",
+            "scene.pbrt:3:",
+            "is a float texture",
+        ),
+        (
+            "Texture \"s\" \"spectrum\" \"constant\"\nMaterial \"conductor\" \"texture roughness\" \"s\"",
+            "scene.pbrt:3:",
+            "is a spectrum texture",
+        ),
+        (
+            "Texture \"t\" \"float\" \"constant\"\nTexture \"t\" \"float\" \"constant\"",
+            "scene.pbrt:3:",
+            "defined twice",
+        ),
+        (
+            "Texture \"t\" \"float\" \"velvet\"",
+            "scene.pbrt:2:",
+            "unknown texture class 'velvet'",
+        ),
+        (
+            "Texture \"t\" \"spectrum\" \"fbm\"",
+            "scene.pbrt:2:",
+            "float texture in pbrt-v4",
+        ),
+        (
+            "Texture \"t\" \"float\" \"ptex\" \"string filename\" \"face.ptx\"",
+            "scene.pbrt:2:",
+            "does not read Ptex files ('face.ptx')",
+        ),
+        (
+            "Texture \"t\" \"float\" \"imagemap\" \"string filename\" \"missing.png\"",
+            "scene.pbrt:2:",
+            "missing.png",
+        ),
+        (
+            "Texture \"t\" \"float\" \"checkerboard\" \"string mapping\" \"toroidal\"",
+            "scene.pbrt:2:",
+            "unknown texture mapping 'toroidal'",
+        ),
+        (
+            "Texture \"t\" \"float\" \"imagemap\" \"string filename\" \"a.png\" \"string wrap\" \"mirror\"",
+            "scene.pbrt:2:",
+            "unknown wrap mode 'mirror'",
+        ),
+        (
+            "Texture \"t\" \"float\" \"constant\"\nLightSource \"point\" \"texture I\" \"t\"",
+            "scene.pbrt:3:",
+            "a texture is not accepted here",
+        ),
+    ];
+    for (body, at, says) in cases {
+        let (err, _dir) = failing(&scene(body));
+        assert!(err.contains(at) && err.contains(says), "{body}:\n{err}");
+    }
+}
+
+#[test]
+fn corrupt_and_hostile_images_are_errors_not_panics() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("corrupt.png"), b"\x89PNG\r\n\x1a\nnot really a png").unwrap();
+    std::fs::write(d.join("short.pfm"), b"PF\n4 4\n-1.0\n\x00\x00").unwrap();
+    std::fs::write(d.join("huge.pfm"), b"PF\n100000 100000\n-1.0\n").unwrap();
+    std::fs::write(d.join("picture.gif"), b"GIF89a").unwrap();
+    for (file, says) in [
+        ("corrupt.png", "corrupt.png"),
+        ("short.pfm", "cut short"),
+        ("huge.pfm", "more than the"),
+        ("picture.gif", "not '.gif'"),
+    ] {
+        let err = failing_in(
+            d,
+            &format!(
+                "WorldBegin\nTexture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"{file}\"\nShape \"sphere\"\n"
+            ),
+        );
+        assert!(
+            err.contains("scene.pbrt:2:") && err.contains(says),
+            "{file}:\n{err}"
+        );
+    }
+}
