@@ -35,7 +35,8 @@ fn furnace_triangle_mesh_is_one_everywhere() {
 
 /// A white diffuse floor (albedo 0.5) under light of radiance 1 from the whole upper
 /// hemisphere reflects 0.5: checked for a constant sky, a dome, and constant environment
-/// maps in both layouts, with light sampling alone, BSDF sampling alone and MIS.
+/// maps in both layouts (EXR, PFM and PNG), with light sampling alone, BSDF sampling alone
+/// and MIS.
 #[test]
 fn floor_under_a_uniform_sky_reflects_half() {
     let dir = tempfile::tempdir().unwrap();
@@ -45,11 +46,25 @@ fn floor_under_a_uniform_sky_reflects_half() {
     let mut lat_long = kiln_image::RgbBuffer::new(64, 32, 0, 0, 64, 32);
     lat_long.pixels.iter_mut().for_each(|p| *p = [1.0; 3]);
     kiln_image::write_exr(&dir.path().join("latlong.exr"), &lat_long).unwrap();
+    // The same light as a PFM (little-endian floats, scale 2: values 0.5 read as 1) and as
+    // an 8-bit PNG of white (sRGB 255 is 1).
+    let mut pfm = b"PF\n64 32\n-2.0\n".to_vec();
+    pfm.extend((0..64 * 32 * 3).flat_map(|_| 0.5f32.to_le_bytes()));
+    std::fs::write(dir.path().join("latlong.pfm"), pfm).unwrap();
+    let file = std::fs::File::create(dir.path().join("square.png")).unwrap();
+    let mut png = png::Encoder::new(file, 16, 16);
+    png.set_color(png::ColorType::Rgb);
+    png.write_header()
+        .unwrap()
+        .write_image_data(&[255; 16 * 16 * 3])
+        .unwrap();
     let lights = [
         "LightSource \"infinite\" \"rgb L\" [ 1 1 1 ]",
         "LightSource \"dome\" \"rgb L\" [ 1 1 1 ] \"vector3 up\" [ 0 1 0 ]",
         "LightSource \"infinite\" \"string filename\" \"square.exr\"",
         "AttributeBegin Rotate -90 1 0 0 LightSource \"infinite\" \"string filename\" \"latlong.exr\" AttributeEnd",
+        "AttributeBegin Rotate -90 1 0 0 LightSource \"infinite\" \"string filename\" \"latlong.pfm\" AttributeEnd",
+        "LightSource \"infinite\" \"string filename\" \"square.png\"",
     ];
     for light in lights {
         for strategy in ["light", "bsdf", "mis"] {

@@ -9,17 +9,22 @@ use std::path::Path;
 /// EXR's header is checked against it before its pixels are read.
 pub const MAX_ENVIRONMENT_PIXELS: u64 = 1 << 27;
 
-/// Reads an EXR environment map as linear RGB.
+/// Reads an environment map as linear RGB, from any format [`read_texture_image`] reads
+/// (8-bit PNGs as sRGB, pbrt-v4's default); grey maps become grey RGB, alpha is dropped.
 pub fn read_environment(path: &Path, loc: &Loc) -> Result<ImageRgb> {
-    let fail =
-        |e: String| SceneError::at(loc, format!("environment map '{}': {e}", path.display()));
-    let bytes = std::fs::read(path).map_err(|e| fail(e.to_string()))?;
-    let image = kiln_image::decode_exr_limited(&bytes, MAX_ENVIRONMENT_PIXELS)
-        .map_err(|e| fail(e.to_string()))?;
+    let image = read_texture_image(path, ColorEncoding::Srgb, loc)?;
+    let n = image.channels;
+    let mut pixels = Vec::with_capacity(image.width as usize * image.height as usize);
+    for y in 0..image.height {
+        for x in 0..image.width {
+            let c = |i: u32| image.channel(x, y, i);
+            pixels.push(if n < 3 { [c(0); 3] } else { [c(0), c(1), c(2)] });
+        }
+    }
     Ok(ImageRgb {
         width: image.width,
         height: image.height,
-        pixels: image.pixels,
+        pixels,
     })
 }
 
