@@ -250,6 +250,9 @@ pub struct ShapeDesc {
     pub area_light: Option<AreaLightDesc>,
     /// The media inside and outside the shape, when they differ (a medium boundary).
     pub media: Option<MediumInterfaceDesc>,
+    /// pbrt-v4's "alpha": where it is below 1 rays pass through the surface (stochastically
+    /// between 0 and 1). None when the shape is opaque everywhere.
+    pub alpha: Option<FloatValue>,
     pub loc: Loc,
 }
 

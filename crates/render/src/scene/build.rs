@@ -61,6 +61,7 @@ struct Builder {
     use_media: bool,
     /// The media on either side of each area light's surface (by light index).
     light_media: Vec<Option<[u32; 2]>>,
+    textures: Textures,
 }
 
 impl Builder {
@@ -161,11 +162,16 @@ impl Builder {
         };
         let media =
             shape_media.map(|m| [m.inside, m.outside].map(|x| x.map_or(NO_MEDIUM, |id| id.0)));
+        let alpha = shape.alpha.map(|a| {
+            self.prims.alphas.push(self.textures.float_value(&a));
+            (self.prims.alphas.len() - 1) as u32
+        });
         let surface = SurfaceInfo {
             material,
             light: None,
             volume,
             media,
+            alpha,
         };
         match &shape.kind {
             ShapeKind::Mesh(mesh) => self.add_mesh(shape, mesh, to_world, surface),
@@ -373,6 +379,7 @@ impl Scene {
             volumes: Vec::new(),
             use_media: media == MediaPolicy::Render,
             light_media: Vec::new(),
+            textures,
         };
         for shape in &desc.shapes {
             b.add_shape(shape, shape.object_to_world)?;

@@ -8,6 +8,7 @@
 //! VolumeLights sample. Shapes know nothing of materials, lights or media beyond the
 //! indices a [`SurfaceInfo`] carries.
 
+mod alpha;
 pub mod sphere;
 pub mod triangle;
 
@@ -15,6 +16,7 @@ pub use sphere::Sphere;
 pub use triangle::barycentrics;
 
 use crate::math::Ray;
+use crate::textures::FloatTexture;
 use glam::{Vec2, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::cwbvh::CwBvh;
@@ -32,6 +34,8 @@ pub struct SurfaceInfo {
     pub volume: Option<u32>,
     /// The media [inside, outside] when the surface separates two ([`NO_MEDIUM`] is vacuum).
     pub media: Option<[u32; 2]>,
+    /// The alpha texture (index into `Primitives::alphas`) where rays may pass through.
+    pub alpha: Option<u32>,
 }
 
 /// Vacuum, in [`SurfaceInfo::media`].
@@ -92,6 +96,8 @@ pub struct Primitives {
     /// The mesh each triangle belongs to.
     pub triangle_mesh: Vec<u32>,
     pub spheres: Vec<Sphere>,
+    /// Alpha textures, referred to by `SurfaceInfo::alpha`.
+    pub alphas: Vec<FloatTexture>,
 }
 
 /// All the geometry of a scene, ready to trace.
@@ -104,6 +110,8 @@ pub struct Geometry {
     /// For each BVH slot, the triangle's index in declaration order.
     bvh_triangle_ids: Vec<u32>,
     sphere_bvh: Option<CwBvh>,
+    /// Some surface has an alpha texture: candidate hits must be tested against it.
+    any_alpha: bool,
     /// Time spent building BVHs.
     pub build_time: Duration,
 }
@@ -194,6 +202,7 @@ impl Geometry {
             });
         }
         Geometry {
+            any_alpha: !primitives.alphas.is_empty(),
             prims: primitives,
             triangle_bvh,
             bvh_triangles,
@@ -229,9 +238,7 @@ impl Geometry {
         let mut best: Option<(bool, u32)> = None;
         if let Some(bvh) = &self.triangle_bvh {
             let mut hit = RayHit::none();
-            if bvh.ray_traverse(bray, &mut hit, |r, id| self.bvh_triangles[id].intersect(r))
-                && hit.t < best_t
-            {
+            if bvh.ray_traverse(bray, &mut hit, |r, id| self.triangle_t(r, id)) && hit.t < best_t {
                 best_t = hit.t;
                 best = Some((true, self.bvh_triangle_ids[hit.primitive_id as usize]));
             }
@@ -240,8 +247,7 @@ impl Geometry {
             let mut hit = RayHit::none();
             let sray = bvh_ray(ray.origin, ray.dir, 0.0, best_t);
             if bvh.ray_traverse(sray, &mut hit, |r, id| {
-                let s = &self.prims.spheres[bvh.primitive_indices[id] as usize];
-                s.intersect(r.origin, r.direction, r.tmin.max(1e-7), r.tmax)
+                self.sphere_t(r, bvh.primitive_indices[id], r.tmin.max(1e-7))
             }) && hit.t < best_t
             {
                 best_t = hit.t;
@@ -252,18 +258,50 @@ impl Geometry {
         Some((best_t, is_triangle, id))
     }
 
+    /// The distance to triangle BVH slot `slot` along `r`, infinite on a miss or where its
+    /// alpha lets the ray through.
+    #[inline(always)]
+    fn triangle_t(&self, r: &BvhRay, slot: usize) -> f32 {
+        let t = self.bvh_triangles[slot].intersect(r);
+        if self.any_alpha
+            && t < f32::INFINITY
+            && !self.triangle_is_opaque_at(
+                self.bvh_triangle_ids[slot],
+                r.origin.into(),
+                r.direction.into(),
+                t,
+            )
+        {
+            return f32::INFINITY;
+        }
+        t
+    }
+
+    /// The distance to sphere `id` along `r` beyond `tmin`, as [`Self::triangle_t`].
+    #[inline(always)]
+    fn sphere_t(&self, r: &BvhRay, id: u32, tmin: f32) -> f32 {
+        let s = &self.prims.spheres[id as usize];
+        let t = s.intersect(r.origin.into(), r.direction.into(), tmin, r.tmax);
+        if self.any_alpha
+            && t < f32::INFINITY
+            && !self.sphere_is_opaque_at(id, r.origin.into(), r.direction.into(), t)
+        {
+            return f32::INFINITY;
+        }
+        t
+    }
+
     /// True when nothing blocks the segment from `origin` along `dir` up to `tmax`.
     pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, tmax: f32) -> bool {
         let bray = bvh_ray(origin, dir, 0.0, tmax);
         if let Some(bvh) = &self.triangle_bvh {
-            if !bvh.ray_traverse_miss(bray, |r, id| self.bvh_triangles[id].intersect(r)) {
+            if !bvh.ray_traverse_miss(bray, |r, id| self.triangle_t(r, id)) {
                 return false;
             }
         }
         if let Some(bvh) = &self.sphere_bvh {
             if !bvh.ray_traverse_miss(bray, |r, id| {
-                let s = &self.prims.spheres[bvh.primitive_indices[id] as usize];
-                s.intersect(r.origin, r.direction, 1e-7, r.tmax)
+                self.sphere_t(r, bvh.primitive_indices[id], 1e-7)
             }) {
                 return false;
             }
@@ -307,6 +345,7 @@ mod tests {
             light: None,
             volume: None,
             media: None,
+            alpha: None,
         };
         let meshes = vec![MeshInfo {
             surface,

@@ -93,6 +93,16 @@ impl Geometry {
     }
 }
 
+/// pbrt-v4's (u, v) of the point of a whole sphere with outward normal `n`: u = φ / 2π,
+/// v = 1 − θ / π (0 at the bottom).
+pub fn sphere_uv(n: Vec3A) -> Vec2 {
+    use std::f32::consts::{PI, TAU};
+    Vec2::new(
+        (n.y.atan2(n.x) / TAU).rem_euclid(1.0),
+        1.0 - n.z.clamp(-1.0, 1.0).acos() / PI,
+    )
+}
+
 /// A point on a sphere seen from `p` (`n` outward): the visible cone uniformly in solid
 /// angle from outside, the area uniformly from inside.
 pub fn sample_sphere(center: Vec3A, radius: f32, p: Vec3A, u: Vec2) -> Option<ShapeSample> {

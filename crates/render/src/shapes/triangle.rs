@@ -55,6 +55,20 @@ impl Geometry {
         }
     }
 
+    /// The surface coordinates and geometric normal at point `p` on triangle `tri`.
+    pub(super) fn triangle_uv_and_normal(&self, tri: u32, p: Vec3A) -> (Vec2, Vec3A) {
+        let ([i0, i1, i2], mesh, [p0, p1, p2]) = self.triangle(tri);
+        let b = barycentrics(p, p0, p1, p2);
+        let uv = if mesh.has_uvs {
+            self.prims.uvs[i0 as usize] * b[0]
+                + self.prims.uvs[i1 as usize] * b[1]
+                + self.prims.uvs[i2 as usize] * b[2]
+        } else {
+            Vec2::X * b[1] + Vec2::ONE * b[2]
+        };
+        (uv, (p0 - p2).cross(p1 - p2).normalize_or_zero())
+    }
+
     /// Position, geometric and shading normal at barycentrics `b` of triangle `tri`,
     /// oriented as a hit there would be.
     pub fn surface_point(&self, tri: u32, b: [f32; 3]) -> (Vec3A, Vec3A, Vec3A) {

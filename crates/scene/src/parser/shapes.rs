@@ -6,6 +6,7 @@ use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
 use crate::files;
 use crate::params::ParamSet;
+use crate::textures::FloatValue;
 use std::sync::Arc;
 
 impl Parser {
@@ -57,10 +58,14 @@ impl Parser {
                 ));
             }
         };
-        if let Some(l) = params.loc_of("alpha") {
+        let alpha = match self.float_value(params, "alpha", 1.0)? {
+            FloatValue::Constant(a) if a >= 1.0 => None,
+            a => Some(a),
+        };
+        if alpha.is_some() && self.gs.area_light.is_some() {
             return Err(SceneError::at(
-                &l,
-                "shape parameter 'alpha' is not supported yet",
+                &params.loc_of("alpha").unwrap_or_else(|| loc.clone()),
+                "an area light with \"alpha\" is not supported yet",
             ));
         }
         self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
@@ -75,6 +80,7 @@ impl Parser {
             material: self.gs.material,
             area_light: self.gs.area_light.clone(),
             media: (inside != outside).then_some(MediumInterfaceDesc { inside, outside }),
+            alpha,
             loc: loc.clone(),
         };
         match &mut self.current_object {
