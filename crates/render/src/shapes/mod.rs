@@ -265,12 +265,7 @@ impl Geometry {
         let t = self.bvh_triangles[slot].intersect(r);
         if self.any_alpha
             && t < f32::INFINITY
-            && !self.triangle_is_opaque_at(
-                self.bvh_triangle_ids[slot],
-                r.origin.into(),
-                r.direction.into(),
-                t,
-            )
+            && !self.triangle_is_opaque_at(self.bvh_triangle_ids[slot], r.origin, r.direction, t)
         {
             return f32::INFINITY;
         }
@@ -281,10 +276,10 @@ impl Geometry {
     #[inline(always)]
     fn sphere_t(&self, r: &BvhRay, id: u32, tmin: f32) -> f32 {
         let s = &self.prims.spheres[id as usize];
-        let t = s.intersect(r.origin.into(), r.direction.into(), tmin, r.tmax);
+        let t = s.intersect(r.origin, r.direction, tmin, r.tmax);
         if self.any_alpha
             && t < f32::INFINITY
-            && !self.sphere_is_opaque_at(id, r.origin.into(), r.direction.into(), t)
+            && !self.sphere_is_opaque_at(id, r.origin, r.direction, t)
         {
             return f32::INFINITY;
         }
