@@ -46,11 +46,11 @@ Shape "trianglemesh" "point3 P" [ 0 0 0  1 0 0  1 1 0  0 1 0 ] "integer indices"
 /// The diffuse reflectance the scene's material has where a ray down -z meets (x, y).
 fn reflectance_at(scene: &Scene, x: f32, y: f32) -> Vec3A {
     let ray = Ray::new(Vec3A::new(x, y, 4.0), -Vec3A::Z);
-    let hit = scene
+    let mut hit = scene
         .geometry
         .intersect(&ray, f32::INFINITY)
         .expect("a hit");
-    match scene.bsdf(&hit, 1.0) {
+    match scene.bsdf(&mut hit, 1.0) {
         Some(Bsdf::Diffuse(d)) => d.r,
         other => panic!("expected a diffuse BSDF, got {other:?}"),
     }
@@ -388,4 +388,63 @@ AttributeEnd
     let open = lit(r#""float alpha" [ 0 ]"#);
     assert!(open > 0.15 && open < 0.16, "{open}");
     assert_eq!(lit(""), 0.0);
+}
+
+/// The shading normal the scene's material gives where a ray down -z meets (x, y).
+fn shading_normal_at(scene: &Scene, x: f32, y: f32) -> Vec3A {
+    let ray = Ray::new(Vec3A::new(x, y, 4.0), -Vec3A::Z);
+    let mut hit = scene
+        .geometry
+        .intersect(&ray, f32::INFINITY)
+        .expect("a hit");
+    scene.bsdf(&mut hit, 1.0);
+    hit.ns
+}
+
+#[test]
+fn bump_maps_tilt_the_normal_by_the_displacement_gradient() {
+    let dir = tempfile::tempdir().unwrap();
+    let normal = |material: &str| {
+        let scene = build(dir.path(), &quad_scene(material));
+        shading_normal_at(&scene, 0.3, 0.6)
+    };
+    // The quad (dp/du = x, dp/dv = y) faces +z.
+    assert!((normal(r#"Material "diffuse""#) - Vec3A::Z).length() < 1e-6);
+    // A constant displacement moves the surface without bending it: nothing changes.
+    let flat = normal(r#"Material "diffuse" "float displacement" [ 0.1 ]"#);
+    assert!((flat - Vec3A::Z).length() < 1e-5, "{flat}");
+    // Displacement a·u tilts the normal to (-a, 0, 1)/|…|: here a = 0.5.
+    let slope = normal(
+        r#"Texture "ramp" "float" "bilerp" "float v00" [ 0 ] "float v01" [ 0 ] "float v10" [ 0.5 ] "float v11" [ 0.5 ]
+Material "diffuse" "texture displacement" "ramp""#,
+    );
+    let want = Vec3A::new(-0.5, 0.0, 1.0).normalize();
+    assert!((slope - want).length() < 1e-4, "{slope} vs {want}");
+}
+
+#[test]
+fn normal_maps_set_the_normal_in_the_tangent_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let pfm = |name: &str, rgb: [f32; 3]| {
+        let mut bytes = b"PF\n2 2\n-1.0\n".to_vec();
+        bytes.extend((0..4).flat_map(|_| rgb).flat_map(f32::to_le_bytes));
+        std::fs::write(dir.path().join(name), bytes).unwrap();
+    };
+    let normal = |file: &str| {
+        let scene = build(
+            dir.path(),
+            &quad_scene(&format!(
+                r#"Material "diffuse" "string normalmap" "{file}""#
+            )),
+        );
+        shading_normal_at(&scene, 0.3, 0.6)
+    };
+    // (0.5, 0.5, 1) is the unperturbed normal.
+    pfm("flat.pfm", [0.5, 0.5, 1.0]);
+    assert!((normal("flat.pfm") - Vec3A::Z).length() < 1e-6);
+    // 30 degrees towards dp/du (+x).
+    let (s, c) = (30f32.to_radians().sin(), 30f32.to_radians().cos());
+    pfm("tilted.pfm", [0.5 + 0.5 * s, 0.5, 0.5 + 0.5 * c]);
+    let n = normal("tilted.pfm");
+    assert!((n - Vec3A::new(s, 0.0, c)).length() < 1e-5, "{n}");
 }

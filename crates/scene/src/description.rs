@@ -5,7 +5,7 @@
 //! will be rendered.
 
 use crate::error::{Diagnostic, Loc};
-use crate::textures::{FloatTextureDesc, FloatValue, RgbValue, SpectrumTextureDesc};
+use crate::textures::{FloatTextureDesc, FloatValue, RgbValue, SpectrumTextureDesc, TextureImage};
 use glam::{DMat4, DVec3};
 use std::sync::Arc;
 
@@ -175,9 +175,23 @@ pub enum MaterialKind {
 #[derive(Debug, Clone)]
 pub struct MaterialDesc {
     pub kind: MaterialKind,
+    /// How the material perturbs the shading normal (pbrt-v4's "displacement" and
+    /// "normalmap", which every material takes).
+    pub normal: NormalPerturbationDesc,
     /// The name given by MakeNamedMaterial, if any.
     pub name: Option<String>,
     pub loc: Loc,
+}
+
+/// Bump mapping by a displacement texture, or a tangent-space normal map.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum NormalPerturbationDesc {
+    #[default]
+    None,
+    /// Displacement along the normal, in scene units.
+    Bump(FloatValue),
+    /// A normal map image (linear RGB: 2·rgb − 1 in the surface's tangent frame).
+    NormalMap(Arc<TextureImage>),
 }
 
 /// Index into [`SceneDescription::materials`].

@@ -314,6 +314,8 @@ fn surface_step(
     work: &mut Work,
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
+    // Shading may perturb the normal (bump and normal maps): shade a copy of the hit.
+    let hit = &mut hit.clone();
     let Some(bsdf) = scene.bsdf(hit, ctx.footprint) else {
         // An interface: continue straight through without counting a bounce.
         state.pass_throughs += 1;

@@ -271,8 +271,8 @@ fn trace_photon(
                 }
             }
         }
-        let Some(hit) = found else { return };
-        let Some(bsdf) = scene.bsdf(&hit, 1.0) else {
+        let Some(mut hit) = found else { return };
+        let Some(bsdf) = scene.bsdf(&mut hit, 1.0) else {
             // An interface: straight on, into the medium on the other side.
             if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
                 medium = next;

@@ -5,6 +5,7 @@
 //! may vary them over the surface) and makes its [`Bsdf`] at a hit from a
 //! [`TextureEvalContext`]. Materials know nothing of lights, media or integrators.
 
+mod bump;
 mod coated_diffuse;
 mod conductor;
 mod dielectric;
@@ -12,6 +13,7 @@ mod diffuse;
 mod roughness;
 mod thin_dielectric;
 
+pub use bump::Perturbation;
 pub use coated_diffuse::CoatedDiffuseMaterial;
 pub use conductor::{ConductorMaterial, ConductorSpec};
 pub use dielectric::DielectricMaterial;
@@ -21,10 +23,18 @@ pub use thin_dielectric::ThinDielectricMaterial;
 
 use crate::bsdfs::Bsdf;
 use crate::textures::{TextureEvalContext, Textures};
-use kiln_scene::MaterialKind;
+use kiln_scene::{MaterialDesc, MaterialKind, NormalPerturbationDesc};
 
+/// A material: the model that makes its BSDF, and how it perturbs the shading normal.
 #[derive(Debug, Clone)]
-pub enum Material {
+pub struct Material {
+    pub model: Model,
+    pub normal: Perturbation,
+}
+
+/// The reflection models, one per pbrt-v4 material.
+#[derive(Debug, Clone)]
+pub enum Model {
     Diffuse(DiffuseMaterial),
     Conductor(ConductorMaterial),
     Dielectric(DielectricMaterial),
@@ -37,23 +47,58 @@ pub enum Material {
 impl Material {
     /// The material a scene description's Material or MakeNamedMaterial gives, its
     /// textures taken from the scene's.
-    pub fn from_description(kind: &MaterialKind, textures: &Textures) -> Material {
+    pub fn from_description(desc: &MaterialDesc, textures: &Textures) -> Material {
+        Material {
+            model: Model::from_description(&desc.kind, textures),
+            normal: match &desc.normal {
+                NormalPerturbationDesc::None => Perturbation::None,
+                NormalPerturbationDesc::Bump(d) => Perturbation::Bump(textures.float_value(d)),
+                NormalPerturbationDesc::NormalMap(image) => Perturbation::NormalMap(image.clone()),
+            },
+        }
+    }
+
+    /// A material with no perturbation.
+    pub fn plain(model: Model) -> Material {
+        Material {
+            model,
+            normal: Perturbation::None,
+        }
+    }
+
+    /// The BSDF at a hit; None for an interface, which rays cross unchanged.
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf> {
+        self.model.bsdf(ctx)
+    }
+
+    /// Whether the material varies over its surface: its BSDF then needs the hit's full
+    /// texture context, footprint included; otherwise any context gives the same BSDF.
+    pub fn is_textured(&self) -> bool {
+        self.model.is_textured() || !self.normal.is_none()
+    }
+
+    /// True for an interface: a boundary between media, not a surface that scatters.
+    pub fn is_interface(&self) -> bool {
+        self.model.is_interface()
+    }
+}
+
+impl Model {
+    pub fn from_description(kind: &MaterialKind, textures: &Textures) -> Model {
         let rough = |r| RoughnessTexture::new(r, textures);
         match kind {
-            MaterialKind::Diffuse { reflectance } => Material::Diffuse(DiffuseMaterial {
+            MaterialKind::Diffuse { reflectance } => Model::Diffuse(DiffuseMaterial {
                 reflectance: textures.rgb_value(reflectance),
             }),
-            MaterialKind::Dielectric { eta, roughness } => {
-                Material::Dielectric(DielectricMaterial {
-                    eta: *eta,
-                    roughness: rough(roughness),
-                })
-            }
+            MaterialKind::Dielectric { eta, roughness } => Model::Dielectric(DielectricMaterial {
+                eta: *eta,
+                roughness: rough(roughness),
+            }),
             MaterialKind::ThinDielectric { eta } => {
-                Material::ThinDielectric(ThinDielectricMaterial { eta: *eta })
+                Model::ThinDielectric(ThinDielectricMaterial { eta: *eta })
             }
             MaterialKind::Conductor { eta, k, roughness } => {
-                Material::Conductor(ConductorMaterial::new(
+                Model::Conductor(ConductorMaterial::new(
                     ConductorSpec::EtaK {
                         eta: textures.rgb_value(eta),
                         k: textures.rgb_value(k),
@@ -64,7 +109,7 @@ impl Material {
             MaterialKind::ConductorReflectance {
                 reflectance,
                 roughness,
-            } => Material::Conductor(ConductorMaterial::new(
+            } => Model::Conductor(ConductorMaterial::new(
                 ConductorSpec::Reflectance(textures.rgb_value(reflectance)),
                 rough(roughness),
             )),
@@ -73,24 +118,24 @@ impl Material {
                 roughness,
                 eta,
                 ..
-            } => Material::CoatedDiffuse(CoatedDiffuseMaterial::new(
+            } => Model::CoatedDiffuse(CoatedDiffuseMaterial::new(
                 textures.rgb_value(reflectance),
                 rough(roughness),
                 *eta,
             )),
-            MaterialKind::Interface => Material::Interface,
+            MaterialKind::Interface => Model::Interface,
         }
     }
 
     /// The BSDF at a hit; None for an interface, which rays cross unchanged.
     pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf> {
         match self {
-            Material::Diffuse(m) => Some(m.bsdf(ctx)),
-            Material::Conductor(m) => Some(m.bsdf(ctx)),
-            Material::Dielectric(m) => Some(m.bsdf(ctx)),
-            Material::ThinDielectric(m) => Some(m.bsdf()),
-            Material::CoatedDiffuse(m) => Some(m.bsdf(ctx)),
-            Material::Interface => None,
+            Model::Diffuse(m) => Some(m.bsdf(ctx)),
+            Model::Conductor(m) => Some(m.bsdf(ctx)),
+            Model::Dielectric(m) => Some(m.bsdf(ctx)),
+            Model::ThinDielectric(m) => Some(m.bsdf()),
+            Model::CoatedDiffuse(m) => Some(m.bsdf(ctx)),
+            Model::Interface => None,
         }
     }
 
@@ -98,18 +143,18 @@ impl Material {
     /// texture context, footprint included; otherwise any context gives the same BSDF.
     pub fn is_textured(&self) -> bool {
         match self {
-            Material::Diffuse(m) => m.reflectance.as_constant().is_none(),
-            Material::Conductor(m) => m.is_textured(),
-            Material::Dielectric(m) => m.roughness.is_textured(),
-            Material::CoatedDiffuse(m) => {
+            Model::Diffuse(m) => m.reflectance.as_constant().is_none(),
+            Model::Conductor(m) => m.is_textured(),
+            Model::Dielectric(m) => m.roughness.is_textured(),
+            Model::CoatedDiffuse(m) => {
                 m.reflectance.as_constant().is_none() || m.roughness.is_textured()
             }
-            Material::ThinDielectric(_) | Material::Interface => false,
+            Model::ThinDielectric(_) | Model::Interface => false,
         }
     }
 
     /// True for an interface: a boundary between media, not a surface that scatters.
     pub fn is_interface(&self) -> bool {
-        matches!(self, Material::Interface)
+        matches!(self, Model::Interface)
     }
 }

@@ -10,7 +10,7 @@ use crate::lights::{
     Light, MediumLight, SphereLight, TriangleLight, VolumeInterior, VolumeSphereLight,
     VolumeTriangleLight,
 };
-use crate::materials::{DielectricMaterial, Material, RoughnessTexture};
+use crate::materials::{DielectricMaterial, Material, Model, Perturbation, RoughnessTexture};
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::sampling::AliasTable;
@@ -93,8 +93,14 @@ impl Builder {
         };
         let material = shape.material.0;
         let eta = match &self.materials[material as usize] {
-            Material::Dielectric(d) if d.is_smooth() => d.eta,
-            Material::Interface => 1.0,
+            Material {
+                model: Model::Dielectric(d),
+                normal: Perturbation::None,
+            } if d.is_smooth() => d.eta,
+            Material {
+                model: Model::Interface,
+                ..
+            } => 1.0,
             _ => {
                 return Err(unsupported(
                     "a VolumeLight (AreaLightSource \"volume\") needs a smooth \"dielectric\" or an \"interface\" material".into(),
@@ -104,10 +110,10 @@ impl Builder {
         // An interface around a VolumeLight is a dielectric of eta 1: rays cross it unbent.
         let material = if eta == 1.0 {
             self.materials
-                .push(Material::Dielectric(DielectricMaterial {
+                .push(Material::plain(Model::Dielectric(DielectricMaterial {
                     eta: 1.0,
                     roughness: RoughnessTexture::smooth(),
-                }));
+                })));
             (self.materials.len() - 1) as u32
         } else {
             material
@@ -370,7 +376,7 @@ impl Scene {
         let materials: Vec<Material> = desc
             .materials
             .iter()
-            .map(|m| Material::from_description(&m.kind, &textures))
+            .map(|m| Material::from_description(m, &textures))
             .collect();
         let mut b = Builder {
             prims: Primitives::default(),

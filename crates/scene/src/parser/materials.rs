@@ -5,7 +5,7 @@ use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
 use crate::params::ParamSet;
 use crate::spectrum::{self, SpectrumUse};
-use crate::textures::{FloatValue, RgbValue};
+use crate::textures::{ColorEncoding, FloatValue, RgbValue};
 
 impl Parser {
     pub(super) fn make_named_material(
@@ -133,17 +133,24 @@ impl Parser {
             }
         };
         params.mark_used("type");
-        for unsupported in ["normalmap", "displacement"] {
-            if let Some(l) = params.loc_of(unsupported) {
-                return Err(SceneError::at(
-                    &l,
-                    format!("material parameter '{unsupported}' is not supported yet"),
-                ));
-            }
-        }
+        // pbrt-v4 reads a normal map's values as they are (linear), and prefers it to a
+        // displacement when a material has both.
+        let normal = match params.string("normalmap")? {
+            Some(file) if !file.is_empty() => NormalPerturbationDesc::NormalMap(
+                self.texture_image(&file, ColorEncoding::Linear, loc)?,
+            ),
+            _ => match self.float_value(params, "displacement", 0.0)? {
+                FloatValue::Constant(_) if params.loc_of("displacement").is_none() => {
+                    NormalPerturbationDesc::None
+                }
+                d => NormalPerturbationDesc::Bump(d),
+            },
+        };
+        params.mark_used("displacement");
         self.check_unused(params, &format!("material '{ty}'"), &[])?;
         let id = MaterialId(self.materials.len() as u32);
         self.materials.push(MaterialDesc {
+            normal,
             kind,
             name,
             loc: loc.clone(),

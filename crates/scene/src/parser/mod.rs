@@ -133,6 +133,7 @@ struct Parser {
 impl Parser {
     fn new(base_dir: &Path) -> Parser {
         let default_material = MaterialDesc {
+            normal: NormalPerturbationDesc::None,
             kind: MaterialKind::Diffuse {
                 reflectance: RgbValue::Constant([0.5, 0.5, 0.5]),
             },

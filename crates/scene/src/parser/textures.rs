@@ -342,7 +342,7 @@ impl Parser {
     }
 
     /// An image file, read once per scene however many textures use it.
-    fn texture_image(
+    pub(super) fn texture_image(
         &mut self,
         filename: &str,
         encoding: ColorEncoding,
