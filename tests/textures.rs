@@ -448,3 +448,59 @@ fn normal_maps_set_the_normal_in_the_tangent_frame() {
     let n = normal("tilted.pfm");
     assert!((n - Vec3A::new(s, 0.0, c)).length() < 1e-5, "{n}");
 }
+
+/// A quad floating under a sky of radiance 1 all around, seen from above with light
+/// sampling off (BSDF sampling of a diffuse lobe then has no variance): its radiance is
+/// its reflectance plus its transmittance.
+fn floating_quad(dir: &Path, materials: &str) -> f64 {
+    let text = format!(
+        r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "bsdf"
+Sampler "sobol" "integer pixelsamples" [ 16 ]
+Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ]
+LookAt 0 3 0  0 0 0  0 0 1
+Camera "orthographic" "float screenwindow" [ -0.5 0.5 -0.5 0.5 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+{materials}
+Shape "trianglemesh" "point3 P" [ -1 0 -1  1 0 -1  1 0 1  -1 0 1 ] "integer indices" [ 0 2 1 0 3 2 ]
+"#
+    );
+    let path = write_scene(dir, "quad.pbrt", &text);
+    render(&path, dir, "quad", &[]).image.mean()[0]
+}
+
+#[test]
+fn diffuse_transmission_reflects_and_transmits() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = floating_quad(
+        dir.path(),
+        r#"Material "diffusetransmission" "rgb reflectance" [ 0.3 0.3 0.3 ] "rgb transmittance" [ 0.5 0.5 0.5 ]"#,
+    );
+    // Light sampling is off but the lobe choice is random: noise of the split only.
+    assert!((v - 0.8).abs() < 0.01, "{v}");
+    let scaled = floating_quad(
+        dir.path(),
+        r#"Material "diffusetransmission" "rgb reflectance" [ 0.3 0.3 0.3 ] "rgb transmittance" [ 0.5 0.5 0.5 ] "float scale" [ 0.5 ]"#,
+    );
+    assert!((scaled - 0.4).abs() < 0.01, "{scaled}");
+}
+
+#[test]
+fn a_mix_material_is_its_two_materials_in_proportion() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = floating_quad(
+        dir.path(),
+        r#"MakeNamedMaterial "dark" "string type" "diffuse" "rgb reflectance" [ 0.2 0.2 0.2 ]
+MakeNamedMaterial "light" "string type" "diffuse" "rgb reflectance" [ 0.8 0.8 0.8 ]
+Material "mix" "string materials" [ "dark" "light" ] "float amount" [ 0.3 ]"#,
+    );
+    // 0.7 · 0.2 + 0.3 · 0.8, from 16,384 points each choosing one material.
+    assert!((v - 0.38).abs() < 0.01, "{v}");
+    let (err, _dir) = failing(
+        "WorldBegin\nMaterial \"mix\" \"string materials\" [ \"a\" \"b\" ]\nShape \"sphere\"\n",
+    );
+    assert!(
+        err.contains("scene.pbrt:2:") && err.contains("no material named 'a'"),
+        "{err}"
+    );
+}

@@ -168,6 +168,18 @@ pub enum MaterialKind {
         albedo: RgbValue,
         g: FloatValue,
     },
+    /// Lambertian reflection and transmission, each scaled by `scale` and clamped to [0, 1].
+    DiffuseTransmission {
+        reflectance: RgbValue,
+        transmittance: RgbValue,
+        scale: f32,
+    },
+    /// pbrt-v4's "mix": at each intersection one of two materials, the second with
+    /// probability `amount`, chosen by a hash of the point.
+    Mix {
+        materials: [MaterialId; 2],
+        amount: FloatValue,
+    },
     /// Marks a boundary between media; rays pass through it unchanged.
     Interface,
 }

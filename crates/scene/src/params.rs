@@ -160,6 +160,20 @@ impl ParamSet {
         }
     }
 
+    /// Every string of a string parameter.
+    pub fn strings(&self, name: &str) -> Result<Option<Vec<String>>> {
+        match self.find(name, &["string"])? {
+            None => Ok(None),
+            Some(p) => match &p.values {
+                ParamValues::Strings(v) => Ok(Some(v.clone())),
+                _ => Err(SceneError::at(
+                    &p.loc,
+                    format!("parameter '{name}' needs strings"),
+                )),
+            },
+        }
+    }
+
     pub fn bool(&self, name: &str, default: bool) -> Result<bool> {
         match self.find(name, &["bool"])? {
             None => Ok(default),

@@ -11,6 +11,7 @@ mod coated_diffuse;
 mod conductor;
 mod dielectric;
 mod diffuse;
+mod diffuse_transmission;
 pub mod fresnel;
 mod microfacet;
 mod thin_dielectric;
@@ -19,6 +20,7 @@ pub use coated_diffuse::CoatedDiffuseBxdf;
 pub use conductor::ConductorBxdf;
 pub use dielectric::DielectricBxdf;
 pub use diffuse::DiffuseBxdf;
+pub use diffuse_transmission::DiffuseTransmissionBxdf;
 pub use fresnel::{fresnel_complex, fresnel_dielectric, internal_diffuse_reflectance, refract};
 pub use microfacet::TrowbridgeReitz;
 pub use thin_dielectric::ThinDielectricBxdf;
@@ -41,6 +43,7 @@ pub struct BsdfSample {
 #[derive(Debug, Clone, Copy)]
 pub enum Bsdf {
     Diffuse(DiffuseBxdf),
+    DiffuseTransmission(DiffuseTransmissionBxdf),
     Conductor(ConductorBxdf),
     Dielectric(DielectricBxdf),
     ThinDielectric(ThinDielectricBxdf),
@@ -51,7 +54,7 @@ impl Bsdf {
     /// True when every lobe is a delta: light sampling cannot help.
     pub fn is_specular(&self) -> bool {
         match self {
-            Bsdf::Diffuse(_) | Bsdf::CoatedDiffuse(_) => false,
+            Bsdf::Diffuse(_) | Bsdf::DiffuseTransmission(_) | Bsdf::CoatedDiffuse(_) => false,
             Bsdf::Conductor(b) => b.distrib.effectively_smooth(),
             Bsdf::Dielectric(b) => b.distrib.effectively_smooth(),
             Bsdf::ThinDielectric(_) => true,
@@ -60,12 +63,17 @@ impl Bsdf {
 
     /// True when the BSDF reflects nothing at all (a black diffuse, as emitters often use).
     pub fn is_black(&self) -> bool {
-        matches!(self, Bsdf::Diffuse(b) if b.r == Color::ZERO)
+        match self {
+            Bsdf::Diffuse(b) => b.r == Color::ZERO,
+            Bsdf::DiffuseTransmission(b) => b.r == Color::ZERO && b.t == Color::ZERO,
+            _ => false,
+        }
     }
 
     pub fn f(&self, wo: Vec3A, wi: Vec3A) -> Color {
         match self {
             Bsdf::Diffuse(b) => b.f(wo, wi),
+            Bsdf::DiffuseTransmission(b) => b.f(wo, wi),
             Bsdf::Conductor(b) => b.f(wo, wi),
             Bsdf::Dielectric(b) => b.f(wo, wi),
             Bsdf::ThinDielectric(b) => b.f(wo, wi),
@@ -76,6 +84,7 @@ impl Bsdf {
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         match self {
             Bsdf::Diffuse(b) => b.pdf(wo, wi),
+            Bsdf::DiffuseTransmission(b) => b.pdf(wo, wi),
             Bsdf::Conductor(b) => b.pdf(wo, wi),
             Bsdf::Dielectric(b) => b.pdf(wo, wi),
             Bsdf::ThinDielectric(b) => b.pdf(wo, wi),
@@ -90,6 +99,7 @@ impl Bsdf {
         }
         match self {
             Bsdf::Diffuse(b) => b.sample(wo, uc, u),
+            Bsdf::DiffuseTransmission(b) => b.sample(wo, uc, u),
             Bsdf::Conductor(b) => b.sample(wo, uc, u),
             Bsdf::Dielectric(b) => b.sample(wo, uc, u),
             Bsdf::ThinDielectric(b) => b.sample(wo, uc, u),
@@ -175,6 +185,10 @@ mod tests {
         let bsdfs = [
             Bsdf::Diffuse(DiffuseBxdf {
                 r: Color::splat(0.8),
+            }),
+            Bsdf::DiffuseTransmission(DiffuseTransmissionBxdf {
+                r: Color::new(0.2, 0.5, 0.1),
+                t: Color::new(0.6, 0.3, 0.0),
             }),
             Bsdf::Conductor(ConductorBxdf {
                 eta: Color::new(0.2, 0.9, 1.1),

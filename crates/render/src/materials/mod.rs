@@ -10,6 +10,8 @@ mod coated_diffuse;
 mod conductor;
 mod dielectric;
 mod diffuse;
+mod diffuse_transmission;
+mod mix;
 mod roughness;
 mod thin_dielectric;
 
@@ -18,6 +20,8 @@ pub use coated_diffuse::CoatedDiffuseMaterial;
 pub use conductor::{ConductorMaterial, ConductorSpec};
 pub use dielectric::DielectricMaterial;
 pub use diffuse::DiffuseMaterial;
+pub use diffuse_transmission::DiffuseTransmissionMaterial;
+pub use mix::MixMaterial;
 pub use roughness::RoughnessTexture;
 pub use thin_dielectric::ThinDielectricMaterial;
 
@@ -36,6 +40,9 @@ pub struct Material {
 #[derive(Debug, Clone)]
 pub enum Model {
     Diffuse(DiffuseMaterial),
+    DiffuseTransmission(DiffuseTransmissionMaterial),
+    /// Resolved to one of its two materials before shading (see `Scene::bsdf`).
+    Mix(MixMaterial),
     Conductor(ConductorMaterial),
     Dielectric(DielectricMaterial),
     ThinDielectric(ThinDielectricMaterial),
@@ -123,6 +130,19 @@ impl Model {
                 rough(roughness),
                 *eta,
             )),
+            MaterialKind::DiffuseTransmission {
+                reflectance,
+                transmittance,
+                scale,
+            } => Model::DiffuseTransmission(DiffuseTransmissionMaterial {
+                reflectance: textures.rgb_value(reflectance),
+                transmittance: textures.rgb_value(transmittance),
+                scale: *scale,
+            }),
+            MaterialKind::Mix { materials, amount } => Model::Mix(MixMaterial {
+                materials: materials.map(|m| m.0),
+                amount: textures.float_value(amount),
+            }),
             MaterialKind::Interface => Model::Interface,
         }
     }
@@ -131,6 +151,9 @@ impl Model {
     pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf> {
         match self {
             Model::Diffuse(m) => Some(m.bsdf(ctx)),
+            Model::DiffuseTransmission(m) => Some(m.bsdf(ctx)),
+            // A mix is resolved to a material before shading; it has no BSDF of its own.
+            Model::Mix(_) => None,
             Model::Conductor(m) => Some(m.bsdf(ctx)),
             Model::Dielectric(m) => Some(m.bsdf(ctx)),
             Model::ThinDielectric(m) => Some(m.bsdf()),
@@ -144,6 +167,8 @@ impl Model {
     pub fn is_textured(&self) -> bool {
         match self {
             Model::Diffuse(m) => m.reflectance.as_constant().is_none(),
+            Model::DiffuseTransmission(m) => m.is_textured(),
+            Model::Mix(_) => true,
             Model::Conductor(m) => m.is_textured(),
             Model::Dielectric(m) => m.roughness.is_textured(),
             Model::CoatedDiffuse(m) => {

@@ -13,7 +13,7 @@ use crate::bsdfs::Bsdf;
 use crate::camera::Camera;
 use crate::filter::Filter;
 use crate::lights::{Light, LightContext, VolumeInterior};
-use crate::materials::Material;
+use crate::materials::{Material, Model};
 use crate::math::{Color, Ray};
 use crate::media::Medium;
 use crate::sampling::{AliasTable, TrackingRng};
@@ -53,7 +53,7 @@ impl Scene {
     /// evaluated with the hit's footprint as the camera sees it, scaled by `footprint`; a
     /// bump or normal map replaces the hit's shading normal and dp/du.
     pub fn bsdf(&self, hit: &mut SurfaceHit, footprint: f32) -> Option<Bsdf> {
-        let material = &self.materials[hit.surface.material as usize];
+        let mut material = &self.materials[hit.surface.material as usize];
         let ctx = if material.is_textured() {
             let (dpdx, dpdy) = self.camera.approximate_dp_dxy(hit.p, hit.ng, footprint);
             TextureEvalContext::with_footprint(
@@ -62,6 +62,11 @@ impl Scene {
         } else {
             TextureEvalContext::default()
         };
+        // A mix material stands for one of two materials at each point (mixes may nest;
+        // they refer only to materials defined before them, so this ends).
+        while let Model::Mix(mix) = &material.model {
+            material = &self.materials[mix.choose(&ctx) as usize];
+        }
         material.normal.apply(hit, &ctx);
         material.bsdf(&ctx)
     }

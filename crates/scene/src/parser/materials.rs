@@ -122,12 +122,52 @@ impl Parser {
                     g,
                 }
             }
+            "diffusetransmission" => MaterialKind::DiffuseTransmission {
+                reflectance: self.rgb_value_or(
+                    params,
+                    "reflectance",
+                    SpectrumUse::Albedo,
+                    [0.25; 3],
+                )?,
+                transmittance: self.rgb_value_or(
+                    params,
+                    "transmittance",
+                    SpectrumUse::Albedo,
+                    [0.25; 3],
+                )?,
+                scale: params.float("scale", 1.0)? as f32,
+            },
+            "mix" => {
+                let names = params.strings("materials")?.unwrap_or_default();
+                let at = params.loc_of("materials").unwrap_or_else(|| loc.clone());
+                if names.len() != 2 {
+                    return Err(SceneError::at(
+                        &at,
+                        format!(
+                            "material 'mix' needs two named materials in \"string materials\", got {}",
+                            names.len()
+                        ),
+                    ));
+                }
+                let id = |n: &String| {
+                    self.named_materials.get(n).copied().ok_or_else(|| {
+                        SceneError::at(
+                            &at,
+                            format!("material 'mix': no material named '{n}' is defined before it"),
+                        )
+                    })
+                };
+                MaterialKind::Mix {
+                    materials: [id(&names[0])?, id(&names[1])?],
+                    amount: self.float_value(params, "amount", 0.5)?,
+                }
+            }
             "interface" | "" | "none" => MaterialKind::Interface,
             other => {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "unknown or unsupported material type '{other}' (Kiln has diffuse, dielectric, thindielectric, conductor, coateddiffuse, interface)"
+                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, mix, interface)"
                     ),
                 ));
             }
