@@ -204,3 +204,48 @@ fn too_many_caustic_photons() {
         failing("Integrator \"volpath\" \"integer causticphotons\" [ 1000000000 ]\nWorldBegin\n");
     assert_names(&err, "scene.pbrt", 1, "causticphotons must be 0 to 5*10^7");
 }
+
+/// pbrt-v4 reads `.gz` meshes and includes decompressed; a gzip bomb or a corrupt file is an
+/// error that names the file.
+#[test]
+fn gzipped_meshes_and_includes_load() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let gz = |name: &str, bytes: &[u8]| {
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        enc.write_all(bytes).unwrap();
+        std::fs::write(d.join(name), enc.finish().unwrap()).unwrap();
+    };
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    gz("tri.ply.gz", ply.as_bytes());
+    gz(
+        "shapes.pbrt.gz",
+        b"Shape \"plymesh\" \"string filename\" \"tri.ply.gz\"\n",
+    );
+    let path =
+        crate::util::write_scene(d, "scene.pbrt", "WorldBegin\nInclude \"shapes.pbrt.gz\"\n");
+    let desc = kiln_scene::load_file(&path).unwrap();
+    assert_eq!(desc.shapes.len(), 1);
+    std::fs::write(d.join("broken.ply.gz"), b"\x1f\x8b\x08\x00garbage").unwrap();
+    let err = crate::util::failing_in(
+        d,
+        "WorldBegin\nShape \"plymesh\" \"string filename\" \"broken.ply.gz\"\n",
+    );
+    assert!(
+        err.contains("scene.pbrt:2:") && err.contains("not a valid gzip file"),
+        "{err}"
+    );
+    // 2 GB of zeros in about 2 MB of gzip.
+    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    let zeros = vec![0u8; 1 << 24];
+    for _ in 0..(2u64 << 30) / zeros.len() as u64 {
+        enc.write_all(&zeros).unwrap();
+    }
+    std::fs::write(d.join("bomb.ply.gz"), enc.finish().unwrap()).unwrap();
+    let err = crate::util::failing_in(
+        d,
+        "WorldBegin\nShape \"plymesh\" \"string filename\" \"bomb.ply.gz\"\n",
+    );
+    assert!(err.contains("decompresses to more than"), "{err}");
+}

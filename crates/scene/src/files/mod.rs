@@ -11,11 +11,54 @@ pub mod ply;
 pub mod vol;
 pub mod voxel_csv;
 
-/// Reads a whole file; an error names the directive's location and the file.
-fn read_bytes(path: &Path, loc: &Loc) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|source| SceneError::Io {
+/// The most a gzipped file may decompress to: 1 GiB (a PLY of some 35 million triangles).
+/// A few kilobytes of gzip can claim gigabytes; the limit stops reading there.
+pub const MAX_DECOMPRESSED_BYTES: u64 = 1 << 30;
+
+/// Reads a whole file, decompressed if its name ends in `.gz` (as pbrt-v4 reads meshes and
+/// includes); an error names the directive's location and the file.
+pub fn read_bytes(path: &Path, loc: &Loc) -> Result<Vec<u8>> {
+    let raw = std::fs::read(path).map_err(|source| SceneError::Io {
         loc: loc.clone(),
         path: path.to_path_buf(),
         source,
+    })?;
+    if path.extension().and_then(|e| e.to_str()) != Some("gz") {
+        return Ok(raw);
+    }
+    use std::io::Read;
+    let mut out = Vec::new();
+    flate2::read::MultiGzDecoder::new(&raw[..])
+        .take(MAX_DECOMPRESSED_BYTES + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| {
+            SceneError::at(
+                loc,
+                format!("'{}' is not a valid gzip file: {e}", path.display()),
+            )
+        })?;
+    if out.len() as u64 > MAX_DECOMPRESSED_BYTES {
+        return Err(SceneError::at(
+            loc,
+            format!(
+                "'{}' decompresses to more than {MAX_DECOMPRESSED_BYTES} bytes",
+                path.display()
+            ),
+        ));
+    }
+    Ok(out)
+}
+
+/// Reads a text file (a scene or an include), gzipped or not.
+pub fn read_text(path: &Path, loc: &Loc) -> Result<String> {
+    String::from_utf8(read_bytes(path, loc)?).map_err(|e| {
+        SceneError::at(
+            loc,
+            format!(
+                "'{}' is not UTF-8 text (byte {} is not)",
+                path.display(),
+                e.utf8_error().valid_up_to()
+            ),
+        )
     })
 }

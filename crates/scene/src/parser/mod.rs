@@ -37,12 +37,7 @@ use std::sync::Arc;
 
 /// Loads a pbrt-v4 scene file and everything it includes or references.
 pub fn load_file(path: &Path) -> Result<SceneDescription> {
-    let top = Loc::synthetic("command line");
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        loc: top,
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::files::read_text(path, &Loc::synthetic("command line"))?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     load_str(&text, path, &base_dir)
 }
@@ -58,12 +53,7 @@ pub fn load_str(text: &str, file: &Path, base_dir: &Path) -> Result<SceneDescrip
 /// goes through this, so a scene cannot make a coordinator or a worker read, and quote in
 /// an error, a file of the machine it runs on.
 pub fn load_file_within(path: &Path, root: &Path) -> Result<SceneDescription> {
-    let top = Loc::synthetic("command line");
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        loc: top,
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::files::read_text(path, &Loc::synthetic("command line"))?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut parser = Parser::new(&base_dir);
     parser.root = Some(normalize(root));
@@ -409,11 +399,7 @@ impl Parser {
             ));
         }
         let path = self.resolve_file(&name, loc)?;
-        let text = std::fs::read_to_string(&path).map_err(|source| SceneError::Io {
-            loc: loc.clone(),
-            path: path.clone(),
-            source,
-        })?;
+        let text = crate::files::read_text(&path, loc)?;
         let inner = Arc::new(path);
         let tokens = tokenize(&text, &inner)?;
         self.parse_tokens(&tokens, &inner, depth + 1)?;
