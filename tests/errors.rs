@@ -249,3 +249,43 @@ fn gzipped_meshes_and_includes_load() {
     );
     assert!(err.contains("decompresses to more than"), "{err}");
 }
+
+/// pbrt-v4 reads a spectrum given as a file name (`"spectrum eta" "Au.eta.spd"`): the same
+/// pairs inline or in a file make the same material; a malformed file names itself.
+#[test]
+fn spectra_read_from_files_equal_the_same_spectra_inline() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let pairs = "400 0.2  500 0.9\n# a comment\n600 1.1 700 1.3\n";
+    std::fs::write(d.join("eta.spd"), pairs).unwrap();
+    let inline = pairs.replace("# a comment", "");
+    let material = |eta: &str| {
+        let path = write_scene(
+            d,
+            "scene.pbrt",
+            &format!(
+                "WorldBegin\nMaterial \"conductor\" \"spectrum eta\" {eta} \"spectrum k\" \"metal-Au-k\"\nShape \"sphere\"\n"
+            ),
+        );
+        let desc = kiln_scene::load_file(&path).unwrap();
+        desc.materials.last().unwrap().kind.clone()
+    };
+    assert_eq!(material("\"eta.spd\""), material(&format!("[ {inline} ]")));
+    std::fs::write(d.join("bad.spd"), "400 0.2 500").unwrap();
+    let err = crate::util::failing_in(
+        d,
+        "WorldBegin\nMaterial \"conductor\" \"spectrum eta\" \"bad.spd\"\nShape \"sphere\"\n",
+    );
+    assert!(
+        err.contains("scene.pbrt:2:") && err.contains("'bad.spd' holds 3 numbers"),
+        "{err}"
+    );
+    let err = crate::util::failing_in(
+        d,
+        "WorldBegin\nMaterial \"conductor\" \"spectrum eta\" \"nowhere.spd\"\nShape \"sphere\"\n",
+    );
+    assert!(
+        err.contains("scene.pbrt:2:") && err.contains("nowhere.spd"),
+        "{err}"
+    );
+}

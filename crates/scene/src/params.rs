@@ -355,6 +355,30 @@ impl ParamSet {
         }
     }
 
+    /// The `spectrum` parameters given as one string that names no built-in spectrum: files
+    /// of (wavelength, value) pairs, as (parameter name, file name, location).
+    pub fn spectrum_files(&self) -> Vec<(String, String, Loc)> {
+        self.params
+            .iter()
+            .filter(|p| p.ty == "spectrum")
+            .filter_map(|p| match &p.values {
+                ParamValues::Strings(v)
+                    if v.len() == 1 && spectrum::named_spectrum_rgb(&v[0]).is_none() =>
+                {
+                    Some((p.name.clone(), v[0].clone(), p.loc.clone()))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Replaces the values of parameter `name`.
+    pub fn set_values(&mut self, name: &str, values: ParamValues) {
+        if let Some(p) = self.params.iter_mut().find(|p| p.name == name) {
+            p.values = values;
+        }
+    }
+
     /// Parameters that no lookup asked for.
     pub fn unused(&self) -> impl Iterator<Item = &Param> {
         self.params.iter().filter(|p| !p.used.get())

@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 impl Parser {
     pub(super) fn light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
+        let params = &self.with_spectrum_files(params)?;
         self.require_world(loc, "LightSource")?;
         let scale = params.float("scale", 1.0)? as f32;
         let scaled = |rgb: Rgb| rgb.map(|c| c * scale);
@@ -131,6 +132,7 @@ impl Parser {
     }
 
     pub(super) fn area_light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
+        let params = &self.with_spectrum_files(params)?;
         self.require_world(loc, "AreaLightSource")?;
         if ty == "volume" {
             return self.volume_light(params, loc);

@@ -63,6 +63,7 @@ impl Parser {
         name: Option<String>,
         loc: &Loc,
     ) -> Result<MaterialId> {
+        let params = &self.with_spectrum_files(params)?;
         let reflectance = |default: f32| -> Result<RgbValue> {
             self.rgb_value_or(params, "reflectance", SpectrumUse::Albedo, [default; 3])
         };

@@ -233,6 +233,52 @@ impl Parser {
         Ok(path)
     }
 
+    /// `params` with every spectrum given as a file name (pbrt-v4's `"spectrum eta"
+    /// "spds/Au.eta.spd"`: whitespace-separated wavelength and value pairs, `#` comments)
+    /// replaced by the pairs the file holds.
+    fn with_spectrum_files(&mut self, params: &ParamSet) -> Result<ParamSet> {
+        let files = params.spectrum_files();
+        if files.is_empty() {
+            return Ok(params.clone());
+        }
+        let mut out = params.clone();
+        for (name, file, loc) in files {
+            let path = self.resolve_file(&file, &loc)?;
+            let text = crate::files::read_text(&path, &loc)?;
+            let mut values = Vec::new();
+            for (i, line) in text.lines().enumerate() {
+                let line = line.split('#').next().unwrap_or("");
+                for word in line.split_whitespace() {
+                    let v: f64 = word
+                        .parse()
+                        .ok()
+                        .filter(|v: &f64| v.is_finite())
+                        .ok_or_else(|| {
+                            SceneError::at(
+                                &loc,
+                                format!(
+                                    "spectrum file '{file}', line {}: '{word}' is not a number",
+                                    i + 1
+                                ),
+                            )
+                        })?;
+                    values.push(v);
+                }
+            }
+            if values.len() < 2 || values.len() % 2 != 0 {
+                return Err(SceneError::at(
+                    &loc,
+                    format!(
+                        "spectrum file '{file}' holds {} numbers; it needs (wavelength, value) pairs",
+                        values.len()
+                    ),
+                ));
+            }
+            out.set_values(&name, crate::params::ParamValues::Numbers(values));
+        }
+        Ok(out)
+    }
+
     fn resolve(&self, name: &str) -> PathBuf {
         let p = Path::new(name);
         if p.is_absolute() {
