@@ -357,9 +357,11 @@ impl MipMap {
 /// 128 values of r² ∈ [0, 1) (its table is built for r² = i / 127 and read at r² · 128;
 /// this reads it the same way).
 fn gaussian_weight(r2: f32) -> f32 {
-    let i = ((r2 * 128.0) as usize).min(127);
-    let alpha = 2.0f32;
-    (-alpha * i as f32 / 127.0).exp() - (-alpha).exp()
+    static TABLE: std::sync::LazyLock<[f32; 128]> = std::sync::LazyLock::new(|| {
+        let alpha = 2.0f32;
+        std::array::from_fn(|i| (-alpha * i as f32 / 127.0).exp() - (-alpha).exp())
+    });
+    TABLE[((r2 * 128.0) as usize).min(127)]
 }
 
 /// For each of `new` output samples over `old` input samples: the first input index and the

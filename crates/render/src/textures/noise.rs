@@ -52,7 +52,8 @@ fn lerp(t: f32, a: f32, b: f32) -> f32 {
 /// Perlin noise at `p`: zero at every lattice point, in about [-1, 1].
 pub fn noise(p: Vec3A) -> f32 {
     // Reduce the coordinates so that the lattice indices stay exact.
-    let reduce = |v: f32| v % (1u32 << 30) as f32;
+    const PERIOD: f32 = (1u32 << 30) as f32;
+    let reduce = |v: f32| if v.abs() < PERIOD { v } else { v % PERIOD };
     let (x, y, z) = (reduce(p.x), reduce(p.y), reduce(p.z));
     let (fx, fy, fz) = (x.floor(), y.floor(), z.floor());
     let (dx, dy, dz) = (x - fx, y - fy, z - fz);
