@@ -160,13 +160,23 @@ pub enum MaterialKind {
         reflectance: RgbValue,
         roughness: Roughness,
     },
+    /// pbrt-v4's stochastic layered BSDF: a dielectric coat over a diffuse base.
     CoatedDiffuse {
         reflectance: RgbValue,
         roughness: Roughness,
         eta: f32,
-        thickness: FloatValue,
-        albedo: RgbValue,
-        g: FloatValue,
+        layer: LayerDesc,
+    },
+    /// pbrt-v4's stochastic layered BSDF: a dielectric coat over a conductor.
+    CoatedConductor {
+        interface_roughness: Roughness,
+        interface_eta: f32,
+        /// eta and k, or (if `reflectance` is given) eta 1 and k from it.
+        conductor_eta: RgbValue,
+        conductor_k: RgbValue,
+        reflectance: Option<RgbValue>,
+        conductor_roughness: Roughness,
+        layer: LayerDesc,
     },
     /// Lambertian reflection and transmission, each scaled by `scale` and clamped to [0, 1].
     DiffuseTransmission {
@@ -204,6 +214,16 @@ pub enum NormalPerturbationDesc {
     Bump(FloatValue),
     /// A normal map image (linear RGB: 2·rgb − 1 in the surface's tangent frame).
     NormalMap(Arc<TextureImage>),
+}
+
+/// The medium between a layered material's coat and base, and how its walks are estimated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LayerDesc {
+    pub thickness: FloatValue,
+    pub albedo: RgbValue,
+    pub g: FloatValue,
+    pub max_depth: u32,
+    pub n_samples: u32,
 }
 
 /// Index into [`SceneDescription::materials`].

@@ -305,7 +305,7 @@ impl ParamSet {
                     match spectrum::named_spectrum_rgb(&s[0]) {
                         Some(rgb) => Ok(Some(rgb)),
                         None => Err(at(format!(
-                            "unknown named spectrum '{}' (Kiln knows: {}; spectrum files are not supported)",
+                            "unknown named spectrum '{}' (Kiln knows: {}; spectrum files are read for materials, lights and media)",
                             s[0],
                             spectrum::named_spectrum_names().join(", ")
                         ))),

@@ -13,30 +13,85 @@ pub struct DielectricBxdf {
     pub distrib: TrowbridgeReitz,
 }
 
+/// Which lobes a sample or a pdf may use (the layered BSDF asks for one at a time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lobes {
+    All,
+    Reflection,
+    Transmission,
+}
+
+impl Lobes {
+    fn reflection(self) -> bool {
+        self != Lobes::Transmission
+    }
+    fn transmission(self) -> bool {
+        self != Lobes::Reflection
+    }
+    /// The probabilities of reflection and transmission, those not allowed zeroed.
+    fn weigh(self, r: f32, t: f32) -> (f32, f32) {
+        (
+            if self.reflection() { r } else { 0.0 },
+            if self.transmission() { t } else { 0.0 },
+        )
+    }
+}
+
 impl DielectricBxdf {
     pub fn f(&self, wo: Vec3A, wi: Vec3A) -> Color {
+        self.f_mode(wo, wi, false)
+    }
+
+    /// The BSDF for radiance (`importance` false: refraction scales by 1/eta²) or for
+    /// importance (no scaling), as light paths and layered BSDFs need.
+    pub fn f_mode(&self, wo: Vec3A, wi: Vec3A, importance: bool) -> Color {
         let DielectricBxdf { eta, distrib } = *self;
         if eta == 1.0 || distrib.effectively_smooth() {
             return Color::ZERO;
         }
-        Color::splat(rough_dielectric_f(eta, &distrib, wo, wi))
+        Color::splat(rough_dielectric_f(eta, &distrib, wo, wi, importance))
     }
 
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
+        self.pdf_lobes(wo, wi, Lobes::All)
+    }
+
+    pub fn pdf_lobes(&self, wo: Vec3A, wi: Vec3A, lobes: Lobes) -> f32 {
         let DielectricBxdf { eta, distrib } = *self;
         if eta == 1.0 || distrib.effectively_smooth() {
             return 0.0;
         }
-        rough_dielectric_pdf(eta, &distrib, wo, wi)
+        rough_dielectric_pdf(eta, &distrib, wo, wi, lobes)
     }
 
     pub fn sample(&self, wo: Vec3A, uc: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_lobes(wo, uc, u, Lobes::All, false)
+    }
+
+    pub fn sample_lobes(
+        &self,
+        wo: Vec3A,
+        uc: f32,
+        u: Vec2,
+        lobes: Lobes,
+        importance: bool,
+    ) -> Option<BsdfSample> {
         let DielectricBxdf { eta, distrib } = *self;
-        sample_dielectric(eta, &distrib, wo, uc, u)
+        sample_dielectric(eta, &distrib, wo, uc, u, lobes, importance)
+    }
+
+    pub fn is_specular(&self) -> bool {
+        self.eta == 1.0 || self.distrib.effectively_smooth()
     }
 }
 
-fn rough_dielectric_f(eta: f32, distrib: &TrowbridgeReitz, wo: Vec3A, wi: Vec3A) -> f32 {
+fn rough_dielectric_f(
+    eta: f32,
+    distrib: &TrowbridgeReitz,
+    wo: Vec3A,
+    wi: Vec3A,
+    importance: bool,
+) -> f32 {
     let (cos_o, cos_i) = (wo.z, wi.z);
     let reflect = cos_o * cos_i > 0.0;
     let etap = if reflect {
@@ -65,11 +120,17 @@ fn rough_dielectric_f(eta: f32, distrib: &TrowbridgeReitz, wo: Vec3A, wi: Vec3A)
         let ft =
             distrib.d(wm) * (1.0 - f) * distrib.g(wo, wi) * (wi.dot(wm) * wo.dot(wm) / denom).abs();
         // Radiance is compressed into a smaller solid angle when entering a denser medium.
-        ft / (etap * etap)
+        if importance { ft } else { ft / (etap * etap) }
     }
 }
 
-fn rough_dielectric_pdf(eta: f32, distrib: &TrowbridgeReitz, wo: Vec3A, wi: Vec3A) -> f32 {
+fn rough_dielectric_pdf(
+    eta: f32,
+    distrib: &TrowbridgeReitz,
+    wo: Vec3A,
+    wi: Vec3A,
+    lobes: Lobes,
+) -> f32 {
     let (cos_o, cos_i) = (wo.z, wi.z);
     let reflect = cos_o * cos_i > 0.0;
     let etap = if reflect {
@@ -90,8 +151,11 @@ fn rough_dielectric_pdf(eta: f32, distrib: &TrowbridgeReitz, wo: Vec3A, wi: Vec3
     if wm.dot(wi) * cos_i < 0.0 || wm.dot(wo) * cos_o < 0.0 {
         return 0.0;
     }
-    let r = fresnel_dielectric(wo.dot(wm), eta);
-    let t = 1.0 - r;
+    let fr = fresnel_dielectric(wo.dot(wm), eta);
+    let (r, t) = lobes.weigh(fr, 1.0 - fr);
+    if r + t == 0.0 {
+        return 0.0;
+    }
     if reflect {
         distrib.pdf(wo, wm) / (4.0 * wo.dot(wm).abs()) * r / (r + t)
     } else {
@@ -107,14 +171,19 @@ fn sample_dielectric(
     wo: Vec3A,
     uc: f32,
     u: Vec2,
+    lobes: Lobes,
+    importance: bool,
 ) -> Option<BsdfSample> {
     if eta == 1.0 || distrib.effectively_smooth() {
-        let r = fresnel_dielectric(wo.z, eta);
-        let t = 1.0 - r;
+        let fr = fresnel_dielectric(wo.z, eta);
+        let (r, t) = lobes.weigh(fr, 1.0 - fr);
+        if r + t == 0.0 {
+            return None;
+        }
         if uc < r / (r + t) {
             let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
             return Some(BsdfSample {
-                f: Color::splat(r / wi.z.abs()),
+                f: Color::splat(fr / wi.z.abs()),
                 wi,
                 pdf: r / (r + t),
                 specular: true,
@@ -122,7 +191,7 @@ fn sample_dielectric(
             });
         }
         let (wi, etap) = refract(wo, Vec3A::Z, eta)?;
-        let ft = t / wi.z.abs() / (etap * etap);
+        let ft = (1.0 - fr) / wi.z.abs() / if importance { 1.0 } else { etap * etap };
         return Some(BsdfSample {
             f: Color::splat(ft),
             wi,
@@ -135,8 +204,11 @@ fn sample_dielectric(
     // (wo.z < 0) the Fresnel term and refraction then see a negative cosine and
     // invert eta, as they must.
     let wm = distrib.sample_wm(wo, u);
-    let r = fresnel_dielectric(wo.dot(wm), eta);
-    let t = 1.0 - r;
+    let fr = fresnel_dielectric(wo.dot(wm), eta);
+    let (r, t) = lobes.weigh(fr, 1.0 - fr);
+    if r + t == 0.0 {
+        return None;
+    }
     let (wi, etap) = if uc < r / (r + t) {
         let wi = reflect(wo, wm);
         if !same_hemisphere(wo, wi) {
@@ -150,8 +222,8 @@ fn sample_dielectric(
         }
         (wi, etap)
     };
-    let pdf = rough_dielectric_pdf(eta, distrib, wo, wi);
-    let f = rough_dielectric_f(eta, distrib, wo, wi);
+    let pdf = rough_dielectric_pdf(eta, distrib, wo, wi, lobes);
+    let f = rough_dielectric_f(eta, distrib, wo, wi, importance);
     (pdf > 0.0 && f > 0.0).then_some(BsdfSample {
         f: Color::splat(f),
         wi,

@@ -6,21 +6,25 @@
 //! [`TextureEvalContext`]. Materials know nothing of lights, media or integrators.
 
 mod bump;
+mod coated_conductor;
 mod coated_diffuse;
 mod conductor;
 mod dielectric;
 mod diffuse;
 mod diffuse_transmission;
+mod layer;
 mod mix;
 mod roughness;
 mod thin_dielectric;
 
 pub use bump::Perturbation;
+pub use coated_conductor::CoatedConductorMaterial;
 pub use coated_diffuse::CoatedDiffuseMaterial;
 pub use conductor::{ConductorMaterial, ConductorSpec};
 pub use dielectric::DielectricMaterial;
 pub use diffuse::DiffuseMaterial;
 pub use diffuse_transmission::DiffuseTransmissionMaterial;
+pub use layer::Layer;
 pub use mix::MixMaterial;
 pub use roughness::RoughnessTexture;
 pub use thin_dielectric::ThinDielectricMaterial;
@@ -47,6 +51,7 @@ pub enum Model {
     Dielectric(DielectricMaterial),
     ThinDielectric(ThinDielectricMaterial),
     CoatedDiffuse(CoatedDiffuseMaterial),
+    CoatedConductor(CoatedConductorMaterial),
     /// Marks a boundary between media: rays pass through unchanged.
     Interface,
 }
@@ -124,12 +129,34 @@ impl Model {
                 reflectance,
                 roughness,
                 eta,
-                ..
+                layer,
             } => Model::CoatedDiffuse(CoatedDiffuseMaterial::new(
                 textures.rgb_value(reflectance),
                 rough(roughness),
                 *eta,
+                Layer::new(layer, textures),
             )),
+            MaterialKind::CoatedConductor {
+                interface_roughness,
+                interface_eta,
+                conductor_eta,
+                conductor_k,
+                reflectance,
+                conductor_roughness,
+                layer,
+            } => Model::CoatedConductor(CoatedConductorMaterial {
+                interface_eta: *interface_eta,
+                interface_roughness: rough(interface_roughness),
+                conductor: match reflectance {
+                    Some(r) => ConductorSpec::Reflectance(textures.rgb_value(r)),
+                    None => ConductorSpec::EtaK {
+                        eta: textures.rgb_value(conductor_eta),
+                        k: textures.rgb_value(conductor_k),
+                    },
+                },
+                conductor_roughness: rough(conductor_roughness),
+                layer: Layer::new(layer, textures),
+            }),
             MaterialKind::DiffuseTransmission {
                 reflectance,
                 transmittance,
@@ -158,6 +185,7 @@ impl Model {
             Model::Dielectric(m) => Some(m.bsdf(ctx)),
             Model::ThinDielectric(m) => Some(m.bsdf()),
             Model::CoatedDiffuse(m) => Some(m.bsdf(ctx)),
+            Model::CoatedConductor(m) => Some(m.bsdf(ctx)),
             Model::Interface => None,
         }
     }
@@ -171,9 +199,8 @@ impl Model {
             Model::Mix(_) => true,
             Model::Conductor(m) => m.is_textured(),
             Model::Dielectric(m) => m.roughness.is_textured(),
-            Model::CoatedDiffuse(m) => {
-                m.reflectance.as_constant().is_none() || m.roughness.is_textured()
-            }
+            Model::CoatedDiffuse(m) => m.is_textured(),
+            Model::CoatedConductor(m) => m.is_textured(),
             Model::ThinDielectric(_) | Model::Interface => false,
         }
     }

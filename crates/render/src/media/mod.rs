@@ -1,7 +1,7 @@
 //! Participating media: what fills the space between surfaces.
 //!
 //! [`Medium`] is the closed set of kinds and its dispatch; each kind lives in its own file
-//! ([`homogeneous`], [`grid`]), beside the phase functions ([`phase`]) and the one
+//! ([`homogeneous`], [`grid`]), beside the one
 //! voxel-grid type ([`voxel_grid`]) that grid media and VolumeLight interiors share.
 //! Free-flight sampling, transmittance and the scattering coefficient are asked of a
 //! `Medium`, never of a kind: a new kind is added here and the compiler lists the rest.
@@ -10,12 +10,12 @@
 
 pub mod grid;
 pub mod homogeneous;
-pub mod phase;
+
 pub mod voxel_grid;
 
+pub use crate::phase::Phase;
 pub use grid::{GridMedium, Walk};
 pub use homogeneous::HomogeneousMedium;
-pub use phase::Phase;
 pub use voxel_grid::SampledGrid;
 
 use crate::math::{Color, Ray};

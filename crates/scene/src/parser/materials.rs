@@ -48,6 +48,45 @@ impl Parser {
         })
     }
 
+    /// Roughness read from `PREFIXuroughness`, `PREFIXvroughness` and `PREFIXroughness`
+    /// (coatedconductor's "interface." and "conductor."), remapped per "remaproughness".
+    fn prefixed_roughness(&self, params: &ParamSet, prefix: &str) -> Result<Roughness> {
+        let either = |name: &str| -> Result<FloatValue> {
+            let full = format!("{prefix}{name}");
+            if params.loc_of(&full).is_some() {
+                self.float_value(params, &full, 0.0)
+            } else {
+                self.float_value(params, &format!("{prefix}roughness"), 0.0)
+            }
+        };
+        Ok(Roughness {
+            u: either("uroughness")?,
+            v: either("vroughness")?,
+            remap: params.bool("remaproughness", true)?,
+        })
+    }
+
+    /// A layered material's medium and estimator parameters, with pbrt-v4's defaults.
+    fn layer(&self, params: &ParamSet) -> Result<LayerDesc> {
+        let count = |name: &str, default: i64| -> Result<u32> {
+            let n = params.int(name, default)?;
+            if !(1..=1000).contains(&n) {
+                return Err(SceneError::at(
+                    &params.loc_of(name).unwrap(),
+                    format!("\"{name}\" must be between 1 and 1000, got {n}"),
+                ));
+            }
+            Ok(n as u32)
+        };
+        Ok(LayerDesc {
+            thickness: self.float_value(params, "thickness", 0.01)?,
+            albedo: self.rgb_value_or(params, "albedo", SpectrumUse::Albedo, [0.0; 3])?,
+            g: self.float_value(params, "g", 0.0)?,
+            max_depth: count("maxdepth", 10)?,
+            n_samples: count("nsamples", 1)?,
+        })
+    }
+
     fn scalar_eta(&self, params: &ParamSet, default: f32) -> Result<f32> {
         // An RGB renderer cannot disperse: a spectral eta is taken at the green channel.
         Ok(match params.rgb("eta", SpectrumUse::Unbounded)? {
@@ -102,25 +141,36 @@ impl Parser {
                     },
                 }
             }
-            "coateddiffuse" => {
-                let thickness = self.float_value(params, "thickness", 0.01)?;
-                let g = self.float_value(params, "g", 0.0)?;
-                let albedo = self.rgb_value_or(params, "albedo", SpectrumUse::Albedo, [0.0; 3])?;
-                if albedo != RgbValue::Constant([0.0; 3]) {
-                    return Err(SceneError::at(
-                        &params.loc_of("albedo").unwrap_or_else(|| loc.clone()),
-                        "coateddiffuse: a scattering layer (\"albedo\" > 0) is not supported yet",
-                    ));
-                }
-                params.mark_used("maxdepth");
-                params.mark_used("nsamples");
-                MaterialKind::CoatedDiffuse {
-                    reflectance: reflectance(0.5)?,
-                    roughness: self.roughness(params)?,
-                    eta: self.scalar_eta(params, 1.5)?,
-                    thickness,
-                    albedo,
-                    g,
+            "coateddiffuse" => MaterialKind::CoatedDiffuse {
+                reflectance: reflectance(0.5)?,
+                roughness: self.roughness(params)?,
+                eta: self.scalar_eta(params, 1.5)?,
+                layer: self.layer(params)?,
+            },
+            "coatedconductor" => {
+                let prefixed =
+                    |p: &str| -> Result<Roughness> { self.prefixed_roughness(params, p) };
+                MaterialKind::CoatedConductor {
+                    interface_roughness: prefixed("interface.")?,
+                    interface_eta: match params.rgb("interface.eta", SpectrumUse::Unbounded)? {
+                        Some(rgb) => rgb[1],
+                        None => 1.5,
+                    },
+                    conductor_eta: self.rgb_value_or(
+                        params,
+                        "conductor.eta",
+                        SpectrumUse::Unbounded,
+                        named("metal-Cu-eta"),
+                    )?,
+                    conductor_k: self.rgb_value_or(
+                        params,
+                        "conductor.k",
+                        SpectrumUse::Unbounded,
+                        named("metal-Cu-k"),
+                    )?,
+                    reflectance: self.rgb_value(params, "reflectance", SpectrumUse::Albedo)?,
+                    conductor_roughness: prefixed("conductor.")?,
+                    layer: self.layer(params)?,
                 }
             }
             "diffusetransmission" => MaterialKind::DiffuseTransmission {
@@ -168,7 +218,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, mix, interface)"
+                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, coatedconductor, mix, interface)"
                     ),
                 ));
             }

@@ -244,6 +244,15 @@ impl Parser {
         let mut out = params.clone();
         for (name, file, loc) in files {
             let path = self.resolve_file(&file, &loc)?;
+            if !path.is_file() {
+                return Err(SceneError::at(
+                    &loc,
+                    format!(
+                        "spectrum '{file}' is neither a named spectrum (Kiln knows: {}) nor a spectrum file beside the scene",
+                        crate::spectrum::named_spectrum_names().join(", ")
+                    ),
+                ));
+            }
             let text = crate::files::read_text(&path, &loc)?;
             let mut values = Vec::new();
             for (i, line) in text.lines().enumerate() {
@@ -582,7 +591,7 @@ mod tests {
         );
         assert!(
             load_err("WorldBegin\nMaterial \"conductor\" \"spectrum eta\" \"metal-Xx-eta\"")
-                .contains("unknown named spectrum 'metal-Xx-eta'")
+                .contains("spectrum 'metal-Xx-eta' is neither a named spectrum")
         );
         assert!(
             load_err("Film \"rgb\" \"integer xresolution\" [ 1.5 ]\nWorldBegin")

@@ -1,4 +1,5 @@
-//! Phase functions: how light scatters at a point in a medium.
+//! Phase functions: how light scatters at a point in a medium (and in the scattering layer
+//! of a layered BSDF, which is why they sit below both).
 
 use crate::math::Frame;
 use glam::{Vec2, Vec3A};
