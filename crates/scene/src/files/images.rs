@@ -47,27 +47,8 @@ fn extension(path: &Path) -> String {
 pub fn read_texture_image(path: &Path, encoding: ColorEncoding, loc: &Loc) -> Result<TextureImage> {
     let fail = |e: String| SceneError::at(loc, format!("image '{}': {e}", path.display()));
     let bytes = super::read_bytes(path, loc)?;
-    let ext = extension(path);
-    let (width, height, channels, data) = match ext.as_str() {
-        "exr" => {
-            let image = kiln_image::decode_exr_limited(&bytes, MAX_TEXTURE_PIXELS)
-                .map_err(|e| fail(e.to_string()))?;
-            let pixels = image.pixels.iter().flatten().copied().collect();
-            (image.width, image.height, 3, ImageData::F32(pixels))
-        }
-        "pfm" => {
-            let (w, h, c, pixels) = decode_pfm(&bytes).map_err(fail)?;
-            (w, h, c, ImageData::F32(pixels))
-        }
-        ext => decode_with_image_crate(&bytes, ext, encoding).map_err(fail)?,
-    };
-    if let ImageData::F32(v) = &data
-        && v.iter().any(|v| !v.is_finite())
-    {
-        return Err(fail(
-            "holds a value that is not finite (NaN or infinity)".into(),
-        ));
-    }
+    let (width, height, channels, data) =
+        decode_texture_image(&bytes, &extension(path), encoding).map_err(fail)?;
     Ok(TextureImage {
         width,
         height,
@@ -75,6 +56,34 @@ pub fn read_texture_image(path: &Path, encoding: ColorEncoding, loc: &Loc) -> Re
         data,
         path: path.to_path_buf(),
     })
+}
+
+/// Decodes an image file's bytes by its extension (lower case, without the dot): width,
+/// height, channels and pixels, or what is wrong with them.
+pub fn decode_texture_image(
+    bytes: &[u8],
+    ext: &str,
+    encoding: ColorEncoding,
+) -> std::result::Result<(u32, u32, u32, ImageData), String> {
+    let (width, height, channels, data) = match ext {
+        "exr" => {
+            let image = kiln_image::decode_exr_limited(bytes, MAX_TEXTURE_PIXELS)
+                .map_err(|e| e.to_string())?;
+            let pixels = image.pixels.iter().flatten().copied().collect();
+            (image.width, image.height, 3, ImageData::F32(pixels))
+        }
+        "pfm" => {
+            let (w, h, c, pixels) = decode_pfm(bytes)?;
+            (w, h, c, ImageData::F32(pixels))
+        }
+        ext => decode_with_image_crate(bytes, ext, encoding)?,
+    };
+    if let ImageData::F32(v) = &data
+        && v.iter().any(|v| !v.is_finite())
+    {
+        return Err("holds a value that is not finite (NaN or infinity)".into());
+    }
+    Ok((width, height, channels, data))
 }
 
 fn check_size(width: u64, height: u64) -> std::result::Result<(), String> {
