@@ -43,14 +43,21 @@ Shape "trianglemesh" "point3 P" [ 0 0 0  1 0 0  1 1 0  0 1 0 ] "integer indices"
     )
 }
 
-/// The diffuse reflectance the scene's material has where a ray down -z meets (x, y).
-fn reflectance_at(scene: &Scene, x: f32, y: f32) -> Vec3A {
+/// Where a ray down -z meets (x, y), shaded: the hit (its shading normal perturbed by any
+/// bump or normal map) and the BSDF there.
+fn shade_at(scene: &Scene, x: f32, y: f32) -> (kiln_render::shapes::SurfaceHit, Option<Bsdf>) {
     let ray = Ray::new(Vec3A::new(x, y, 4.0), -Vec3A::Z);
     let mut hit = scene
         .geometry
         .intersect(&ray, f32::INFINITY)
         .expect("a hit");
-    match scene.bsdf(&mut hit, 1.0) {
+    let bsdf = scene.bsdf(&mut hit, 1.0);
+    (hit, bsdf)
+}
+
+/// The diffuse reflectance the scene's material has where a ray down -z meets (x, y).
+fn reflectance_at(scene: &Scene, x: f32, y: f32) -> Vec3A {
+    match shade_at(scene, x, y).1 {
         Some(Bsdf::Diffuse(d)) => d.r,
         other => panic!("expected a diffuse BSDF, got {other:?}"),
     }
@@ -392,13 +399,7 @@ AttributeEnd
 
 /// The shading normal the scene's material gives where a ray down -z meets (x, y).
 fn shading_normal_at(scene: &Scene, x: f32, y: f32) -> Vec3A {
-    let ray = Ray::new(Vec3A::new(x, y, 4.0), -Vec3A::Z);
-    let mut hit = scene
-        .geometry
-        .intersect(&ray, f32::INFINITY)
-        .expect("a hit");
-    scene.bsdf(&mut hit, 1.0);
-    hit.ns
+    shade_at(scene, x, y).0.ns
 }
 
 #[test]

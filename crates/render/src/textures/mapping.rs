@@ -96,11 +96,7 @@ impl Mapping2D {
                 dtdy: sv * ctx.dvdy,
             },
             Mapping2D::Spherical { texture_from_world } => {
-                let p = texture_from_world.transform_point3a(ctx.p);
-                let (dpdx, dpdy) = (
-                    texture_from_world.transform_vector3a(ctx.dpdx),
-                    texture_from_world.transform_vector3a(ctx.dpdy),
-                );
+                let TexCoord3D { p, dpdx, dpdy } = texture_space(texture_from_world, ctx);
                 let x2y2 = p.x * p.x + p.y * p.y;
                 let r_xy = x2y2.sqrt();
                 let r2 = x2y2 + p.z * p.z;
@@ -118,11 +114,7 @@ impl Mapping2D {
                 }
             }
             Mapping2D::Cylindrical { texture_from_world } => {
-                let p = texture_from_world.transform_point3a(ctx.p);
-                let (dpdx, dpdy) = (
-                    texture_from_world.transform_vector3a(ctx.dpdx),
-                    texture_from_world.transform_vector3a(ctx.dpdy),
-                );
+                let TexCoord3D { p, dpdx, dpdy } = texture_space(texture_from_world, ctx);
                 let x2y2 = p.x * p.x + p.y * p.y;
                 let dsdp = Vec3A::new(-p.y, p.x, 0.0) / (TAU * x2y2);
                 TexCoord2D {
@@ -140,11 +132,7 @@ impl Mapping2D {
                 ds,
                 dt,
             } => {
-                let p = texture_from_world.transform_point3a(ctx.p);
-                let (dpdx, dpdy) = (
-                    texture_from_world.transform_vector3a(ctx.dpdx),
-                    texture_from_world.transform_vector3a(ctx.dpdy),
-                );
+                let TexCoord3D { p, dpdx, dpdy } = texture_space(texture_from_world, ctx);
                 TexCoord2D {
                     st: Vec2::new(ds + p.dot(*vs), dt + p.dot(*vt)),
                     dsdx: vs.dot(dpdx),
@@ -181,11 +169,16 @@ impl Mapping3D {
     }
 
     pub fn map(&self, ctx: &TextureEvalContext) -> TexCoord3D {
-        TexCoord3D {
-            p: self.texture_from_world.transform_point3a(ctx.p),
-            dpdx: self.texture_from_world.transform_vector3a(ctx.dpdx),
-            dpdy: self.texture_from_world.transform_vector3a(ctx.dpdy),
-        }
+        texture_space(&self.texture_from_world, ctx)
+    }
+}
+
+/// The point of `ctx` and its footprint in a texture's own space.
+fn texture_space(texture_from_world: &Affine3A, ctx: &TextureEvalContext) -> TexCoord3D {
+    TexCoord3D {
+        p: texture_from_world.transform_point3a(ctx.p),
+        dpdx: texture_from_world.transform_vector3a(ctx.dpdx),
+        dpdy: texture_from_world.transform_vector3a(ctx.dpdy),
     }
 }
 
