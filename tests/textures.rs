@@ -505,3 +505,40 @@ Material "mix" "string materials" [ "dark" "light" ] "float amount" [ 0.3 ]"#,
         "{err}"
     );
 }
+
+/// An emitting quad cut in half by alpha emits from its opaque half only: the floor under
+/// it gets half the light, by light sampling, by BSDF sampling and by both.
+#[test]
+fn alpha_masks_area_light_emission() {
+    let dir = tempfile::tempdir().unwrap();
+    let floor = |alpha: &str, strategy: &str| {
+        let text = format!(
+            r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "{strategy}"
+Sampler "sobol" "integer pixelsamples" [ 256 ]
+Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
+LookAt 0 0.5 3  0 0 0  0 1 0
+Camera "orthographic" "float screenwindow" [ -0.05 0.05 -0.05 0.05 ]
+WorldBegin
+Texture "half" "float" "checkerboard" "float uscale" [ 2 ] "float vscale" [ 1 ] "float tex1" [ 1 ] "float tex2" [ 0 ]
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]
+Shape "trianglemesh" "point3 P" [ -0.5 1 -0.5  0.5 1 -0.5  0.5 1 0.5  -0.5 1 0.5 ] "integer indices" [ 0 1 2 0 2 3 ]
+    "point2 uv" [ 0 0  1 0  1 1  0 1 ] {alpha}
+AttributeEnd
+Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
+Shape "trianglemesh" "point3 P" [ -5 0 -5  5 0 -5  5 0 5  -5 0 5 ] "integer indices" [ 0 2 1 0 3 2 ]
+"#
+        );
+        let path = write_scene(dir.path(), "lamp.pbrt", &text);
+        render(&path, dir.path(), "lamp", &[]).image.mean()[0]
+    };
+    for strategy in ["light", "bsdf", "mis"] {
+        let full = floor("", strategy);
+        let half = floor(r#""texture alpha" "half""#, strategy);
+        assert!(full > 0.01, "{strategy}: {full}");
+        assert!(
+            (half / full - 0.5).abs() < 0.03,
+            "{strategy}: {half} of {full}"
+        );
+    }
+}

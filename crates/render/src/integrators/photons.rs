@@ -221,7 +221,7 @@ fn trace_photon(
         radiance,
         area,
         two_sided,
-    }) = light.emission_point(u1)
+    }) = light.emission_point(&scene.light_context(), u1)
     else {
         return;
     };

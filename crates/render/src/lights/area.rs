@@ -4,6 +4,7 @@
 use super::LightSample;
 use crate::math::{Color, luminance};
 use crate::sampling::{uniform_sphere, uniform_triangle};
+use crate::shapes::Geometry;
 use crate::shapes::sphere::{sample_sphere, sphere_pdf};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
 use glam::{Vec2, Vec3A};
@@ -17,6 +18,25 @@ pub struct TriangleLight {
     pub area: f32,
     pub radiance: Color,
     pub two_sided: bool,
+    /// The shape's alpha texture (index into the geometry's) and the triangle's uvs: where
+    /// alpha masks the surface it emits nothing, as in pbrt-v4.
+    pub alpha: Option<(u32, [Vec2; 3])>,
+}
+
+/// Whether alpha texture `alpha` masks the point `p` with surface coordinates `uv`: alpha 0
+/// always, 1 never, and between, by a hash of the point (pbrt-v4's AlphaMasked).
+pub fn alpha_masked(geometry: &Geometry, alpha: u32, p: Vec3A, n: Vec3A, uv: Vec2) -> bool {
+    let ctx = crate::textures::TextureEvalContext {
+        p,
+        n,
+        uv,
+        ..Default::default()
+    };
+    let a = geometry.prims.alphas[alpha as usize].evaluate(&ctx);
+    if a >= 1.0 {
+        return false;
+    }
+    a <= 0.0 || crate::shapes::hash_float(p, Vec3A::ZERO) > a
 }
 
 /// An emitting sphere; `inward` when ReverseOrientation turned its emitting side inwards.
@@ -57,13 +77,27 @@ impl TriangleLight {
         PI * self.area * luminance(self.radiance) * sides(self.two_sided)
     }
 
-    pub fn le(&self, n: Vec3A, w: Vec3A) -> Color {
+    pub fn le(&self, geometry: &Geometry, q: Vec3A, n: Vec3A, w: Vec3A) -> Color {
+        if self.masked(geometry, q) {
+            return Color::ZERO;
+        }
         diffuse_le(self.radiance, self.two_sided, n, w)
     }
 
-    pub fn sample(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
+    /// Whether alpha masks the triangle's point `q`.
+    fn masked(&self, geometry: &Geometry, q: Vec3A) -> bool {
+        let Some((alpha, uv)) = self.alpha else {
+            return false;
+        };
+        let b = crate::shapes::triangle::barycentrics(q, self.p[0], self.p[1], self.p[2]);
+        let uv = uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
+        alpha_masked(geometry, alpha, q, self.n, uv)
+    }
+
+    pub fn sample(&self, geometry: &Geometry, p: Vec3A, u: Vec2) -> Option<LightSample> {
         let (point, _) = sample_triangle(&self.p, self.n, self.area, p, u)?;
-        let radiance = self.le(self.n, -point.wi);
+        let q = p + point.wi * point.distance;
+        let radiance = self.le(geometry, q, self.n, -point.wi);
         (radiance != Color::ZERO).then(|| LightSample::on_surface(point, radiance))
     }
 
@@ -71,12 +105,17 @@ impl TriangleLight {
         triangle_pdf(self.area, p, wi, q, n)
     }
 
-    pub fn emission_point(&self, u: Vec2) -> EmissionPoint {
+    pub fn emission_point(&self, geometry: &Geometry, u: Vec2) -> EmissionPoint {
         let b = uniform_triangle(u);
+        let p = self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2];
         EmissionPoint {
-            p: self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2],
+            p,
             n: self.n,
-            radiance: self.radiance,
+            radiance: if self.masked(geometry, p) {
+                Color::ZERO
+            } else {
+                self.radiance
+            },
             area: self.area,
             two_sided: self.two_sided,
         }
@@ -158,12 +197,14 @@ mod tests {
             area: 2.0,
             radiance: Color::ONE,
             two_sided: false,
+            alpha: None,
         };
+        let geometry = Geometry::new(Default::default());
         let mut sum = 0.0f64;
         for i in 0..n {
             let s = PixelSampler::new(1, 0, i, 2);
             let ls = tri
-                .sample(Vec3A::ZERO, Vec2::new(s.value(0), s.value(1)))
+                .sample(&geometry, Vec3A::ZERO, Vec2::new(s.value(0), s.value(1)))
                 .unwrap();
             sum += 1.0 / ls.pdf as f64;
         }
@@ -195,11 +236,14 @@ mod tests {
             area: 0.5,
             radiance: Color::ONE,
             two_sided: false,
+            alpha: None,
         };
-        assert_eq!(tri.le(Vec3A::Z, Vec3A::Z), Color::ONE);
-        assert_eq!(tri.le(Vec3A::Z, -Vec3A::Z), Color::ZERO);
+        let g = Geometry::new(Default::default());
+        let q = Vec3A::new(0.2, 0.2, 0.0);
+        assert_eq!(tri.le(&g, q, Vec3A::Z, Vec3A::Z), Color::ONE);
+        assert_eq!(tri.le(&g, q, Vec3A::Z, -Vec3A::Z), Color::ZERO);
         assert!(
-            tri.sample(Vec3A::new(0.2, 0.2, -1.0), Vec2::splat(0.3))
+            tri.sample(&g, Vec3A::new(0.2, 0.2, -1.0), Vec2::splat(0.3))
                 .is_none()
         );
     }

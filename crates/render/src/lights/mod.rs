@@ -217,7 +217,7 @@ impl Light {
     /// `ns`, oriented as hits are) in direction `w`, with the rays traced to find it.
     pub fn le(&self, ctx: &LightContext, p: Vec3A, ng: Vec3A, ns: Vec3A, w: Vec3A) -> (Color, u64) {
         match self {
-            Light::Triangle(l) => (l.le(ng, w), 0),
+            Light::Triangle(l) => (l.le(ctx.geometry, p, ng, w), 0),
             Light::Sphere(l) => (l.le(ng, w), 0),
             Light::VolumeTriangle(l) => l.le(ctx, p, ng, ns, w),
             Light::VolumeSphere(l) => l.le(ctx, p, ng, ns, w),
@@ -255,7 +255,7 @@ impl Light {
             Light::Point(l) => (l.sample(p), 0),
             Light::Spot(l) => (l.sample(p), 0),
             Light::Distant(l) => (l.sample(), 0),
-            Light::Triangle(l) => (l.sample(p, u), 0),
+            Light::Triangle(l) => (l.sample(ctx.geometry, p, u), 0),
             Light::Sphere(l) => (l.sample(p, u), 0),
             Light::VolumeTriangle(l) => l.sample(ctx, p, u),
             Light::VolumeSphere(l) => l.sample(ctx, p, u),
@@ -311,9 +311,9 @@ impl Light {
 
     /// A point from which a photon leaves the light, from a 2D sample (None for the lights
     /// that do not [shoot photons](Light::shoots_photons)).
-    pub fn emission_point(&self, u: Vec2) -> Option<EmissionPoint> {
+    pub fn emission_point(&self, ctx: &LightContext, u: Vec2) -> Option<EmissionPoint> {
         match self {
-            Light::Triangle(l) => Some(l.emission_point(u)),
+            Light::Triangle(l) => Some(l.emission_point(ctx.geometry, u)),
             Light::Sphere(l) => Some(l.emission_point(u)),
             Light::Point(_)
             | Light::Spot(_)

@@ -254,12 +254,18 @@ impl Builder {
                 );
                 self.light_media.resize(self.lights.len(), None);
                 self.light_media.push(media);
+                let uv = if has_uvs {
+                    [0, 1, 2].map(|k| self.prims.uvs[(base + t[k]) as usize])
+                } else {
+                    [Vec2::ZERO, Vec2::X, Vec2::ONE]
+                };
                 self.lights.push(Light::Triangle(TriangleLight {
                     p,
                     n,
                     area,
                     radiance: rgb(*radiance),
                     two_sided: *two_sided,
+                    alpha: surface(None).alpha.map(|a| (a, uv)),
                 }));
             }
         }

@@ -62,10 +62,10 @@ impl Parser {
             FloatValue::Constant(a) if a >= 1.0 => None,
             a => Some(a),
         };
-        if alpha.is_some() && self.gs.area_light.is_some() {
+        if alpha.is_some() && self.gs.area_light.is_some() && !matches!(kind, ShapeKind::Mesh(_)) {
             return Err(SceneError::at(
                 &params.loc_of("alpha").unwrap_or_else(|| loc.clone()),
-                "an area light with \"alpha\" is not supported yet",
+                "an emitting sphere with \"alpha\" is not supported yet (emitting meshes take it)",
             ));
         }
         self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
