@@ -292,8 +292,8 @@ fn vol_file_grids_match_inline_grids() {
     .unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let from_files = cut_array(&cut_array(&text, "density"), "temperature").replace(
-        "\"float Lescale\" [ 600 ]",
-        "\"float Lescale\" [ 600 ] \"string densityfile\" \"density.vol\" \"string temperaturefile\" \"temperature.vol\"",
+        "\"float Lescale\" [ 5.615 ]",
+        "\"float Lescale\" [ 5.615 ] \"string densityfile\" \"density.vol\" \"string temperaturefile\" \"temperature.vol\"",
     );
     assert!(from_files.contains("densityfile") && !from_files.contains("\"float density\""));
     let args = ["--spp", "2", "--resolution", "48x32"];

@@ -387,16 +387,16 @@ fn blackbody_samples(t: f64, visible_peak: bool) -> Vec<(f64, f64)> {
 
 /// Linear sRGB of the blackbody at `kelvin` normalised to 1 at its peak wavelength and not
 /// otherwise (pbrt-v4's `BlackbodySpectrum`, which emissive temperature grids use): its
-/// luminance grows with temperature. As pbrt's RGB film does, XYZ is ∫ S·(x̄, ȳ, z̄) / ∫ ȳ.
+/// luminance grows with temperature. pbrt-v4 gives this spectrum no photometric
+/// normalisation (lights and `Le` are divided by their luminance; a temperature grid's
+/// blackbody is not), and its RGB film takes XYZ as ∫ S·(x̄, ȳ, z̄) dλ over nanometres without
+/// dividing by ∫ ȳ (106.86): so Y here is ∫ B·ȳ dλ, about 90 at 6500 K, as pbrt-v4 renders it.
 /// Zero for kelvin <= 0 or non-finite.
 pub fn blackbody_peak_rgb(kelvin: f32) -> [f32; 3] {
     if !kelvin.is_finite() || kelvin <= 0.0 {
         return [0.0; 3];
     }
-    static Y_INTEGRAL: OnceLock<f64> = OnceLock::new();
-    let y_integral = *Y_INTEGRAL.get_or_init(|| integrate_xyz(&[(560.0, 1.0)], false)[1]);
-    let xyz =
-        integrate_xyz(&blackbody_samples(f64::from(kelvin), false), false).map(|v| v / y_integral);
+    let xyz = integrate_xyz(&blackbody_samples(f64::from(kelvin), false), false);
     let (white, _) = d65_reference();
     let rgb = xyz_to_srgb(xyz);
     std::array::from_fn(|c| (rgb[c] / white[c]).max(0.0) as f32)
@@ -527,9 +527,12 @@ mod tests {
     #[test]
     fn peak_normalised_blackbody_grows_with_temperature() {
         // At 6500 K the peak (446 nm) lies in the visible range and the curve is nearly flat
-        // there: luminance close to, and below, that of a constant 1 spectrum.
+        // there: luminance close to, and below, that of a constant 1 spectrum, ∫ ȳ dλ =
+        // 106.86 (pbrt-v4's CIE_Y_integral; no photometric normalisation).
         let y = |t: f32| luminance(blackbody_peak_rgb(t));
-        assert!(y(6500.0) > 0.7 && y(6500.0) < 1.0, "{}", y(6500.0));
+        let y_integral = integrate_xyz(&[(560.0, 1.0)], false)[1];
+        assert!((y_integral - 106.857).abs() < 0.05, "{y_integral}");
+        assert!(y(6500.0) > 75.0 && y(6500.0) < 106.86, "{}", y(6500.0));
         assert!(y(1000.0) < 1e-3 * y(3000.0));
         assert!(y(1500.0) < y(2000.0) && y(2000.0) < y(4000.0));
         // Same colour as the luminance-normalised blackbody.
