@@ -300,6 +300,16 @@ fn bad_textures_are_errors_that_name_the_line() {
             "scene.pbrt:3:",
             "a texture is not accepted here",
         ),
+        (
+            "AreaLightSource \"diffuse\" \"string filename\" \"gone.png\"",
+            "scene.pbrt:2:",
+            "gone.png",
+        ),
+        (
+            "AreaLightSource \"diffuse\" \"string filename\" \"a.png\" \"rgb L\" [ 1 1 1 ]",
+            "scene.pbrt:2:",
+            "give either \"L\" or \"filename\", not both",
+        ),
     ];
     for (body, at, says) in cases {
         let (err, _dir) = failing(&scene(body));
@@ -506,14 +516,11 @@ Material "mix" "string materials" [ "dark" "light" ] "float amount" [ 0.3 ]"#,
     );
 }
 
-/// An emitting quad cut in half by alpha emits from its opaque half only: the floor under
-/// it gets half the light, by light sampling, by BSDF sampling and by both.
-#[test]
-fn alpha_masks_area_light_emission() {
-    let dir = tempfile::tempdir().unwrap();
-    let floor = |alpha: &str, strategy: &str| {
-        let text = format!(
-            r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "{strategy}"
+/// The mean over a diffuse floor lit by a unit square lamp one unit above it: `lamp` is the
+/// AreaLightSource's parameters, `shape` extra parameters of the lamp's quad (uv 0..1).
+fn lamp_over_floor(dir: &Path, lamp: &str, shape: &str, strategy: &str) -> kiln_image::RgbBuffer {
+    let text = format!(
+        r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "{strategy}"
 Sampler "sobol" "integer pixelsamples" [ 256 ]
 Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
 LookAt 0 0.5 3  0 0 0  0 1 0
@@ -521,25 +528,107 @@ Camera "orthographic" "float screenwindow" [ -0.05 0.05 -0.05 0.05 ]
 WorldBegin
 Texture "half" "float" "checkerboard" "float uscale" [ 2 ] "float vscale" [ 1 ] "float tex1" [ 1 ] "float tex2" [ 0 ]
 AttributeBegin
-AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]
+AreaLightSource "diffuse" {lamp}
 Shape "trianglemesh" "point3 P" [ -0.5 1 -0.5  0.5 1 -0.5  0.5 1 0.5  -0.5 1 0.5 ] "integer indices" [ 0 1 2 0 2 3 ]
-    "point2 uv" [ 0 0  1 0  1 1  0 1 ] {alpha}
+    "point2 uv" [ 0 0  1 0  1 1  0 1 ] {shape}
 AttributeEnd
 Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
 Shape "trianglemesh" "point3 P" [ -5 0 -5  5 0 -5  5 0 5  -5 0 5 ] "integer indices" [ 0 2 1 0 3 2 ]
 "#
-        );
-        let path = write_scene(dir.path(), "lamp.pbrt", &text);
-        render(&path, dir.path(), "lamp", &[]).image.mean()[0]
-    };
+    );
+    let path = write_scene(dir, "lamp.pbrt", &text);
+    render(&path, dir, "lamp", &[]).image
+}
+
+/// An emitting quad cut in half by alpha emits from its opaque half only: the floor under
+/// it gets half the light, by light sampling, by BSDF sampling and by both.
+#[test]
+fn alpha_masks_area_light_emission() {
+    let dir = tempfile::tempdir().unwrap();
+    let lamp = r#""rgb L" [ 1 1 1 ]"#;
     for strategy in ["light", "bsdf", "mis"] {
-        let full = floor("", strategy);
-        let half = floor(r#""texture alpha" "half""#, strategy);
+        let full = lamp_over_floor(dir.path(), lamp, "", strategy).mean()[0];
+        let half =
+            lamp_over_floor(dir.path(), lamp, r#""texture alpha" "half""#, strategy).mean()[0];
         assert!(full > 0.01, "{strategy}: {full}");
         assert!(
             (half / full - 0.5).abs() < 0.03,
             "{strategy}: {half} of {full}"
         );
+    }
+}
+
+/// pbrt-v4's image-textured area light (`AreaLightSource "diffuse" "string filename"`):
+/// seen directly, each corner of the lamp shows its texel (the image's top row at v = 1,
+/// times "scale"); a white image at scale s renders as "L" [ s s s ] does; and
+/// light, BSDF and MIS sampling agree on the light a two-coloured image casts.
+#[test]
+fn an_emission_image_glows_where_its_uvs_put_it() {
+    let dir = tempfile::tempdir().unwrap();
+    // Top row red, green; bottom row blue, white.
+    let texels = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]];
+    write_png(&dir.path().join("glow.png"), 2, 2, &texels.concat());
+    let text = r#"Sampler "sobol" "integer pixelsamples" [ 4 ]
+Film "rgb" "integer xresolution" [ 4 ] "integer yresolution" [ 4 ]
+PixelFilter "box"
+LookAt 0.5 0.5 4  0.5 0.5 0  0 1 0
+Camera "orthographic" "float screenwindow" [ -0.5 0.5 -0.5 0.5 ]
+WorldBegin
+AreaLightSource "diffuse" "string filename" "glow.png" "float scale" [ 2 ]
+Shape "trianglemesh" "point3 P" [ 0 0 0  1 0 0  1 1 0  0 1 0 ] "integer indices" [ 0 1 2 0 2 3 ]
+    "point2 uv" [ 0 0  1 0  1 1  0 1 ]
+"#;
+    let path = write_scene(dir.path(), "glow.pbrt", text);
+    let img = render(&path, dir.path(), "glow", &[]).image;
+    // pbrt's LookAt puts world +x (u) on the film's left: film column 0 sees u near 1.
+    for (fx, fy, texel) in [(3, 0, 0), (0, 0, 1), (3, 3, 2), (0, 3, 3)] {
+        let p = img.pixels[(fy * 4 + fx) as usize];
+        for c in 0..3 {
+            let want = 2.0 * texels[texel][c] as f32 / 255.0;
+            assert!(
+                (p[c] - want).abs() < 1e-5,
+                "film pixel ({fx}, {fy}) channel {c}: {} vs texel {texel}'s {want}",
+                p[c]
+            );
+        }
+    }
+
+    write_png(&dir.path().join("white.png"), 1, 1, &[255, 255, 255]);
+    write_png(
+        &dir.path().join("halves.png"),
+        2,
+        1,
+        &[255, 160, 0, 0, 160, 255],
+    );
+    let white = r#""string filename" "white.png" "float scale" [ 0.7 ]"#;
+    let constant = r#""rgb L" [ 0.7 0.7 0.7 ]"#;
+    // The same samples; only the bilinear weights' rounding (they sum to 1 within an ulp
+    // or two) may tell them apart.
+    let (a, b) = (
+        lamp_over_floor(dir.path(), white, "", "mis"),
+        lamp_over_floor(dir.path(), constant, "", "mis"),
+    );
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        for c in 0..3 {
+            assert!(
+                (p[c] - q[c]).abs() <= 1e-6 * q[c],
+                "a white image at scale 0.7 is L = 0.7: {p:?} vs {q:?}"
+            );
+        }
+    }
+    let means: Vec<[f64; 3]> = ["light", "bsdf", "mis"]
+        .iter()
+        .map(|s| lamp_over_floor(dir.path(), r#""string filename" "halves.png""#, "", s).mean())
+        .collect();
+    for (c, want) in means[2].iter().enumerate() {
+        assert!(*want > 0.01, "channel {c}: {want}");
+        for (name, m) in ["light", "bsdf"].iter().zip(&means) {
+            assert!(
+                (m[c] - want).abs() < 0.03 * want,
+                "{name} vs mis, channel {c}: {} vs {want}",
+                m[c]
+            );
+        }
     }
 }
 

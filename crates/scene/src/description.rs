@@ -250,8 +250,12 @@ pub enum ShapeKind {
 #[derive(Debug, Clone, PartialEq)]
 pub enum AreaLightDesc {
     Diffuse {
-        /// Radiance, with `scale` already applied.
+        /// Radiance, with `scale` already applied; with an image, the scale alone, which
+        /// multiplies the image's linear RGB.
         radiance: Rgb,
+        /// pbrt-v4's `"string filename"`: radiance from an image at the surface's (u, 1 − v),
+        /// bilinearly interpolated, clamped at the edges.
+        image: Option<Arc<crate::textures::TextureImage>>,
         two_sided: bool,
         loc: Loc,
     },

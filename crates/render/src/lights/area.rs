@@ -8,7 +8,9 @@ use crate::shapes::Geometry;
 use crate::shapes::sphere::{sample_sphere, sphere_pdf};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
 use glam::{Vec2, Vec3A};
+use kiln_scene::textures::TextureImage;
 use std::f32::consts::PI;
+use std::sync::Arc;
 
 /// One emitting triangle; `n` is its emitting side.
 #[derive(Debug, Clone)]
@@ -16,11 +18,70 @@ pub struct TriangleLight {
     pub p: [Vec3A; 3],
     pub n: Vec3A,
     pub area: f32,
+    /// The radiance, or with an image the scale that multiplies it.
     pub radiance: Color,
     pub two_sided: bool,
-    /// The shape's alpha texture (index into the geometry's) and the triangle's uvs: where
-    /// alpha masks the surface it emits nothing, as in pbrt-v4.
-    pub alpha: Option<(u32, [Vec2; 3])>,
+    /// The triangle's surface coordinates at its corners (pbrt's defaults without uvs).
+    pub uv: [Vec2; 3],
+    /// The shape's alpha texture (an index into the geometry's): where alpha masks the
+    /// surface it emits nothing, as in pbrt-v4.
+    pub alpha: Option<u32>,
+    /// pbrt-v4's emission image: the radiance at a point is the image there, times `radiance`.
+    pub image: Option<Arc<EmissionImage>>,
+}
+
+/// An area light's emission image (pbrt-v4's `DiffuseAreaLight` with `filename`): linear
+/// RGB looked up at (u, 1 − v), bilinearly, clamped at the edges.
+#[derive(Debug)]
+pub struct EmissionImage {
+    image: Arc<TextureImage>,
+    /// The mean over all pixels, for the light's power.
+    mean: Color,
+}
+
+impl EmissionImage {
+    pub fn new(image: Arc<TextureImage>) -> EmissionImage {
+        let (w, h) = (image.width, image.height);
+        let mut sum = [0.0f64; 3];
+        for y in 0..h {
+            for x in 0..w {
+                for (c, s) in sum.iter_mut().enumerate() {
+                    *s += f64::from(image.channel(x, y, c as u32).max(0.0));
+                }
+            }
+        }
+        let n = f64::from(w) * f64::from(h);
+        let mean = Color::new(
+            (sum[0] / n) as f32,
+            (sum[1] / n) as f32,
+            (sum[2] / n) as f32,
+        );
+        EmissionImage { image, mean }
+    }
+
+    /// The image's radiance at surface coordinates `uv`.
+    pub fn lookup(&self, uv: Vec2) -> Color {
+        let (w, h) = (self.image.width as i64, self.image.height as i64);
+        let x = uv.x * w as f32 - 0.5;
+        let y = (1.0 - uv.y) * h as f32 - 0.5;
+        let (xf, yf) = (x.floor(), y.floor());
+        let (dx, dy) = (x - xf, y - yf);
+        let texel = |xi: i64, yi: i64| {
+            let (xi, yi) = (xi.clamp(0, w - 1) as u32, yi.clamp(0, h - 1) as u32);
+            Color::new(
+                self.image.channel(xi, yi, 0),
+                self.image.channel(xi, yi, 1),
+                self.image.channel(xi, yi, 2),
+            )
+        };
+        // Float to integer casts saturate, so a huge or NaN coordinate clamps to an edge.
+        let (xi, yi) = (xf as i64, yf as i64);
+        let v = texel(xi, yi) * ((1.0 - dx) * (1.0 - dy))
+            + texel(xi.saturating_add(1), yi) * (dx * (1.0 - dy))
+            + texel(xi, yi.saturating_add(1)) * ((1.0 - dx) * dy)
+            + texel(xi.saturating_add(1), yi.saturating_add(1)) * (dx * dy);
+        v.max(Color::ZERO)
+    }
 }
 
 /// Whether alpha texture `alpha` masks the point `p` with surface coordinates `uv`: alpha 0
@@ -74,24 +135,38 @@ fn sides(two_sided: bool) -> f32 {
 
 impl TriangleLight {
     pub fn power(&self) -> f32 {
-        PI * self.area * luminance(self.radiance) * sides(self.two_sided)
+        let radiance = match &self.image {
+            Some(image) => self.radiance * image.mean,
+            None => self.radiance,
+        };
+        PI * self.area * luminance(radiance) * sides(self.two_sided)
     }
 
+    /// Radiance leaving the triangle's point `q` (normal `n`) in direction `w`.
     pub fn le(&self, geometry: &Geometry, q: Vec3A, n: Vec3A, w: Vec3A) -> Color {
-        if self.masked(geometry, q) {
+        if !self.two_sided && n.dot(w) <= 0.0 {
             return Color::ZERO;
         }
-        diffuse_le(self.radiance, self.two_sided, n, w)
+        self.emitted(geometry, q)
     }
 
-    /// Whether alpha masks the triangle's point `q`.
-    fn masked(&self, geometry: &Geometry, q: Vec3A) -> bool {
-        let Some((alpha, uv)) = self.alpha else {
-            return false;
-        };
+    /// Radiance at the triangle's point `q` on its emitting side(s): zero where alpha masks
+    /// it, the image there if it has one.
+    fn emitted(&self, geometry: &Geometry, q: Vec3A) -> Color {
+        if self.alpha.is_none() && self.image.is_none() {
+            return self.radiance;
+        }
         let b = crate::shapes::triangle::barycentrics(q, self.p[0], self.p[1], self.p[2]);
-        let uv = uv[0] * b[0] + uv[1] * b[1] + uv[2] * b[2];
-        alpha_masked(geometry, alpha, q, self.n, uv)
+        let uv = self.uv[0] * b[0] + self.uv[1] * b[1] + self.uv[2] * b[2];
+        if let Some(alpha) = self.alpha
+            && alpha_masked(geometry, alpha, q, self.n, uv)
+        {
+            return Color::ZERO;
+        }
+        match &self.image {
+            Some(image) => self.radiance * image.lookup(uv),
+            None => self.radiance,
+        }
     }
 
     pub fn sample(&self, geometry: &Geometry, p: Vec3A, u: Vec2) -> Option<LightSample> {
@@ -111,11 +186,7 @@ impl TriangleLight {
         EmissionPoint {
             p,
             n: self.n,
-            radiance: if self.masked(geometry, p) {
-                Color::ZERO
-            } else {
-                self.radiance
-            },
+            radiance: self.emitted(geometry, p),
             area: self.area,
             two_sided: self.two_sided,
         }
@@ -197,7 +268,9 @@ mod tests {
             area: 2.0,
             radiance: Color::ONE,
             two_sided: false,
+            uv: [Vec2::ZERO, Vec2::X, Vec2::ONE],
             alpha: None,
+            image: None,
         };
         let geometry = Geometry::new(Default::default());
         let mut sum = 0.0f64;
@@ -236,7 +309,9 @@ mod tests {
             area: 0.5,
             radiance: Color::ONE,
             two_sided: false,
+            uv: [Vec2::ZERO, Vec2::X, Vec2::ONE],
             alpha: None,
+            image: None,
         };
         let g = Geometry::new(Default::default());
         let q = Vec3A::new(0.2, 0.2, 0.0);

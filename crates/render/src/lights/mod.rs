@@ -17,7 +17,7 @@ mod point;
 mod spot;
 pub mod volume;
 
-pub use area::{EmissionPoint, SphereLight, TriangleLight};
+pub use area::{EmissionImage, EmissionPoint, SphereLight, TriangleLight};
 pub use distant::DistantLight;
 pub use infinite::{
     DomeLight, ImageInfiniteLight, UniformInfiniteLight, equal_area_sphere_to_square,

@@ -7,8 +7,8 @@ use crate::camera::Camera;
 use crate::filter::Filter;
 use crate::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use crate::lights::{
-    Light, MediumLight, SphereLight, TriangleLight, VolumeInterior, VolumeSphereLight,
-    VolumeTriangleLight,
+    EmissionImage, Light, MediumLight, SphereLight, TriangleLight, VolumeInterior,
+    VolumeSphereLight, VolumeTriangleLight,
 };
 use crate::materials::{DielectricMaterial, Material, Model, Perturbation, RoughnessTexture};
 use crate::math::rgb;
@@ -21,6 +21,7 @@ use kiln_scene::{
     AreaLightDesc, MediumKind, SceneDescription, ShapeDesc, ShapeKind, TriangleMeshData,
     VolumeLightDesc,
 };
+use std::sync::Arc;
 
 /// Why a description cannot be turned into a renderable scene.
 #[derive(Debug, thiserror::Error)]
@@ -239,10 +240,14 @@ impl Builder {
         }
         if let Some(AreaLightDesc::Diffuse {
             radiance,
+            image,
             two_sided,
             ..
         }) = &shape.area_light
         {
+            let image = image
+                .as_ref()
+                .map(|image| Arc::new(EmissionImage::new(image.clone())));
             for t in mesh.indices.chunks_exact(3) {
                 let p = [0, 1, 2].map(|k| self.prims.positions[(base + t[k]) as usize]);
                 let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
@@ -265,7 +270,9 @@ impl Builder {
                     area,
                     radiance: rgb(*radiance),
                     two_sided: *two_sided,
-                    alpha: surface(None).alpha.map(|a| (a, uv)),
+                    uv,
+                    alpha: surface(None).alpha,
+                    image: image.clone(),
                 }));
             }
         }
@@ -337,10 +344,17 @@ impl Builder {
         let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
         if let Some(AreaLightDesc::Diffuse {
             radiance,
+            image,
             two_sided,
             ..
         }) = &shape.area_light
         {
+            if image.is_some() {
+                return Err(BuildError::Unsupported {
+                    loc: shape.loc.clone(),
+                    message: "an emission image (AreaLightSource \"filename\") on a sphere is not supported yet; it works on triangle meshes".into(),
+                });
+            }
             self.light_media.resize(self.lights.len(), None);
             self.light_media.push(media);
             self.lights.push(Light::Sphere(SphereLight {

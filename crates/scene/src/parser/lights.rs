@@ -7,6 +7,7 @@ use crate::error::{Loc, Result, SceneError};
 use crate::files;
 use crate::params::ParamSet;
 use crate::spectrum::SpectrumUse;
+use crate::textures::ColorEncoding;
 use glam::DVec3;
 use std::sync::Arc;
 
@@ -145,21 +146,50 @@ impl Parser {
                 ),
             ));
         }
-        if params.loc_of("filename").is_some() || params.loc_of("power").is_some() {
+        if params.loc_of("power").is_some() {
             return Err(SceneError::at(
                 loc,
-                "AreaLightSource: \"filename\" and \"power\" are not supported yet",
+                "AreaLightSource: \"power\" is not supported yet; give the radiance L",
             ));
         }
         let scale = params.float("scale", 1.0)? as f32;
-        let radiance = params
-            .rgb("L", SpectrumUse::Illuminant)?
-            .unwrap_or([1.0; 3])
-            .map(|c| c * scale);
+        // pbrt-v4: an image gives the radiance (linear RGB, looked up at the surface's uv)
+        // in place of L, and only "scale" multiplies it.
+        let image = match params.string("filename")? {
+            Some(name) => {
+                if params.loc_of("L").is_some() {
+                    return Err(SceneError::at(
+                        loc,
+                        "AreaLightSource 'diffuse': give either \"L\" or \"filename\", not both",
+                    ));
+                }
+                let at = params.loc_of("filename").unwrap_or_else(|| loc.clone());
+                let image = self.texture_image(&name, ColorEncoding::Srgb, &at)?;
+                if image.channels < 3 {
+                    return Err(SceneError::at(
+                        &at,
+                        format!(
+                            "AreaLightSource 'diffuse': '{name}' has {} channel(s); an emission image needs R, G and B",
+                            image.channels
+                        ),
+                    ));
+                }
+                Some(image)
+            }
+            None => None,
+        };
+        let radiance = match image {
+            Some(_) => [scale; 3],
+            None => params
+                .rgb("L", SpectrumUse::Illuminant)?
+                .unwrap_or([1.0; 3])
+                .map(|c| c * scale),
+        };
         let two_sided = params.bool("twosided", false)?;
         self.check_unused(params, "AreaLightSource 'diffuse'", &[])?;
         self.gs.area_light = Some(AreaLightDesc::Diffuse {
             radiance,
+            image,
             two_sided,
             loc: loc.clone(),
         });
