@@ -190,6 +190,8 @@ pub enum MaterialKind {
         materials: [MaterialId; 2],
         amount: FloatValue,
     },
+    /// pbrt-v4's "measured": a BRDF tabulated in the RGL format (a `.bsdf` file).
+    Measured(Arc<crate::files::measured::MeasuredBrdf>),
     /// Marks a boundary between media; rays pass through it unchanged.
     Interface,
 }

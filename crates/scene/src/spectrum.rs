@@ -218,6 +218,35 @@ fn spectrum_to_rgb(pairs: &[(f64, f64)], usage: SpectrumUse) -> Result<[f32; 3],
     Ok(std::array::from_fn(|c| (rgb[c] / white[c]).max(0.0) as f32))
 }
 
+/// The linear map from a reflectance spectrum sampled at `wavelengths` (nm, increasing) to
+/// linear sRGB, as [`SpectrumUse::Albedo`] converts it before clamping: entry k is the RGB of
+/// the piecewise-linear "hat" that is 1 at wavelength k and 0 at the others (held constant
+/// beyond the ends), so a spectrum's RGB is Σ_k value_k · weights[k].
+pub fn albedo_rgb_weights(wavelengths: &[f32]) -> Result<Vec<[f64; 3]>, String> {
+    if wavelengths.is_empty()
+        || wavelengths.iter().any(|l| !l.is_finite())
+        || wavelengths.windows(2).any(|w| w[1] <= w[0])
+    {
+        return Err("wavelengths must be finite and increasing".into());
+    }
+    let (white, d65_y) = d65_reference();
+    let l: Vec<f64> = wavelengths.iter().map(|&v| f64::from(v)).collect();
+    Ok((0..l.len())
+        .map(|k| {
+            let mut hat = Vec::with_capacity(3);
+            if k > 0 {
+                hat.push((l[k - 1], 0.0));
+            }
+            hat.push((l[k], 1.0));
+            if k + 1 < l.len() {
+                hat.push((l[k + 1], 0.0));
+            }
+            let rgb = xyz_to_srgb(integrate_xyz(&hat, true).map(|v| v / d65_y));
+            std::array::from_fn(|c| rgb[c] / white[c])
+        })
+        .collect())
+}
+
 /// Linear sRGB of a piecewise-linear sampled spectrum given as (lambda nm, value) pairs sorted
 /// by lambda (values outside the range are held constant at the end values). Returns
 /// Err(message) if lambdas are not strictly increasing or fewer than 1 pair.
@@ -522,6 +551,23 @@ mod tests {
             [0.0; 3]
         );
         assert!(sampled_to_rgb(&[(500.0, -1.0)], SpectrumUse::Illuminant).is_err());
+    }
+
+    #[test]
+    fn albedo_weights_are_the_albedo_conversion() {
+        let l = [380.0, 450.0, 520.0, 600.0, 700.0];
+        let v = [0.2, 0.5, 0.9, 0.4, 0.7];
+        let w = albedo_rgb_weights(&l).unwrap();
+        let by_weights: [f32; 3] =
+            std::array::from_fn(|c| (0..5).map(|k| w[k][c] * f64::from(v[k])).sum::<f64>() as f32);
+        let pairs: Vec<(f32, f32)> = l.iter().copied().zip(v).collect();
+        let direct = sampled_to_rgb(&pairs, SpectrumUse::Albedo).unwrap();
+        assert_close(by_weights, direct, 1e-4, "weights vs direct");
+        // A constant spectrum is grey.
+        let grey: [f32; 3] =
+            std::array::from_fn(|c| (0..5).map(|k| w[k][c] * 0.6).sum::<f64>() as f32);
+        assert_close(grey, [0.6; 3], 2e-3, "constant 0.6");
+        assert!(albedo_rgb_weights(&[500.0, 400.0]).is_err());
     }
 
     #[test]

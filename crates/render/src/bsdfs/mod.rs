@@ -14,6 +14,7 @@ mod diffuse;
 mod diffuse_transmission;
 pub mod fresnel;
 mod layered;
+mod measured;
 mod microfacet;
 mod thin_dielectric;
 
@@ -24,6 +25,7 @@ pub use diffuse::DiffuseBxdf;
 pub use diffuse_transmission::DiffuseTransmissionBxdf;
 pub use fresnel::{fresnel_complex, fresnel_dielectric, internal_diffuse_reflectance, refract};
 pub use layered::{Base, LayeredBxdf};
+pub use measured::{MeasuredBxdf, MeasuredTables};
 pub use microfacet::TrowbridgeReitz;
 pub use thin_dielectric::ThinDielectricBxdf;
 
@@ -43,7 +45,7 @@ pub struct BsdfSample {
 }
 
 #[derive(Debug, Clone, Copy)]
-pub enum Bsdf {
+pub enum Bsdf<'a> {
     Diffuse(DiffuseBxdf),
     DiffuseTransmission(DiffuseTransmissionBxdf),
     Conductor(ConductorBxdf),
@@ -51,16 +53,18 @@ pub enum Bsdf {
     ThinDielectric(ThinDielectricBxdf),
     CoatedDiffuse(CoatedDiffuseBxdf),
     Layered(LayeredBxdf),
+    Measured(MeasuredBxdf<'a>),
 }
 
-impl Bsdf {
+impl Bsdf<'_> {
     /// True when every lobe is a delta: light sampling cannot help.
     pub fn is_specular(&self) -> bool {
         match self {
             Bsdf::Diffuse(_)
             | Bsdf::DiffuseTransmission(_)
             | Bsdf::CoatedDiffuse(_)
-            | Bsdf::Layered(_) => false,
+            | Bsdf::Layered(_)
+            | Bsdf::Measured(_) => false,
             Bsdf::Conductor(b) => b.distrib.effectively_smooth(),
             Bsdf::Dielectric(b) => b.distrib.effectively_smooth(),
             Bsdf::ThinDielectric(_) => true,
@@ -85,6 +89,7 @@ impl Bsdf {
             Bsdf::ThinDielectric(b) => b.f(wo, wi),
             Bsdf::CoatedDiffuse(b) => b.f(wo, wi),
             Bsdf::Layered(b) => b.f(wo, wi),
+            Bsdf::Measured(b) => b.f(wo, wi),
         }
     }
 
@@ -97,6 +102,7 @@ impl Bsdf {
             Bsdf::ThinDielectric(b) => b.pdf(wo, wi),
             Bsdf::CoatedDiffuse(b) => b.pdf(wo, wi),
             Bsdf::Layered(b) => b.pdf(wo, wi),
+            Bsdf::Measured(b) => b.pdf(wo, wi),
         }
     }
 
@@ -112,6 +118,7 @@ impl Bsdf {
             Bsdf::Dielectric(b) => b.sample(wo, uc, u),
             Bsdf::ThinDielectric(b) => b.sample(wo, uc, u),
             Bsdf::CoatedDiffuse(b) => b.sample(wo, uc, u),
+            Bsdf::Measured(b) => b.sample(wo, uc, u),
             // The walk's f and pdf have the right ratio, but its pdf is only proportional to
             // the density multiple importance sampling needs: rescale both to the estimated
             // density (pbrt-v4's pdfIsProportional), keeping the ratio.
@@ -244,6 +251,30 @@ mod tests {
                 check_consistency(b, wo_at(cos));
             }
         }
+    }
+
+    /// A measured BRDF tabulated from a Lambertian of reflectance 0.6 (the RGL stand-in):
+    /// its f, pdf and sampling agree, and its albedo is 0.6 at every angle, by sampling and
+    /// by integrating f over uniform directions (within the tables' interpolation error).
+    #[test]
+    fn a_measured_lambertian_reflects_as_one() {
+        let bytes = kiln_scene::files::measured::lambertian_bsdf_file(0.6, 16, 32);
+        let brdf = kiln_scene::files::measured::parse_measured(&bytes).unwrap();
+        assert!(brdf.isotropic);
+        let tables = MeasuredTables::new(&brdf).unwrap();
+        let b = Bsdf::Measured(MeasuredBxdf { tables: &tables });
+        for cos in [0.95, 0.7, 0.4, 0.15, -0.6] {
+            check_consistency(b, wo_at(cos));
+            let (sampled, uniform) = albedo_both_ways(b, wo_at(cos), 1 << 16);
+            for (how, a) in [("sampled", sampled), ("uniform", uniform)] {
+                assert!((a - 0.6).abs() < 0.015, "cos {cos}: {how} albedo {a}");
+            }
+        }
+        // Reciprocal, as the Lambertian it was made from.
+        let (a, c) = (wo_at(0.8), Vec3A::new(-0.3, 0.5, 0.81).normalize());
+        let (fa, fc) = (b.f(a, c).x, b.f(c, a).x);
+        assert!((fa - fc).abs() < 0.02 * fa, "{fa} vs {fc}");
+        assert!((fa - 0.6 / PI).abs() < 0.02 * fa, "{fa}");
     }
 
     fn layered(bottom: Base, albedo: f32, roughness: f32, max_depth: u32) -> LayeredBxdf {

@@ -30,7 +30,7 @@ impl CoatedConductorMaterial {
             || self.layer.is_textured()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         let top = DielectricBxdf {
             eta: self.interface_eta,
             distrib: self.interface_roughness.distribution(ctx),

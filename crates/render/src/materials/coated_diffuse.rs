@@ -47,7 +47,7 @@ impl CoatedDiffuseMaterial {
             || self.layer.is_textured()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         let top = DielectricBxdf {
             eta: self.eta,
             distrib: self.roughness.distribution(ctx),

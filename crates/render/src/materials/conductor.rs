@@ -66,7 +66,7 @@ impl ConductorMaterial {
         self.fixed.is_none()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         Bsdf::Conductor(self.fixed.unwrap_or_else(|| self.bxdf(ctx)))
     }
 }

@@ -16,7 +16,7 @@ impl DielectricMaterial {
         self.roughness.is_smooth()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         Bsdf::Dielectric(DielectricBxdf {
             eta: self.eta,
             distrib: self.roughness.distribution(ctx),

@@ -10,7 +10,7 @@ pub struct DiffuseMaterial {
 }
 
 impl DiffuseMaterial {
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         Bsdf::Diffuse(DiffuseBxdf {
             r: self
                 .reflectance

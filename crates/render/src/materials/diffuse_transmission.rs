@@ -17,7 +17,7 @@ impl DiffuseTransmissionMaterial {
         self.reflectance.as_constant().is_none() || self.transmittance.as_constant().is_none()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         let clamp = |c: Color| (c * self.scale).clamp(Color::ZERO, Color::ONE);
         Bsdf::DiffuseTransmission(DiffuseTransmissionBxdf {
             r: clamp(self.reflectance.evaluate(ctx)),

@@ -13,6 +13,7 @@ mod dielectric;
 mod diffuse;
 mod diffuse_transmission;
 mod layer;
+mod measured;
 mod mix;
 mod roughness;
 mod thin_dielectric;
@@ -25,13 +26,15 @@ pub use dielectric::DielectricMaterial;
 pub use diffuse::DiffuseMaterial;
 pub use diffuse_transmission::DiffuseTransmissionMaterial;
 pub use layer::Layer;
+pub use measured::MeasuredMaterial;
 pub use mix::MixMaterial;
 pub use roughness::RoughnessTexture;
 pub use thin_dielectric::ThinDielectricMaterial;
 
-use crate::bsdfs::Bsdf;
+use crate::bsdfs::{Bsdf, MeasuredTables};
 use crate::textures::{TextureEvalContext, Textures};
 use kiln_scene::{MaterialDesc, MaterialKind, NormalPerturbationDesc};
+use std::sync::Arc;
 
 /// A material: the model that makes its BSDF, and how it perturbs the shading normal.
 #[derive(Debug, Clone)]
@@ -52,6 +55,7 @@ pub enum Model {
     ThinDielectric(ThinDielectricMaterial),
     CoatedDiffuse(CoatedDiffuseMaterial),
     CoatedConductor(CoatedConductorMaterial),
+    Measured(MeasuredMaterial),
     /// Marks a boundary between media: rays pass through unchanged.
     Interface,
 }
@@ -59,15 +63,15 @@ pub enum Model {
 impl Material {
     /// The material a scene description's Material or MakeNamedMaterial gives, its
     /// textures taken from the scene's.
-    pub fn from_description(desc: &MaterialDesc, textures: &Textures) -> Material {
-        Material {
-            model: Model::from_description(&desc.kind, textures),
+    pub fn from_description(desc: &MaterialDesc, textures: &Textures) -> Result<Material, String> {
+        Ok(Material {
+            model: Model::from_description(&desc.kind, textures)?,
             normal: match &desc.normal {
                 NormalPerturbationDesc::None => Perturbation::None,
                 NormalPerturbationDesc::Bump(d) => Perturbation::Bump(textures.float_value(d)),
                 NormalPerturbationDesc::NormalMap(image) => Perturbation::NormalMap(image.clone()),
             },
-        }
+        })
     }
 
     /// A material with no perturbation.
@@ -79,7 +83,7 @@ impl Material {
     }
 
     /// The BSDF at a hit; None for an interface, which rays cross unchanged.
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf> {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf<'_>> {
         self.model.bsdf(ctx)
     }
 
@@ -96,9 +100,10 @@ impl Material {
 }
 
 impl Model {
-    pub fn from_description(kind: &MaterialKind, textures: &Textures) -> Model {
+    /// The model a description gives; Err only for tables that cannot be sampled.
+    pub fn from_description(kind: &MaterialKind, textures: &Textures) -> Result<Model, String> {
         let rough = |r| RoughnessTexture::new(r, textures);
-        match kind {
+        Ok(match kind {
             MaterialKind::Diffuse { reflectance } => Model::Diffuse(DiffuseMaterial {
                 reflectance: textures.rgb_value(reflectance),
             }),
@@ -170,12 +175,15 @@ impl Model {
                 materials: materials.map(|m| m.0),
                 amount: textures.float_value(amount),
             }),
+            MaterialKind::Measured(brdf) => Model::Measured(MeasuredMaterial {
+                tables: Arc::new(MeasuredTables::new(brdf)?),
+            }),
             MaterialKind::Interface => Model::Interface,
-        }
+        })
     }
 
     /// The BSDF at a hit; None for an interface, which rays cross unchanged.
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf> {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Option<Bsdf<'_>> {
         match self {
             Model::Diffuse(m) => Some(m.bsdf(ctx)),
             Model::DiffuseTransmission(m) => Some(m.bsdf(ctx)),
@@ -186,6 +194,7 @@ impl Model {
             Model::ThinDielectric(m) => Some(m.bsdf()),
             Model::CoatedDiffuse(m) => Some(m.bsdf(ctx)),
             Model::CoatedConductor(m) => Some(m.bsdf(ctx)),
+            Model::Measured(m) => Some(m.bsdf()),
             Model::Interface => None,
         }
     }
@@ -201,7 +210,7 @@ impl Model {
             Model::Dielectric(m) => m.roughness.is_textured(),
             Model::CoatedDiffuse(m) => m.is_textured(),
             Model::CoatedConductor(m) => m.is_textured(),
-            Model::ThinDielectric(_) | Model::Interface => false,
+            Model::ThinDielectric(_) | Model::Measured(_) | Model::Interface => false,
         }
     }
 

@@ -8,7 +8,7 @@ pub struct ThinDielectricMaterial {
 }
 
 impl ThinDielectricMaterial {
-    pub fn bsdf(&self) -> Bsdf {
+    pub fn bsdf(&self) -> Bsdf<'static> {
         Bsdf::ThinDielectric(ThinDielectricBxdf { eta: self.eta })
     }
 }

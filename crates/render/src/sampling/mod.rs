@@ -8,11 +8,13 @@ mod alias;
 mod distribution;
 mod pixel_sampler;
 mod tracking_rng;
+mod warp2d;
 
 pub use alias::AliasTable;
 pub use distribution::{Distribution1D, Distribution2D, Distribution3D};
 pub use pixel_sampler::{MAX_SAMPLES_PER_PIXEL, PixelSampler, pixel_seed};
 pub use tracking_rng::TrackingRng;
+pub use warp2d::Warp2D;
 
 use glam::{Vec2, Vec3A};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};

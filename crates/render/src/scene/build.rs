@@ -393,11 +393,18 @@ impl Scene {
     /// Builds the scene `desc` describes, with or without its participating media.
     pub fn build(desc: &SceneDescription, media: MediaPolicy) -> Result<Scene, BuildError> {
         let textures = Textures::from_description(&desc.float_textures, &desc.spectrum_textures);
-        let materials: Vec<Material> = desc
+        let materials = desc
             .materials
             .iter()
-            .map(|m| Material::from_description(m, &textures))
-            .collect();
+            .map(|m| {
+                Material::from_description(m, &textures).map_err(|message| {
+                    BuildError::Unsupported {
+                        loc: m.loc.clone(),
+                        message,
+                    }
+                })
+            })
+            .collect::<Result<Vec<Material>, BuildError>>()?;
         let mut b = Builder {
             prims: Primitives::default(),
             lights: Vec::new(),

@@ -52,7 +52,7 @@ impl Scene {
     /// The BSDF of the surface at `hit`; None for an interface. A textured material is
     /// evaluated with the hit's footprint as the camera sees it, scaled by `footprint`; a
     /// bump or normal map replaces the hit's shading normal and dp/du.
-    pub fn bsdf(&self, hit: &mut SurfaceHit, footprint: f32) -> Option<Bsdf> {
+    pub fn bsdf(&self, hit: &mut SurfaceHit, footprint: f32) -> Option<Bsdf<'_>> {
         let mut material = &self.materials[hit.surface.material as usize];
         let ctx = if material.is_textured() {
             let (dpdx, dpdy) = self.camera.approximate_dp_dxy(hit.p, hit.ng, footprint);

@@ -6,8 +6,10 @@ use crate::error::{Loc, Result, SceneError};
 use std::path::Path;
 
 pub mod images;
+pub mod measured;
 pub mod obj;
 pub mod ply;
+pub mod tensor;
 pub mod vol;
 pub mod voxel_csv;
 

@@ -6,6 +6,7 @@ use crate::error::{Loc, Result, SceneError};
 use crate::params::ParamSet;
 use crate::spectrum::{self, SpectrumUse};
 use crate::textures::{ColorEncoding, FloatValue, RgbValue};
+use std::sync::Arc;
 
 impl Parser {
     pub(super) fn make_named_material(
@@ -188,6 +189,25 @@ impl Parser {
                 )?,
                 scale: params.float("scale", 1.0)? as f32,
             },
+            "measured" => {
+                let Some(name) = params.string("filename")? else {
+                    return Err(SceneError::at(
+                        loc,
+                        "material 'measured' needs \"string filename\" (an RGL .bsdf file)",
+                    ));
+                };
+                let at = params.loc_of("filename").unwrap_or_else(|| loc.clone());
+                let path = self.resolve_file(&name, &at)?;
+                let brdf = match self.measured.get(&path) {
+                    Some(b) => b.clone(),
+                    None => {
+                        let b = Arc::new(crate::files::measured::read_measured(&path, &at)?);
+                        self.measured.insert(path, b.clone());
+                        b
+                    }
+                };
+                MaterialKind::Measured(brdf)
+            }
             "mix" => {
                 let names = params.strings("materials")?.unwrap_or_default();
                 let at = params.loc_of("materials").unwrap_or_else(|| loc.clone());
@@ -218,7 +238,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, coatedconductor, mix, interface)"
+                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, coatedconductor, measured, mix, interface)"
                     ),
                 ));
             }

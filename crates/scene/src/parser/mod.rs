@@ -108,6 +108,8 @@ struct Parser {
     spectrum_texture_names: HashMap<String, SpectrumTextureId>,
     /// Texture images by file and encoding: each is read once however many textures use it.
     images: HashMap<(PathBuf, String), Arc<TextureImage>>,
+    /// Measured BRDFs by file, each read once however many materials use it.
+    measured: HashMap<PathBuf, Arc<crate::files::measured::MeasuredBrdf>>,
     shapes: Vec<ShapeDesc>,
     lights: Vec<LightDesc>,
     objects: Vec<ObjectDesc>,
@@ -157,6 +159,7 @@ impl Parser {
             spectrum_textures: Vec::new(),
             spectrum_texture_names: HashMap::new(),
             images: HashMap::new(),
+            measured: HashMap::new(),
             shapes: Vec::new(),
             lights: Vec::new(),
             objects: Vec::new(),
