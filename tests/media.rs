@@ -503,12 +503,7 @@ Shape "trianglemesh" "point3 P" [ -2 -2 -1  2 -2 -1  2 2 -1  -2 2 -1  -2 -2 1  2
 {slab}"#
         )
     };
-    let temperature = |t: &str| {
-        grid(&format!(
-            "\"float temperature\" [ {} ]",
-            vec![t; 8].join(" ")
-        ))
-    };
+    let temperature = |t: &str| grid(&format!("\"float temperature\" [ {} ]", [t; 8].join(" ")));
     let cases: [(&str, String, [f64; 3], usize); 8] = [
         (
             "blackbody area light",
