@@ -738,3 +738,83 @@ Shape "sphere" "float radius" [ 1 ]
         );
     }
 }
+
+/// pbrt-v4's plymesh displacement: a unit quad (uv 0..1) displaced by a checkerboard of 0
+/// and 0.3 is refined to edges under "edgelength" and lifted where the checkerboard is 0.3
+/// (away from the squares' borders, where the refined mesh interpolates); and what pbrt-v4
+/// refuses, Kiln refuses with the line: a constant "float displacement", a mesh without uvs,
+/// an edge length that would refine without end.
+#[test]
+fn plymesh_displacement_lifts_the_surface_by_its_texture() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = |uv: bool| {
+        let (props, verts) = if uv {
+            (
+                "property float u\nproperty float v\n",
+                "0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n0 1 0 0 1\n",
+            )
+        } else {
+            ("", "0 0 0\n1 0 0\n1 1 0\n0 1 0\n")
+        };
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n{props}element face 2\nproperty list uchar int vertex_indices\nend_header\n{verts}3 0 1 2\n3 0 2 3\n"
+        )
+    };
+    std::fs::write(dir.path().join("quad.ply"), ply(true)).unwrap();
+    std::fs::write(dir.path().join("bare.ply"), ply(false)).unwrap();
+    let texture = r#"Texture "bumps" "float" "checkerboard" "float uscale" [ 2 ] "float vscale" [ 2 ] "float tex1" [ 0 ] "float tex2" [ 0.3 ]"#;
+    let scene = build(
+        dir.path(),
+        &format!(
+            "WorldBegin\n{texture}\nShape \"plymesh\" \"string filename\" \"quad.ply\" \"texture displacement\" \"bumps\" \"float edgelength\" [ 0.02 ]\n"
+        ),
+    );
+    let height_at = |x: f32, y: f32| {
+        let ray = Ray::new(Vec3A::new(x, y, 4.0), -Vec3A::Z);
+        4.0 - scene
+            .geometry
+            .intersect(&ray, f32::INFINITY)
+            .expect("a hit")
+            .t
+    };
+    // Checkerboard squares of a quarter: (0,0) and (1,1) squares hold tex1, the others tex2.
+    for (x, y, want) in [
+        (0.25, 0.25, 0.0),
+        (0.75, 0.25, 0.3),
+        (0.25, 0.75, 0.3),
+        (0.75, 0.75, 0.0),
+    ] {
+        let h = height_at(x, y);
+        assert!(
+            (h - want).abs() < 1e-3,
+            "height at ({x}, {y}): {h}, want {want}"
+        );
+    }
+
+    for (body, says) in [
+        (
+            "Shape \"plymesh\" \"string filename\" \"quad.ply\" \"float displacement\" [ 0.1 ]",
+            "must name a float texture",
+        ),
+        (
+            &format!(
+                "{texture}\nShape \"plymesh\" \"string filename\" \"bare.ply\" \"texture displacement\" \"bumps\""
+            ),
+            "needs per-vertex uv",
+        ),
+        (
+            &format!(
+                "{texture}\nShape \"plymesh\" \"string filename\" \"quad.ply\" \"texture displacement\" \"bumps\" \"float edgelength\" [ 1e-7 ]"
+            ),
+            "raise \"edgelength\"",
+        ),
+    ] {
+        let err = failing_in(dir.path(), &format!("WorldBegin\n{body}\n"));
+        let line = if body.starts_with("Texture") {
+            "scene.pbrt:3:"
+        } else {
+            "scene.pbrt:2:"
+        };
+        assert!(err.contains(line) && err.contains(says), "{body}:\n{err}");
+    }
+}

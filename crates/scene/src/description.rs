@@ -242,6 +242,13 @@ pub struct TriangleMeshData {
     pub indices: Vec<u32>,
 }
 
+/// A plymesh's displacement: a float texture and the longest edge to refine to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshDisplacement {
+    pub texture: FloatValue,
+    pub edge_length: f32,
+}
+
 #[derive(Debug, Clone)]
 pub enum ShapeKind {
     Mesh(Arc<TriangleMeshData>),
@@ -305,6 +312,9 @@ pub struct ShapeDesc {
     /// pbrt-v4's "alpha": where it is below 1 rays pass through the surface (stochastically
     /// between 0 and 1). None when the shape is opaque everywhere.
     pub alpha: Option<FloatValue>,
+    /// pbrt-v4's plymesh "displacement": the mesh refined to edges shorter than
+    /// `edge_length` (world space) and moved along its normals by the texture.
+    pub displacement: Option<MeshDisplacement>,
     pub loc: Loc,
 }
 

@@ -181,7 +181,19 @@ impl Builder {
             alpha,
         };
         match &shape.kind {
-            ShapeKind::Mesh(mesh) => self.add_mesh(shape, mesh, to_world, surface),
+            ShapeKind::Mesh(mesh) => match &shape.displacement {
+                Some(d) => {
+                    let texture = self.textures.float_value(&d.texture);
+                    let displaced =
+                        crate::shapes::displace::displace(mesh, to_world, d.edge_length, &texture)
+                            .map_err(|message| BuildError::Unsupported {
+                                loc: shape.loc.clone(),
+                                message: format!("plymesh: {message}"),
+                            })?;
+                    self.add_mesh(shape, &displaced, to_world, surface)
+                }
+                None => self.add_mesh(shape, mesh, to_world, surface),
+            },
             ShapeKind::Sphere { radius } => self.add_sphere(shape, *radius, to_world, surface),
         }
     }

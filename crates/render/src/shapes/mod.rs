@@ -9,6 +9,7 @@
 //! indices a [`SurfaceInfo`] carries.
 
 mod alpha;
+pub mod displace;
 pub use alpha::hash_float;
 pub mod sphere;
 pub mod triangle;

@@ -12,6 +12,7 @@ use std::sync::Arc;
 impl Parser {
     pub(super) fn shape(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_world(loc, "Shape")?;
+        let mut displacement = None;
         let kind = match ty {
             "sphere" => {
                 let radius = params.float("radius", 1.0)?;
@@ -37,13 +38,17 @@ impl Parser {
                 })?;
                 let path = self.resolve_file(&name, loc)?;
                 let mesh = if ty == "plymesh" {
-                    if params.loc_of("displacement").is_some() {
+                    displacement = self.mesh_displacement(params, loc)?;
+                    let mesh = files::ply::read_ply(&path, loc)?;
+                    if displacement.is_some() && mesh.uvs.is_none() {
                         return Err(SceneError::at(
                             loc,
-                            "plymesh: displacement is not supported yet",
+                            format!(
+                                "plymesh: displacement needs per-vertex uv coordinates, and '{name}' has none (pbrt-v4 requires them too)"
+                            ),
                         ));
                     }
-                    files::ply::read_ply(&path, loc)?
+                    mesh
                 } else {
                     files::obj::read_obj(&path, loc)?
                 };
@@ -81,6 +86,7 @@ impl Parser {
             area_light: self.gs.area_light.clone(),
             media: (inside != outside).then_some(MediumInterfaceDesc { inside, outside }),
             alpha,
+            displacement,
             loc: loc.clone(),
         };
         match &mut self.current_object {
@@ -96,6 +102,35 @@ impl Parser {
             None => self.shapes.push(shape),
         }
         Ok(())
+    }
+}
+
+impl Parser {
+    /// A plymesh's "texture displacement" and "edgelength" (pbrt-v4 displaces by a named
+    /// float texture only, and reads "edgelength" whether or not it displaces).
+    fn mesh_displacement(&self, params: &ParamSet, loc: &Loc) -> Result<Option<MeshDisplacement>> {
+        let edge_length = params.float("edgelength", 1.0)?;
+        let at = params.loc_of("displacement");
+        let texture = match self.float_value(params, "displacement", 0.0)? {
+            t @ FloatValue::Texture(_) => t,
+            FloatValue::Constant(_) if at.is_none() => return Ok(None),
+            FloatValue::Constant(_) => {
+                return Err(SceneError::at(
+                    &at.unwrap_or_else(|| loc.clone()),
+                    "plymesh: \"displacement\" must name a float texture (\"texture displacement\"), as in pbrt-v4",
+                ));
+            }
+        };
+        if !(edge_length.is_finite() && edge_length > 0.0) {
+            return Err(SceneError::at(
+                &params.loc_of("edgelength").unwrap_or_else(|| loc.clone()),
+                format!("plymesh: \"edgelength\" must be a positive length, got {edge_length}"),
+            ));
+        }
+        Ok(Some(MeshDisplacement {
+            texture,
+            edge_length: edge_length as f32,
+        }))
     }
 }
 
