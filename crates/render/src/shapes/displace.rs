@@ -46,7 +46,8 @@ pub fn displace(
         })
         .sum();
     let at_least = area / (3f64.sqrt() / 4.0 * max * max);
-    if !(at_least < MAX_DISPLACED_TRIANGLES as f64) {
+    // (NaN, from a non-finite vertex, is refused too.)
+    if at_least.is_nan() || at_least >= MAX_DISPLACED_TRIANGLES as f64 {
         return Err(format!(
             "refining its {area:.3e} square units to edges shorter than {edge_length} would make more than {MAX_DISPLACED_TRIANGLES} triangles; raise \"edgelength\""
         ));
