@@ -196,6 +196,17 @@ pub fn assert_strategies_agree(
     max_z: f64,
     mean_within: Option<f64>,
 ) {
+    assert_strategies_agree_in_blocks(label, images, max_z, mean_within, (4, 2));
+}
+
+/// As [`assert_strategies_agree`], comparing `blocks` (columns, rows) of the images.
+pub fn assert_strategies_agree_in_blocks(
+    label: &str,
+    images: &[RgbBuffer],
+    max_z: f64,
+    mean_within: Option<f64>,
+    (bx, by): (u32, u32),
+) {
     let names = ["light", "bsdf", "mis"];
     for (a, b) in [(0, 1), (0, 2), (1, 2)] {
         let what = format!("{label}: {} vs {}", names[a], names[b]);
@@ -213,7 +224,7 @@ pub fn assert_strategies_agree(
                 );
             }
         }
-        let z = max_z_score(&images[a], &images[b], 4, 2);
+        let z = max_z_score(&images[a], &images[b], bx, by);
         eprintln!(
             "{what}: max z {z:.2}, means {:?} vs {:?}",
             images[a].mean(),

@@ -106,19 +106,6 @@ pub fn fresnel_complex(cos_i: f32, eta: Color, k: Color) -> Color {
     )
 }
 
-/// Internal diffuse reflectance of a dielectric boundary seen from inside (for the coat's
-/// inter-reflections): 1 - (1 - Fdr_outside) / eta^2, Fdr by numerical integration.
-pub fn internal_diffuse_reflectance(eta: f32) -> f32 {
-    let n = 1024;
-    let mut fdr = 0.0f64;
-    for i in 0..n {
-        let cos = (i as f64 + 0.5) / n as f64;
-        // Fdr = integral of F(cos) * 2 cos d(cos).
-        fdr += fresnel_dielectric(cos as f32, eta) as f64 * 2.0 * cos / n as f64;
-    }
-    (1.0 - (1.0 - fdr as f32) / (eta * eta)).clamp(0.0, 1.0)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

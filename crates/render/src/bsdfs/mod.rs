@@ -7,7 +7,6 @@
 //!
 //! BSDFs know nothing of materials, textures or scenes: a material makes one at a hit.
 
-mod coated_diffuse;
 mod conductor;
 pub mod dielectric;
 mod diffuse;
@@ -18,12 +17,11 @@ mod measured;
 mod microfacet;
 mod thin_dielectric;
 
-pub use coated_diffuse::CoatedDiffuseBxdf;
 pub use conductor::ConductorBxdf;
 pub use dielectric::DielectricBxdf;
 pub use diffuse::DiffuseBxdf;
 pub use diffuse_transmission::DiffuseTransmissionBxdf;
-pub use fresnel::{fresnel_complex, fresnel_dielectric, internal_diffuse_reflectance, refract};
+pub use fresnel::{fresnel_complex, fresnel_dielectric, refract};
 pub use layered::{Base, LayeredBxdf};
 pub use measured::{MeasuredBxdf, MeasuredTables};
 pub use microfacet::TrowbridgeReitz;
@@ -51,7 +49,6 @@ pub enum Bsdf<'a> {
     Conductor(ConductorBxdf),
     Dielectric(DielectricBxdf),
     ThinDielectric(ThinDielectricBxdf),
-    CoatedDiffuse(CoatedDiffuseBxdf),
     Layered(LayeredBxdf),
     Measured(MeasuredBxdf<'a>),
 }
@@ -62,7 +59,6 @@ impl Bsdf<'_> {
         match self {
             Bsdf::Diffuse(_)
             | Bsdf::DiffuseTransmission(_)
-            | Bsdf::CoatedDiffuse(_)
             | Bsdf::Layered(_)
             | Bsdf::Measured(_) => false,
             Bsdf::Conductor(b) => b.distrib.effectively_smooth(),
@@ -87,7 +83,6 @@ impl Bsdf<'_> {
             Bsdf::Conductor(b) => b.f(wo, wi),
             Bsdf::Dielectric(b) => b.f(wo, wi),
             Bsdf::ThinDielectric(b) => b.f(wo, wi),
-            Bsdf::CoatedDiffuse(b) => b.f(wo, wi),
             Bsdf::Layered(b) => b.f(wo, wi),
             Bsdf::Measured(b) => b.f(wo, wi),
         }
@@ -100,7 +95,6 @@ impl Bsdf<'_> {
             Bsdf::Conductor(b) => b.pdf(wo, wi),
             Bsdf::Dielectric(b) => b.pdf(wo, wi),
             Bsdf::ThinDielectric(b) => b.pdf(wo, wi),
-            Bsdf::CoatedDiffuse(b) => b.pdf(wo, wi),
             Bsdf::Layered(b) => b.pdf(wo, wi),
             Bsdf::Measured(b) => b.pdf(wo, wi),
         }
@@ -117,7 +111,6 @@ impl Bsdf<'_> {
             Bsdf::Conductor(b) => b.sample(wo, uc, u),
             Bsdf::Dielectric(b) => b.sample(wo, uc, u),
             Bsdf::ThinDielectric(b) => b.sample(wo, uc, u),
-            Bsdf::CoatedDiffuse(b) => b.sample(wo, uc, u),
             Bsdf::Measured(b) => b.sample(wo, uc, u),
             // The walk's f and pdf have the right ratio, but its pdf is only proportional to
             // the density multiple importance sampling needs: rescale both to the estimated
@@ -194,9 +187,7 @@ mod tests {
         }
         by_sampling /= n as f32;
         by_uniform /= n as f32;
-        if !bsdf.is_specular()
-            && !matches!(bsdf, Bsdf::CoatedDiffuse(c) if c.distrib.effectively_smooth())
-        {
+        if !bsdf.is_specular() {
             let diff = (by_sampling - by_uniform).abs().max_element();
             assert!(
                 diff < 0.03 * by_sampling.max_element().max(0.2),
@@ -239,12 +230,6 @@ mod tests {
                 distrib: TrowbridgeReitz::new(0.0, 0.0),
             }),
             Bsdf::ThinDielectric(ThinDielectricBxdf { eta: 1.5 }),
-            Bsdf::CoatedDiffuse(CoatedDiffuseBxdf {
-                r: Color::splat(0.5),
-                eta: 1.5,
-                distrib: TrowbridgeReitz::new(0.2, 0.2),
-                fdr_internal: internal_diffuse_reflectance(1.5),
-            }),
         ];
         for b in bsdfs {
             for cos in [0.9, 0.5, 0.2, -0.6] {
