@@ -38,6 +38,8 @@ fn missing_ply_file() {
     let (err, _d) =
         failing("WorldBegin\nShape \"plymesh\" \"string filename\" \"models/nope.ply\"\n");
     assert_names(&err, "scene.pbrt", 2, "nope.ply");
+    // The OS's reason, once (not repeated by the chain of causes).
+    assert_eq!(err.matches("os error").count(), 1, "{err}");
 }
 
 #[test]

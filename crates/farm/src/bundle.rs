@@ -27,11 +27,10 @@ pub const BUNDLE_FILE: &str = "bundle.kiln";
 pub enum BundleError {
     #[error("{0}")]
     Scene(#[from] kiln_scene::SceneError),
-    #[error("cannot read '{path}': {source}")]
+    #[error("cannot read '{path}': {cause}")]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error(
         "'{0}' is outside the scene's directory; a bundle holds only files beside or below the scene"
@@ -77,7 +76,7 @@ pub fn pack(scene: &Path) -> Result<Bundle, BundleError> {
     }
     let mut files = Vec::with_capacity(entries.len());
     for (rel, path) in entries {
-        let data = std::fs::read(&path).map_err(|source| BundleError::Io { path, source })?;
+        let data = std::fs::read(&path).map_err(|cause| BundleError::Io { path, cause })?;
         files.push((rel, data));
     }
     Ok(encode(&files))
@@ -228,9 +227,9 @@ pub fn unpack(bytes: &[u8], dir: &Path) -> Result<PathBuf, BundleError> {
 /// [`unpack`] from either kind of [`Source`]: a file's entries are copied from it piece by
 /// piece.
 fn unpack_from(source: Source, dir: &Path) -> Result<PathBuf, BundleError> {
-    let io = |path: &Path, source| BundleError::Io {
+    let io = |path: &Path, cause| BundleError::Io {
         path: path.to_path_buf(),
-        source,
+        cause,
     };
     let write = |rel: &Path, contents: &mut dyn Read| {
         let path = dir.join(rel);
@@ -297,9 +296,9 @@ pub fn unpack_into_cache(
     if !is_digest(digest) {
         return Err(BundleError::Corrupt(format!("'{digest}' is not a digest")));
     }
-    let io = |path: &Path, source| BundleError::Io {
+    let io = |path: &Path, cause| BundleError::Io {
         path: path.to_path_buf(),
-        source,
+        cause,
     };
     static UNIQUE: AtomicU64 = AtomicU64::new(0);
     let tmp = cache.join(format!(

@@ -15,11 +15,10 @@ use std::path::Path;
 /// Why an image could not be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
-    #[error("cannot read or write '{path}': {source}")]
+    #[error("cannot read or write '{path}': {cause}")]
     Io {
         path: String,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("EXR: {0}")]
     Exr(String),
@@ -314,9 +313,9 @@ pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, Im
 
 /// Reads an EXR file's first layer as RGB (environment maps, reference renders).
 pub fn read_exr_rgb(path: &Path) -> Result<ImageRgb, ImageError> {
-    let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
+    let bytes = std::fs::read(path).map_err(|cause| ImageError::Io {
         path: path.display().to_string(),
-        source,
+        cause,
     })?;
     let b = decode_exr(&bytes)?;
     Ok(ImageRgb {
@@ -329,9 +328,9 @@ pub fn read_exr_rgb(path: &Path) -> Result<ImageRgb, ImageError> {
 /// Writes a buffer to an EXR file.
 pub fn write_exr(path: &Path, buffer: &RgbBuffer) -> Result<(), ImageError> {
     let bytes = encode_exr(buffer)?;
-    std::fs::write(path, bytes).map_err(|source| ImageError::Io {
+    std::fs::write(path, bytes).map_err(|cause| ImageError::Io {
         path: path.display().to_string(),
-        source,
+        cause,
     })
 }
 
@@ -375,9 +374,9 @@ pub fn encode_png(buffer: &RgbBuffer, exposure: f32) -> Result<Vec<u8>, ImageErr
 
 pub fn write_png(path: &Path, buffer: &RgbBuffer, exposure: f32) -> Result<(), ImageError> {
     let bytes = encode_png(buffer, exposure)?;
-    std::fs::write(path, bytes).map_err(|source| ImageError::Io {
+    std::fs::write(path, bytes).map_err(|cause| ImageError::Io {
         path: path.display().to_string(),
-        source,
+        cause,
     })
 }
 

@@ -69,12 +69,13 @@ impl fmt::Display for Diagnostic {
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The scene (or a file it includes) could not be read.
-    #[error("{loc}: cannot read '{path}': {source}")]
+    /// (The OS error is in the message and not a `source`, so that a chain of causes does
+    /// not print it twice.)
+    #[error("{loc}: cannot read '{path}': {cause}")]
     Io {
         loc: Loc,
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// A syntax or semantic error at one place.
     #[error("{loc}: {message}")]

@@ -20,10 +20,10 @@ pub const MAX_DECOMPRESSED_BYTES: u64 = 1 << 30;
 /// Reads a whole file, decompressed if its name ends in `.gz` (as pbrt-v4 reads meshes and
 /// includes); an error names the directive's location and the file.
 pub fn read_bytes(path: &Path, loc: &Loc) -> Result<Vec<u8>> {
-    let raw = std::fs::read(path).map_err(|source| SceneError::Io {
+    let raw = std::fs::read(path).map_err(|cause| SceneError::Io {
         loc: loc.clone(),
         path: path.to_path_buf(),
-        source,
+        cause,
     })?;
     if path.extension().and_then(|e| e.to_str()) != Some("gz") {
         return Ok(raw);
