@@ -558,6 +558,47 @@ fn alpha_masks_area_light_emission() {
     }
 }
 
+/// Alpha on an emitting sphere, as pbrt-v4 has it: alpha 0 hides the sphere and darkens it
+/// (a real scene, kroken, has such a lamp), half the sphere cut away by an alpha checkerboard
+/// halves the light on the floor below, by light, BSDF and MIS sampling alike.
+#[test]
+fn alpha_masks_emitting_spheres() {
+    let dir = tempfile::tempdir().unwrap();
+    let floor = |alpha: &str, strategy: &str| {
+        let text = format!(
+            r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "{strategy}"
+Sampler "sobol" "integer pixelsamples" [ 256 ]
+Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
+LookAt 0 0.5 3  0 0 0  0 1 0
+Camera "orthographic" "float screenwindow" [ -0.05 0.05 -0.05 0.05 ]
+WorldBegin
+Texture "half" "float" "checkerboard" "float uscale" [ 2 ] "float udelta" [ 0.5 ] "float vscale" [ 1 ] "float tex1" [ 1 ] "float tex2" [ 0 ]
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]
+Translate 0 1.5 0
+Shape "sphere" "float radius" [ 0.5 ] {alpha}
+AttributeEnd
+Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
+Shape "trianglemesh" "point3 P" [ -5 0 -5  5 0 -5  5 0 5  -5 0 5 ] "integer indices" [ 0 2 1 0 3 2 ]
+"#
+        );
+        let path = write_scene(dir.path(), "ball.pbrt", &text);
+        render(&path, dir.path(), "ball", &[]).image.mean()[0]
+    };
+    for strategy in ["light", "bsdf", "mis"] {
+        let full = floor("", strategy);
+        assert!(full > 0.01, "{strategy}: {full}");
+        assert_eq!(floor(r#""float alpha" [ 0 ]"#, strategy), 0.0, "{strategy}");
+        // u = φ/2π shifted by a quarter turn: the checkerboard keeps the half of the
+        // sphere with x > 0, and the floor under the sphere's centre sees both halves alike.
+        let half = floor(r#""texture alpha" "half""#, strategy);
+        assert!(
+            (half / full - 0.5).abs() < 0.04,
+            "{strategy}: {half} of {full}"
+        );
+    }
+}
+
 /// pbrt-v4's image-textured area light (`AreaLightSource "diffuse" "string filename"`):
 /// seen directly, each corner of the lamp shows its texel (the image's top row at v = 1,
 /// times "scale"); a white image at scale s renders as "L" [ s s s ] does; and

@@ -16,10 +16,7 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
     #[error("cannot read or write '{path}': {cause}")]
-    Io {
-        path: String,
-        cause: std::io::Error,
-    },
+    Io { path: String, cause: std::io::Error },
     #[error("EXR: {0}")]
     Exr(String),
     #[error("PNG: {0}")]

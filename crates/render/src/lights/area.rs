@@ -5,7 +5,7 @@ use super::LightSample;
 use crate::math::{Color, luminance};
 use crate::sampling::{uniform_sphere, uniform_triangle};
 use crate::shapes::Geometry;
-use crate::shapes::sphere::{sample_sphere, sphere_pdf};
+use crate::shapes::sphere::{sample_sphere, sphere_pdf, sphere_uv};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
 use glam::{Vec2, Vec3A};
 use kiln_scene::textures::TextureImage;
@@ -108,6 +108,9 @@ pub struct SphereLight {
     pub radiance: Color,
     pub two_sided: bool,
     pub inward: bool,
+    /// The shape's alpha texture: where it masks the surface the sphere emits nothing (an
+    /// alpha-0 sphere light is dark as well as invisible, as in pbrt-v4).
+    pub alpha: Option<u32>,
 }
 
 /// A point on an area light from which photons leave: position, emitting normal, radiance,
@@ -198,16 +201,31 @@ impl SphereLight {
         PI * 4.0 * PI * self.radius * self.radius * luminance(self.radiance) * sides(self.two_sided)
     }
 
-    pub fn le(&self, n: Vec3A, w: Vec3A) -> Color {
+    /// Radiance leaving the sphere's point `q` (normal `n`, oriented as its emitting side
+    /// is) in direction `w`.
+    pub fn le(&self, geometry: &Geometry, q: Vec3A, n: Vec3A, w: Vec3A) -> Color {
+        if self.masked(geometry, q) {
+            return Color::ZERO;
+        }
         diffuse_le(self.radiance, self.two_sided, n, w)
     }
 
-    pub fn sample(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
+    /// Whether alpha masks the sphere's point `q` (its uv as hits on it get them).
+    fn masked(&self, geometry: &Geometry, q: Vec3A) -> bool {
+        let Some(alpha) = self.alpha else {
+            return false;
+        };
+        let n = ((q - self.center) / self.radius).normalize_or_zero();
+        alpha_masked(geometry, alpha, q, n, sphere_uv(n))
+    }
+
+    pub fn sample(&self, geometry: &Geometry, p: Vec3A, u: Vec2) -> Option<LightSample> {
         let mut point = sample_sphere(self.center, self.radius, p, u)?;
         if self.inward {
             point.n = -point.n;
         }
-        let radiance = self.le(point.n, -point.wi);
+        let q = p + point.wi * point.distance;
+        let radiance = self.le(geometry, q, point.n, -point.wi);
         (radiance != Color::ZERO).then(|| LightSample::on_surface(point, radiance))
     }
 
@@ -215,12 +233,17 @@ impl SphereLight {
         sphere_pdf(self.center, self.radius, p, wi, q, n)
     }
 
-    pub fn emission_point(&self, u: Vec2) -> EmissionPoint {
+    pub fn emission_point(&self, geometry: &Geometry, u: Vec2) -> EmissionPoint {
         let d = uniform_sphere(u);
+        let p = self.center + d * self.radius;
         EmissionPoint {
-            p: self.center + d * self.radius,
+            p,
             n: if self.inward { -d } else { d },
-            radiance: self.radiance,
+            radiance: if self.masked(geometry, p) {
+                Color::ZERO
+            } else {
+                self.radiance
+            },
             area: 4.0 * PI * self.radius * self.radius,
             two_sided: self.two_sided,
         }
@@ -242,13 +265,15 @@ mod tests {
             radiance: Color::ONE,
             two_sided: false,
             inward: false,
+            alpha: None,
         };
+        let geometry = Geometry::new(Default::default());
         let n = 4096;
         let mut sum = 0.0f64;
         for i in 0..n {
             let s = PixelSampler::new(0, 0, i, 2);
             let ls = sphere
-                .sample(Vec3A::ZERO, Vec2::new(s.value(0), s.value(1)))
+                .sample(&geometry, Vec3A::ZERO, Vec2::new(s.value(0), s.value(1)))
                 .unwrap();
             let q = ls.wi * ls.distance;
             let pdf = sphere.pdf(Vec3A::ZERO, ls.wi, q, ls.n);
@@ -272,7 +297,6 @@ mod tests {
             alpha: None,
             image: None,
         };
-        let geometry = Geometry::new(Default::default());
         let mut sum = 0.0f64;
         for i in 0..n {
             let s = PixelSampler::new(1, 0, i, 2);

@@ -218,7 +218,7 @@ impl Light {
     pub fn le(&self, ctx: &LightContext, p: Vec3A, ng: Vec3A, ns: Vec3A, w: Vec3A) -> (Color, u64) {
         match self {
             Light::Triangle(l) => (l.le(ctx.geometry, p, ng, w), 0),
-            Light::Sphere(l) => (l.le(ng, w), 0),
+            Light::Sphere(l) => (l.le(ctx.geometry, p, ng, w), 0),
             Light::VolumeTriangle(l) => l.le(ctx, p, ng, ns, w),
             Light::VolumeSphere(l) => l.le(ctx, p, ng, ns, w),
             Light::Point(_)
@@ -256,7 +256,7 @@ impl Light {
             Light::Spot(l) => (l.sample(p), 0),
             Light::Distant(l) => (l.sample(), 0),
             Light::Triangle(l) => (l.sample(ctx.geometry, p, u), 0),
-            Light::Sphere(l) => (l.sample(p, u), 0),
+            Light::Sphere(l) => (l.sample(ctx.geometry, p, u), 0),
             Light::VolumeTriangle(l) => l.sample(ctx, p, u),
             Light::VolumeSphere(l) => l.sample(ctx, p, u),
             Light::Medium(l) => (l.sample(ctx, p, u), 0),
@@ -314,7 +314,7 @@ impl Light {
     pub fn emission_point(&self, ctx: &LightContext, u: Vec2) -> Option<EmissionPoint> {
         match self {
             Light::Triangle(l) => Some(l.emission_point(ctx.geometry, u)),
-            Light::Sphere(l) => Some(l.emission_point(u)),
+            Light::Sphere(l) => Some(l.emission_point(ctx.geometry, u)),
             Light::Point(_)
             | Light::Spot(_)
             | Light::Distant(_)

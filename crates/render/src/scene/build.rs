@@ -375,6 +375,7 @@ impl Builder {
                 radiance: rgb(*radiance),
                 two_sided: *two_sided,
                 inward: shape.reverse_orientation,
+                alpha: surface(None).alpha,
             }));
         }
         if let Some(volume) = volume {

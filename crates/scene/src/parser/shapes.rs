@@ -67,12 +67,6 @@ impl Parser {
             FloatValue::Constant(a) if a >= 1.0 => None,
             a => Some(a),
         };
-        if alpha.is_some() && self.gs.area_light.is_some() && !matches!(kind, ShapeKind::Mesh(_)) {
-            return Err(SceneError::at(
-                &params.loc_of("alpha").unwrap_or_else(|| loc.clone()),
-                "an emitting sphere with \"alpha\" is not supported yet (emitting meshes take it)",
-            ));
-        }
         self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
         let (inside, outside) = (
             self.medium_id(&self.gs.media.0),
