@@ -516,8 +516,19 @@ Material "mix" "string materials" [ "dark" "light" ] "float amount" [ 0.3 ]"#,
     );
 }
 
-/// The mean over a diffuse floor lit by a unit square lamp one unit above it: `lamp` is the
-/// AreaLightSource's parameters, `shape` extra parameters of the lamp's quad (uv 0..1).
+/// The unit square lamp one unit above the floor of [`lamp_over_floor`], with `extra`
+/// parameters (uv 0..1).
+fn square_lamp(extra: &str) -> String {
+    format!(
+        r#"Shape "trianglemesh" "point3 P" [ -0.5 1 -0.5  0.5 1 -0.5  0.5 1 0.5  -0.5 1 0.5 ] "integer indices" [ 0 1 2 0 2 3 ]
+    "point2 uv" [ 0 0  1 0  1 1  0 1 ] {extra}"#
+    )
+}
+
+/// A diffuse floor lit by a lamp above it, seen from above: `lamp` is the AreaLightSource's
+/// parameters, `shape` the lamp's shape (with any transform); "half" is a float checkerboard
+/// texture of 1 and 0 halves (in u) for the lamp's alpha, "half-turned" the same shifted by
+/// a quarter of u.
 fn lamp_over_floor(dir: &Path, lamp: &str, shape: &str, strategy: &str) -> kiln_image::RgbBuffer {
     let text = format!(
         r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "{strategy}"
@@ -527,10 +538,10 @@ LookAt 0 0.5 3  0 0 0  0 1 0
 Camera "orthographic" "float screenwindow" [ -0.05 0.05 -0.05 0.05 ]
 WorldBegin
 Texture "half" "float" "checkerboard" "float uscale" [ 2 ] "float vscale" [ 1 ] "float tex1" [ 1 ] "float tex2" [ 0 ]
+Texture "half-turned" "float" "checkerboard" "float uscale" [ 2 ] "float udelta" [ 0.5 ] "float vscale" [ 1 ] "float tex1" [ 1 ] "float tex2" [ 0 ]
 AttributeBegin
 AreaLightSource "diffuse" {lamp}
-Shape "trianglemesh" "point3 P" [ -0.5 1 -0.5  0.5 1 -0.5  0.5 1 0.5  -0.5 1 0.5 ] "integer indices" [ 0 1 2 0 2 3 ]
-    "point2 uv" [ 0 0  1 0  1 1  0 1 ] {shape}
+{shape}
 AttributeEnd
 Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
 Shape "trianglemesh" "point3 P" [ -5 0 -5  5 0 -5  5 0 5  -5 0 5 ] "integer indices" [ 0 2 1 0 3 2 ]
@@ -547,9 +558,14 @@ fn alpha_masks_area_light_emission() {
     let dir = tempfile::tempdir().unwrap();
     let lamp = r#""rgb L" [ 1 1 1 ]"#;
     for strategy in ["light", "bsdf", "mis"] {
-        let full = lamp_over_floor(dir.path(), lamp, "", strategy).mean()[0];
-        let half =
-            lamp_over_floor(dir.path(), lamp, r#""texture alpha" "half""#, strategy).mean()[0];
+        let full = lamp_over_floor(dir.path(), lamp, &square_lamp(""), strategy).mean()[0];
+        let half = lamp_over_floor(
+            dir.path(),
+            lamp,
+            &square_lamp(r#""texture alpha" "half""#),
+            strategy,
+        )
+        .mean()[0];
         assert!(full > 0.01, "{strategy}: {full}");
         assert!(
             (half / full - 0.5).abs() < 0.03,
@@ -565,25 +581,8 @@ fn alpha_masks_area_light_emission() {
 fn alpha_masks_emitting_spheres() {
     let dir = tempfile::tempdir().unwrap();
     let floor = |alpha: &str, strategy: &str| {
-        let text = format!(
-            r#"Integrator "path" "integer maxdepth" [ 1 ] "string strategy" "{strategy}"
-Sampler "sobol" "integer pixelsamples" [ 256 ]
-Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
-LookAt 0 0.5 3  0 0 0  0 1 0
-Camera "orthographic" "float screenwindow" [ -0.05 0.05 -0.05 0.05 ]
-WorldBegin
-Texture "half" "float" "checkerboard" "float uscale" [ 2 ] "float udelta" [ 0.5 ] "float vscale" [ 1 ] "float tex1" [ 1 ] "float tex2" [ 0 ]
-AttributeBegin
-AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]
-Translate 0 1.5 0
-Shape "sphere" "float radius" [ 0.5 ] {alpha}
-AttributeEnd
-Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
-Shape "trianglemesh" "point3 P" [ -5 0 -5  5 0 -5  5 0 5  -5 0 5 ] "integer indices" [ 0 2 1 0 3 2 ]
-"#
-        );
-        let path = write_scene(dir.path(), "ball.pbrt", &text);
-        render(&path, dir.path(), "ball", &[]).image.mean()[0]
+        let ball = format!("Translate 0 1.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ] {alpha}");
+        lamp_over_floor(dir.path(), r#""rgb L" [ 1 1 1 ]"#, &ball, strategy).mean()[0]
     };
     for strategy in ["light", "bsdf", "mis"] {
         let full = floor("", strategy);
@@ -591,7 +590,7 @@ Shape "trianglemesh" "point3 P" [ -5 0 -5  5 0 -5  5 0 5  -5 0 5 ] "integer indi
         assert_eq!(floor(r#""float alpha" [ 0 ]"#, strategy), 0.0, "{strategy}");
         // u = φ/2π shifted by a quarter turn: the checkerboard keeps the half of the
         // sphere with x > 0, and the floor under the sphere's centre sees both halves alike.
-        let half = floor(r#""texture alpha" "half""#, strategy);
+        let half = floor(r#""texture alpha" "half-turned""#, strategy);
         assert!(
             (half / full - 0.5).abs() < 0.04,
             "{strategy}: {half} of {full}"
@@ -646,8 +645,8 @@ Shape "trianglemesh" "point3 P" [ 0 0 0  1 0 0  1 1 0  0 1 0 ] "integer indices"
     // The same samples; only the bilinear weights' rounding (they sum to 1 within an ulp
     // or two) may tell them apart.
     let (a, b) = (
-        lamp_over_floor(dir.path(), white, "", "mis"),
-        lamp_over_floor(dir.path(), constant, "", "mis"),
+        lamp_over_floor(dir.path(), white, &square_lamp(""), "mis"),
+        lamp_over_floor(dir.path(), constant, &square_lamp(""), "mis"),
     );
     for (p, q) in a.pixels.iter().zip(&b.pixels) {
         for c in 0..3 {
@@ -659,7 +658,10 @@ Shape "trianglemesh" "point3 P" [ 0 0 0  1 0 0  1 1 0  0 1 0 ] "integer indices"
     }
     let means: Vec<[f64; 3]> = ["light", "bsdf", "mis"]
         .iter()
-        .map(|s| lamp_over_floor(dir.path(), r#""string filename" "halves.png""#, "", s).mean())
+        .map(|s| {
+            let lamp = r#""string filename" "halves.png""#;
+            lamp_over_floor(dir.path(), lamp, &square_lamp(""), s).mean()
+        })
         .collect();
     for (c, want) in means[2].iter().enumerate() {
         assert!(*want > 0.01, "channel {c}: {want}");
