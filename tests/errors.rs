@@ -291,3 +291,39 @@ fn spectra_read_from_files_equal_the_same_spectra_inline() {
         "{err}"
     );
 }
+
+/// The film's sensor parameters that pbrt-v4 rejects, or that Kiln cannot reproduce yet,
+/// are errors naming the line.
+#[test]
+fn film_sensor_errors_name_the_line() {
+    for (text, line, says) in [
+        (
+            "Film \"rgb\"\n  \"float exposuretime\" [ 2 ]\nWorldBegin\n",
+            2,
+            "not a pbrt-v4 Film parameter",
+        ),
+        (
+            "Film \"rgb\" \"string sensor\" \"canon_eos_100d\"\nWorldBegin\n",
+            1,
+            "sensor 'canon_eos_100d'",
+        ),
+        (
+            "Film \"rgb\" \"float iso\" [ -5 ]\nWorldBegin\n",
+            1,
+            "\"iso\" must be positive",
+        ),
+        (
+            "Film \"rgb\" \"float whitebalance\" [ 50 ]\nWorldBegin\n",
+            1,
+            "daylight temperature",
+        ),
+        (
+            "Camera \"perspective\" \"float shutteropen\" [ 1 ] \"float shutterclose\" [ 1 ]\nWorldBegin\n",
+            1,
+            "never opens",
+        ),
+    ] {
+        let (err, _d) = failing(text);
+        assert_names(&err, "scene.pbrt", line, says);
+    }
+}

@@ -183,6 +183,7 @@ mod tests {
             lens_radius: 0.0,
             focal_distance: 1e6,
             screen_window: None,
+            shutter: [0.0, 1.0],
             loc: Loc::synthetic("t"),
         };
         let cam = Camera::new(&desc, 100, 50);
@@ -208,6 +209,7 @@ mod tests {
             lens_radius: 0.0,
             focal_distance: 1e6,
             screen_window: None,
+            shutter: [0.0, 1.0],
             loc: Loc::synthetic("t"),
         };
         let cam = Camera::new(&desc, 100, 50);

@@ -38,6 +38,7 @@ pub mod media;
 pub mod phase;
 pub mod sampling;
 pub mod scene;
+pub mod sensor;
 pub mod shapes;
 pub mod textures;
 pub mod tile;

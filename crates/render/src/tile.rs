@@ -290,7 +290,7 @@ pub fn render_sample(
             l *= settings.max_radiance / m;
         }
     }
-    (l, weight)
+    (scene.sensor.respond(l), weight)
 }
 
 #[cfg(test)]

@@ -56,6 +56,9 @@ pub struct CameraDesc {
     pub focal_distance: f64,
     /// [xmin, xmax, ymin, ymax] of the screen window; `None` means pbrt's default for the aspect ratio.
     pub screen_window: Option<[f64; 4]>,
+    /// The shutter's interval (pbrt-v4's shutteropen, shutterclose); its length is the
+    /// exposure time the film's ISO multiplies.
+    pub shutter: [f64; 2],
     pub loc: Loc,
 }
 
@@ -66,7 +69,29 @@ pub struct FilmDesc {
     pub filename: String,
     /// [x0, x1, y0, y1] in pixels, half-open: the region to render. The whole frame when not cropped.
     pub pixel_bounds: [u32; 4],
+    pub sensor: SensorDesc,
     pub loc: Loc,
+}
+
+/// pbrt-v4's pixel sensor on the CIE 1931 observer: each sample's XYZ times the imaging
+/// ratio (exposure time · ISO / 100), its largest component clamped to `max_component`,
+/// then white balanced from daylight at `white_balance` kelvin (0: none) to the output's
+/// white.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorDesc {
+    pub iso: f64,
+    pub white_balance: f64,
+    pub max_component: f64,
+}
+
+impl Default for SensorDesc {
+    fn default() -> SensorDesc {
+        SensorDesc {
+            iso: 100.0,
+            white_balance: 0.0,
+            max_component: f64::INFINITY,
+        }
+    }
 }
 
 #[derive(Debug, Clone)]

@@ -169,6 +169,79 @@ fn integrate_xyz(pairs: &[(f64, f64)], under_d65: bool) -> [f64; 3] {
     acc
 }
 
+/// Linear sRGB to CIE XYZ (the inverse of the conversion Kiln uses out of XYZ).
+pub const SRGB_TO_XYZ: [[f64; 3]; 3] = [
+    [0.4124564, 0.3575761, 0.1804375],
+    [0.2126729, 0.7151522, 0.0721750],
+    [0.0193339, 0.1191920, 0.9503041],
+];
+
+/// The Bradford cone response matrix, which pbrt-v4 uses for its LMS space.
+const LMS_FROM_XYZ: [[f64; 3]; 3] = [
+    [0.8951, 0.2664, -0.1614],
+    [-0.7502, 1.7135, 0.0367],
+    [0.0389, -0.0685, 1.0296],
+];
+
+fn mul3(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+fn inverse3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            // The cofactor of (j, i), over the determinant.
+            let (r0, r1) = ([1, 0, 0][j], [2, 2, 1][j]);
+            let (c0, c1) = ([1, 0, 0][i], [2, 2, 1][i]);
+            let minor = m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+            let sign = if (i + j) % 2 == 0 { 1.0 } else { -1.0 };
+            sign * minor / det
+        })
+    })
+}
+
+/// The chromaticity (x, y) of pbrt-v4's "daylight" at colour temperature `kelvin`: the
+/// temperature corrected for the revised second radiation constant (T · 1.4388 / 1.4380),
+/// then the CIE daylight locus, or below 4000 K (where CIE daylight is not defined) a
+/// blackbody at that temperature, as pbrt-v4's `Spectra::D` does.
+pub fn daylight_xy(kelvin: f64) -> [f64; 2] {
+    let t = kelvin * 1.4388 / 1.4380;
+    if t < 4000.0 {
+        let xyz = integrate_xyz(&blackbody_samples(t, false), false);
+        let sum: f64 = xyz.iter().sum();
+        return [xyz[0] / sum, xyz[1] / sum];
+    }
+    let x = if t <= 7000.0 {
+        -4.6070e9 / t.powi(3) + 2.9678e6 / (t * t) + 0.09911e3 / t + 0.244063
+    } else {
+        -2.0064e9 / t.powi(3) + 1.9018e6 / (t * t) + 0.24748e3 / t + 0.237040
+    };
+    [x, -3.0 * x * x + 2.870 * x - 0.275]
+}
+
+/// pbrt-v4's white balance for a film ("whitebalance" in kelvin): a von Kries adaptation in
+/// Bradford's cone space from daylight at that temperature to the sRGB white (D65), as a
+/// matrix on linear sRGB.
+pub fn white_balance_srgb(kelvin: f64) -> [[f64; 3]; 3] {
+    let xyz_of = |xy: [f64; 2]| [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]];
+    let lms = |xyz: [f64; 3]| -> [f64; 3] {
+        std::array::from_fn(|r| (0..3).map(|k| LMS_FROM_XYZ[r][k] * xyz[k]).sum())
+    };
+    let (src, dst) = (
+        lms(xyz_of(daylight_xy(kelvin))),
+        lms(xyz_of([0.3127, 0.3290])),
+    );
+    let mut diag = [[0.0; 3]; 3];
+    for c in 0..3 {
+        diag[c][c] = dst[c] / src[c];
+    }
+    let xyz_wb = mul3(&inverse3(&LMS_FROM_XYZ), &mul3(&diag, &LMS_FROM_XYZ));
+    mul3(&XYZ_TO_SRGB, &mul3(&xyz_wb, &SRGB_TO_XYZ))
+}
+
 fn xyz_to_srgb(xyz: [f64; 3]) -> [f64; 3] {
     XYZ_TO_SRGB.map(|row| row[0] * xyz[0] + row[1] * xyz[1] + row[2] * xyz[2])
 }
@@ -568,6 +641,44 @@ mod tests {
             std::array::from_fn(|c| (0..5).map(|k| w[k][c] * 0.6).sum::<f64>() as f32);
         assert_close(grey, [0.6; 3], 2e-3, "constant 0.6");
         assert!(albedo_rgb_weights(&[500.0, 400.0]).is_err());
+    }
+
+    #[test]
+    fn white_balance_keeps_its_own_white_and_warms_cool_light() {
+        // At the temperature whose daylight is (nearly) D65, the balance is (nearly) the
+        // identity; D65 itself maps to white exactly.
+        let m = white_balance_srgb(6500.0);
+        for (i, row) in m.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!((v - want).abs() < 0.01, "{i},{j}: {v}");
+            }
+        }
+        let xy = daylight_xy(6500.0);
+        assert!(
+            (xy[0] - 0.3127).abs() < 2e-3 && (xy[1] - 0.3290).abs() < 2e-3,
+            "{xy:?}"
+        );
+        // Balancing for 3000 K daylight takes a 3000 K daylight white to neutral grey: the
+        // white of that daylight in sRGB, balanced, has equal channels.
+        let d3000 = {
+            let xy = daylight_xy(3000.0);
+            let xyz = [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]];
+            xyz_to_srgb(xyz)
+        };
+        assert!(d3000[0] > d3000[2], "3000 K light is warm: {d3000:?}");
+        let m = white_balance_srgb(3000.0);
+        let out: [f64; 3] = std::array::from_fn(|i| (0..3).map(|k| m[i][k] * d3000[k]).sum());
+        assert!(
+            (out[0] - out[1]).abs() < 0.01 * out[1] && (out[2] - out[1]).abs() < 0.01 * out[1],
+            "{out:?}"
+        );
+        let id = mul3(&SRGB_TO_XYZ, &inverse3(&SRGB_TO_XYZ));
+        for (i, row) in id.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                assert!((v - if i == j { 1.0 } else { 0.0 }).abs() < 1e-9);
+            }
+        }
     }
 
     #[test]

@@ -464,6 +464,10 @@ impl Scene {
             infinite_lights,
             camera: Camera::new(&desc.camera, film.xresolution, film.yresolution),
             filter: Filter::new(&desc.filter),
+            sensor: crate::sensor::Sensor::new(
+                &film.sensor,
+                desc.camera.shutter[1] - desc.camera.shutter[0],
+            ),
             resolution: (film.xresolution, film.yresolution),
             radius,
             volumes: b.volumes,

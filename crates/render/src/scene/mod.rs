@@ -33,6 +33,8 @@ pub struct Scene {
     pub infinite_lights: Vec<u32>,
     pub camera: Camera,
     pub filter: Filter,
+    /// The film's pixel sensor (ISO, clamp, white balance).
+    pub sensor: crate::sensor::Sensor,
     pub resolution: (u32, u32),
     /// Radius of the scene's bounding sphere.
     pub radius: f32,

@@ -491,6 +491,7 @@ impl Parser {
             lens_radius: 0.0,
             focal_distance: 1e6,
             screen_window: None,
+            shutter: [0.0, 1.0],
             loc: Loc::synthetic("default camera"),
         });
         let film = self.film.unwrap_or_else(|| FilmDesc {
@@ -498,6 +499,7 @@ impl Parser {
             yresolution: 720,
             filename: "kiln.exr".into(),
             pixel_bounds: [0, 1280, 0, 720],
+            sensor: SensorDesc::default(),
             loc: Loc::synthetic("default film"),
         });
         Ok(SceneDescription {

@@ -114,17 +114,27 @@ impl Parser {
                 "Camera: lensradius must be >= 0 and focaldistance > 0",
             ));
         }
-        self.check_unused(
-            params,
-            "Camera",
-            &["shutteropen", "shutterclose", "frameaspectratio"],
-        )?;
+        let shutter = [
+            params.float("shutteropen", 0.0)?,
+            params.float("shutterclose", 1.0)?,
+        ];
+        if !(shutter[0].is_finite() && shutter[1].is_finite() && shutter[1] > shutter[0]) {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "Camera: the shutter opens at {} and closes at {}, so it never opens (pbrt-v4 refuses this too)",
+                    shutter[0], shutter[1]
+                ),
+            ));
+        }
+        self.check_unused(params, "Camera", &["frameaspectratio"])?;
         self.camera = Some(CameraDesc {
             projection,
             camera_to_world,
             lens_radius,
             focal_distance,
             screen_window,
+            shutter,
             loc: loc.clone(),
         });
         Ok(())
@@ -187,36 +197,66 @@ impl Parser {
         if bounds[0] >= bounds[1] || bounds[2] >= bounds[3] {
             return Err(SceneError::at(loc, "Film: the crop window covers no pixel"));
         }
-        self.check_unused(
-            params,
-            "Film",
-            &[
-                "diagonal",
-                "savefp16",
-                "sensor",
-                "iso",
-                "whitebalance",
-                "exposuretime",
-                "maxcomponentvalue",
-            ],
-        )?;
-        for name in ["iso", "whitebalance", "exposuretime", "maxcomponentvalue"] {
-            if let Some(l) = params.loc_of(name) {
-                self.warnings.retain(|w| w.loc != l);
-                return Err(SceneError::at(
-                    &l,
-                    format!("Film: \"{name}\" is not supported yet and would change the image"),
-                ));
-            }
-        }
+        let sensor = self.film_sensor(params, loc)?;
+        self.check_unused(params, "Film", &["diagonal", "savefp16"])?;
         self.film = Some(FilmDesc {
             xresolution: x,
             yresolution: y,
             filename,
             pixel_bounds: bounds,
+            sensor,
             loc: loc.clone(),
         });
         Ok(())
+    }
+
+    /// The film's pixel sensor: pbrt-v4's "iso", "whitebalance" and "maxcomponentvalue" on
+    /// the CIE 1931 observer.
+    fn film_sensor(&self, params: &ParamSet, loc: &Loc) -> Result<SensorDesc> {
+        let at = |name: &str| params.loc_of(name).unwrap_or_else(|| loc.clone());
+        if params.loc_of("exposuretime").is_some() {
+            return Err(SceneError::at(
+                &at("exposuretime"),
+                "Film: \"exposuretime\" is not a pbrt-v4 Film parameter: the exposure is the camera's shutter interval (\"shutteropen\", \"shutterclose\")",
+            ));
+        }
+        let sensor = params.string("sensor")?.unwrap_or_else(|| "cie1931".into());
+        if sensor != "cie1931" {
+            return Err(SceneError::at(
+                &at("sensor"),
+                format!(
+                    "Film: sensor '{sensor}' (a camera's measured spectral response) is not supported yet; Kiln's sensor is the CIE 1931 observer (\"cie1931\")"
+                ),
+            ));
+        }
+        let iso = params.float("iso", 100.0)?;
+        let white_balance = params.float("whitebalance", 0.0)?;
+        let max_component = params.float("maxcomponentvalue", f64::INFINITY)?;
+        if !(iso.is_finite() && iso > 0.0) {
+            return Err(SceneError::at(
+                &at("iso"),
+                format!("Film: \"iso\" must be positive, got {iso}"),
+            ));
+        }
+        if white_balance != 0.0 && !(1000.0..=100_000.0).contains(&white_balance) {
+            return Err(SceneError::at(
+                &at("whitebalance"),
+                format!(
+                    "Film: \"whitebalance\" is a daylight temperature in kelvin (1000 to 100000), or 0 for none; got {white_balance}"
+                ),
+            ));
+        }
+        if max_component.is_nan() || max_component <= 0.0 {
+            return Err(SceneError::at(
+                &at("maxcomponentvalue"),
+                format!("Film: \"maxcomponentvalue\" must be positive, got {max_component}"),
+            ));
+        }
+        Ok(SensorDesc {
+            iso,
+            white_balance,
+            max_component,
+        })
     }
 
     pub(super) fn sampler(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {

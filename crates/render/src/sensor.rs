@@ -1,0 +1,88 @@
+//! The film's pixel sensor, as pbrt-v4's on the CIE 1931 observer: a camera sample's
+//! radiance times the imaging ratio (the shutter's exposure time · ISO / 100), its largest
+//! XYZ component clamped to "maxcomponentvalue", then white balanced ("whitebalance": from
+//! daylight at that temperature to the sRGB white). With pbrt-v4's defaults it is the
+//! identity and costs nothing.
+
+use crate::math::Color;
+use glam::Mat3A;
+use kiln_scene::SensorDesc;
+use kiln_scene::spectrum::{SRGB_TO_XYZ, white_balance_srgb};
+
+#[derive(Debug, Clone)]
+pub struct Sensor {
+    ratio: f32,
+    max_component: f32,
+    /// Linear sRGB to XYZ, where the clamp is taken.
+    to_xyz: Mat3A,
+    balance: Option<Mat3A>,
+}
+
+fn mat(rows: [[f64; 3]; 3]) -> Mat3A {
+    Mat3A::from_cols_array_2d(&rows.map(|r| r.map(|v| v as f32))).transpose()
+}
+
+impl Sensor {
+    pub fn new(desc: &SensorDesc, exposure_time: f64) -> Sensor {
+        Sensor {
+            ratio: (exposure_time * desc.iso / 100.0) as f32,
+            max_component: desc.max_component as f32,
+            to_xyz: mat(SRGB_TO_XYZ),
+            balance: (desc.white_balance != 0.0)
+                .then(|| mat(white_balance_srgb(desc.white_balance))),
+        }
+    }
+
+    /// The identity sensor (pbrt-v4's defaults).
+    pub fn identity() -> Sensor {
+        Sensor::new(&SensorDesc::default(), 1.0)
+    }
+
+    /// What the sensor records of a sample's radiance `l` (linear sRGB).
+    pub fn respond(&self, l: Color) -> Color {
+        let mut l = l * self.ratio;
+        if self.max_component.is_finite() {
+            let m = (self.to_xyz * l).max_element();
+            if m > self.max_component {
+                l *= self.max_component / m;
+            }
+        }
+        match &self.balance {
+            Some(b) => *b * l,
+            None => l,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn iso_scales_clamps_in_xyz_and_defaults_change_nothing() {
+        let l = Color::new(0.3, 2.0, 0.7);
+        assert_eq!(Sensor::identity().respond(l), l);
+        let iso = Sensor::new(
+            &SensorDesc {
+                iso: 400.0,
+                ..SensorDesc::default()
+            },
+            0.5,
+        );
+        assert!((iso.respond(l) - l * 2.0).abs().max_element() < 1e-6);
+        let clamp = Sensor::new(
+            &SensorDesc {
+                max_component: 1.0,
+                ..SensorDesc::default()
+            },
+            1.0,
+        );
+        let out = clamp.respond(l * 10.0);
+        let xyz = mat(SRGB_TO_XYZ) * out;
+        assert!((xyz.max_element() - 1.0).abs() < 1e-5, "{xyz}");
+        // The clamp keeps the colour: a scaled copy of the input.
+        let k = out.y / l.y;
+        assert!((out - l * k).abs().max_element() < 1e-5);
+        assert_eq!(clamp.respond(l * 0.1), l * 0.1);
+    }
+}
