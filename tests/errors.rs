@@ -327,3 +327,21 @@ fn film_sensor_errors_name_the_line() {
         assert_names(&err, "scene.pbrt", line, says);
     }
 }
+
+/// A Loop subdivision Kiln cannot make is an error naming the line.
+#[test]
+fn loop_subdivision_errors_name_the_line() {
+    for (shape, says) in [
+        (
+            "Shape \"loopsubdiv\" \"integer levels\" [ 40 ] \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ]",
+            "\"levels\" must be 0 to 12",
+        ),
+        (
+            "Shape \"loopsubdiv\" \"point3 P\" [ 0 0 0  1 0 0  0 1 0  0 -1 0  0 0 1 ]\n  \"integer indices\" [ 0 1 2 1 0 3 0 1 4 ]",
+            "shared by 3 faces",
+        ),
+    ] {
+        let (err, _d) = failing(&format!("WorldBegin\n{shape}\n"));
+        assert_names(&err, "scene.pbrt", 2, says);
+    }
+}

@@ -26,6 +26,7 @@ pub mod description;
 pub mod error;
 pub mod files;
 mod lexer;
+pub mod loop_subdiv;
 mod params;
 mod parser;
 pub mod spectrum;

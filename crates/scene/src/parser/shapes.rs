@@ -31,6 +31,7 @@ impl Parser {
                 ShapeKind::Sphere { radius }
             }
             "trianglemesh" => ShapeKind::Mesh(Arc::new(mesh_from_params(params, loc)?)),
+            "loopsubdiv" => ShapeKind::Mesh(Arc::new(loop_subdiv_from_params(params, loc)?)),
             "bilinearmesh" => ShapeKind::Mesh(Arc::new(bilinear_from_params(params, loc)?)),
             "plymesh" | "objmesh" => {
                 let name = params.string("filename")?.ok_or_else(|| {
@@ -58,7 +59,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, plymesh, objmesh, sphere)"
+                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, loopsubdiv, plymesh, objmesh, sphere)"
                     ),
                 ));
             }
@@ -126,6 +127,21 @@ impl Parser {
             edge_length: edge_length as f32,
         }))
     }
+}
+
+/// pbrt-v4's "loopsubdiv": the control mesh ("point3 P", "integer indices") subdivided
+/// "levels" times (3 by default) to a triangle mesh with the limit surface's normals.
+fn loop_subdiv_from_params(params: &ParamSet, loc: &Loc) -> Result<TriangleMeshData> {
+    let levels = params.int("levels", 3)?;
+    if !(0..=12).contains(&levels) {
+        return Err(SceneError::at(
+            &params.loc_of("levels").unwrap_or_else(|| loc.clone()),
+            format!("loopsubdiv: \"levels\" must be 0 to 12, got {levels}"),
+        ));
+    }
+    let control = mesh_from_params(params, loc)?;
+    crate::loop_subdiv::loop_subdivide(&control.positions, &control.indices, levels as u32)
+        .map_err(|e| SceneError::at(loc, format!("loopsubdiv: {e}")))
 }
 
 fn mesh_from_params(params: &ParamSet, loc: &Loc) -> Result<TriangleMeshData> {
