@@ -345,3 +345,41 @@ fn loop_subdivision_errors_name_the_line() {
         assert_names(&err, "scene.pbrt", 2, says);
     }
 }
+
+/// Motion blur (a transform that differs at the shutter's end) is an error naming the line
+/// of what would move, not a still image of the start; a transform that ends where it
+/// starts is no motion and renders.
+#[test]
+fn motion_blur_is_an_error_not_a_still() {
+    let moving = "WorldBegin\nAttributeBegin\nActiveTransform EndTime\nTranslate 1 0 0\nActiveTransform All\nShape \"sphere\"\nAttributeEnd\n";
+    let (err, _d) = failing(moving);
+    assert_names(
+        &err,
+        "scene.pbrt",
+        6,
+        "Kiln does not render motion blur yet",
+    );
+    let (err, _d) = failing(
+        "ActiveTransform StartTime\nLookAt 0 0 5  0 0 0  0 1 0\nActiveTransform EndTime\nLookAt 1 0 5  0 0 0  0 1 0\nActiveTransform All\nCamera \"perspective\"\nWorldBegin\n",
+    );
+    assert_names(&err, "scene.pbrt", 6, "Camera: its transform differs");
+    let dir = tempfile::tempdir().unwrap();
+    let still = write_scene(
+        dir.path(),
+        "still.pbrt",
+        "Film \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]\nWorldBegin\nActiveTransform EndTime\nTranslate 1 0 0\nTranslate -1 0 0\nActiveTransform All\nShape \"sphere\"\n",
+    );
+    let out = kiln()
+        .arg("render")
+        .arg(&still)
+        .arg("-o")
+        .arg(dir.path().join("still.exr"))
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

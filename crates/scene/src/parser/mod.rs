@@ -93,7 +93,8 @@ struct Parser {
     warnings: Vec<Diagnostic>,
     gs: GraphicsState,
     stack: Vec<(GraphicsState, Loc, bool)>,
-    named_coordinate_systems: HashMap<String, DMat4>,
+    /// Named coordinate systems: the transforms at the shutter's start and end.
+    named_coordinate_systems: HashMap<String, (DMat4, DMat4)>,
     in_world: bool,
     camera: Option<CameraDesc>,
     film: Option<FilmDesc>,
@@ -138,6 +139,7 @@ impl Parser {
             warnings: Vec::new(),
             gs: GraphicsState {
                 ctm: DMat4::IDENTITY,
+                ctm_end: DMat4::IDENTITY,
                 active: ActiveTransform::All,
                 reverse_orientation: false,
                 material: MaterialId(0),

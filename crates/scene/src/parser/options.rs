@@ -49,8 +49,9 @@ impl Parser {
         }
         self.in_world = true;
         self.named_coordinate_systems
-            .insert("world".into(), DMat4::IDENTITY);
+            .insert("world".into(), (DMat4::IDENTITY, DMat4::IDENTITY));
         self.gs.ctm = DMat4::IDENTITY;
+        self.gs.ctm_end = DMat4::IDENTITY;
         Ok(())
     }
 
@@ -63,6 +64,7 @@ impl Parser {
 
     pub(super) fn camera(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_options(loc, "Camera")?;
+        self.require_still(loc, "Camera")?;
         self.camera_medium = self.medium_id(&self.gs.media.1);
         let camera_from_world = self.gs.ctm;
         let camera_to_world = camera_from_world.inverse();
@@ -73,7 +75,7 @@ impl Parser {
             ));
         }
         self.named_coordinate_systems
-            .insert("camera".into(), camera_to_world);
+            .insert("camera".into(), (camera_to_world, camera_to_world));
         let projection = match ty {
             "perspective" => Projection::Perspective {
                 fov_degrees: params.float("fov", 90.0)?,

@@ -12,6 +12,7 @@ use std::sync::Arc;
 impl Parser {
     pub(super) fn shape(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_world(loc, "Shape")?;
+        self.require_still(loc, &format!("Shape '{ty}'"))?;
         let mut displacement = None;
         let kind = match ty {
             "sphere" => {

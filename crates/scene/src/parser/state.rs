@@ -18,7 +18,11 @@ pub(super) enum ActiveTransform {
 
 #[derive(Clone)]
 pub(super) struct GraphicsState {
+    /// The current transform at the shutter's opening (what Kiln renders with).
     pub(super) ctm: DMat4,
+    /// The current transform at its closing: where it differs from `ctm`, pbrt-v4 would
+    /// blur the motion, which Kiln does not render yet.
+    pub(super) ctm_end: DMat4,
     pub(super) active: ActiveTransform,
     pub(super) reverse_orientation: bool,
     pub(super) material: MaterialId,
@@ -29,10 +33,43 @@ pub(super) struct GraphicsState {
 
 impl Parser {
     pub(super) fn apply_transform(&mut self, m: DMat4) {
-        // Only the start-time transform matters: Kiln renders no motion blur.
         if self.gs.active != ActiveTransform::End {
             self.gs.ctm *= m;
         }
+        if self.gs.active != ActiveTransform::Start {
+            self.gs.ctm_end *= m;
+        }
+    }
+
+    /// Sets the current transform, at the start or end time or both as ActiveTransform says.
+    fn set_transform(&mut self, m: DMat4) {
+        if self.gs.active != ActiveTransform::End {
+            self.gs.ctm = m;
+        }
+        if self.gs.active != ActiveTransform::Start {
+            self.gs.ctm_end = m;
+        }
+    }
+
+    /// An error if the current transform moves during the shutter interval: pbrt-v4 would
+    /// blur `what`'s motion, and Kiln cannot yet (it would render only the start).
+    pub(super) fn require_still(&self, loc: &Loc, what: &str) -> Result<()> {
+        let (a, b) = (self.gs.ctm, self.gs.ctm_end);
+        let scale = a.to_cols_array().iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        let moves = a
+            .to_cols_array()
+            .iter()
+            .zip(b.to_cols_array())
+            .any(|(x, y)| (x - y).abs() > 1e-9 * scale);
+        if moves {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "{what}: its transform differs between the shutter's start and end (ActiveTransform), so pbrt-v4 would blur its motion; Kiln does not render motion blur yet"
+                ),
+            ));
+        }
+        Ok(())
     }
 
     pub(super) fn medium_id(&self, name: &str) -> Option<MediumId> {
@@ -40,9 +77,7 @@ impl Parser {
     }
 
     pub(super) fn identity(&mut self) {
-        if self.gs.active != ActiveTransform::End {
-            self.gs.ctm = DMat4::IDENTITY;
-        }
+        self.set_transform(DMat4::IDENTITY);
     }
 
     pub(super) fn translate(&mut self, c: &mut Cursor) -> Result<()> {
@@ -92,9 +127,7 @@ impl Parser {
         // pbrt lists the matrix column by column, as glam stores it.
         let m = DMat4::from_cols_array(&a);
         if directive == "Transform" {
-            if self.gs.active != ActiveTransform::End {
-                self.gs.ctm = m;
-            }
+            self.set_transform(m);
         } else {
             self.apply_transform(m);
         }
@@ -103,14 +136,18 @@ impl Parser {
 
     pub(super) fn coordinate_system(&mut self, c: &mut Cursor) -> Result<()> {
         let name = c.string("CoordinateSystem", "name")?;
-        self.named_coordinate_systems.insert(name, self.gs.ctm);
+        self.named_coordinate_systems
+            .insert(name, (self.gs.ctm, self.gs.ctm_end));
         Ok(())
     }
 
     pub(super) fn coord_sys_transform(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
         let name = c.string("CoordSysTransform", "name")?;
         match self.named_coordinate_systems.get(&name) {
-            Some(m) => self.gs.ctm = *m,
+            Some(&(start, end)) => {
+                self.gs.ctm = start;
+                self.gs.ctm_end = end;
+            }
             None => {
                 return Err(SceneError::at(
                     loc,
@@ -267,6 +304,7 @@ impl Parser {
                 "ObjectInstance inside ObjectBegin is not supported",
             ));
         }
+        self.require_still(loc, &format!("ObjectInstance '{name}'"))?;
         self.instances.push(InstanceDesc {
             object,
             instance_to_world: self.gs.ctm,
