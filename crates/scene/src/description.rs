@@ -291,6 +291,10 @@ pub enum AreaLightDesc {
         /// bilinearly interpolated, clamped at the edges.
         image: Option<Arc<crate::textures::TextureImage>>,
         two_sided: bool,
+        /// pbrt-v4's "power": the lumens each shape (each triangle of a mesh, as in
+        /// pbrt-v4) emits; the radiance is then `radiance` · power / (π · area · sides ·
+        /// the image's mean luminance, if any).
+        power: Option<f32>,
         loc: Loc,
     },
     /// Seed 000's VolumeLight: the shape's interior emits, and the radiance leaving a

@@ -59,6 +59,11 @@ impl EmissionImage {
         EmissionImage { image, mean }
     }
 
+    /// The luminance of the image's mean.
+    pub fn mean_luminance(&self) -> f32 {
+        luminance(self.mean)
+    }
+
     /// The image's radiance at surface coordinates `uv`.
     pub fn lookup(&self, uv: Vec2) -> Color {
         let (w, h) = (self.image.width as i64, self.image.height as i64);

@@ -45,6 +45,19 @@ fn within_world_limit(p: Vec3A) -> bool {
     p.is_finite() && p.abs().max_element() <= WORLD_LIMIT
 }
 
+/// What an area light's radiance is multiplied by for pbrt-v4's "power" (lumens per shape:
+/// Φ = π · area · sides · radiance, the image's mean luminance standing for radiance).
+fn power_scale(power: Option<f32>, area: f32, two_sided: bool, image_luminance: f32) -> f32 {
+    match power {
+        Some(phi) => {
+            let k_e =
+                image_luminance * if two_sided { 2.0 } else { 1.0 } * area * std::f32::consts::PI;
+            if k_e > 0.0 { phi / k_e } else { 0.0 }
+        }
+        None => 1.0,
+    }
+}
+
 /// Whether a scene is built with its participating media. pbrt-v4's "path" integrator
 /// ignores them (interfaces vanish, media-bounded shapes keep only their materials).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -254,12 +267,14 @@ impl Builder {
             radiance,
             image,
             two_sided,
+            power,
             ..
         }) = &shape.area_light
         {
             let image = image
                 .as_ref()
                 .map(|image| Arc::new(EmissionImage::new(image.clone())));
+            let image_luminance = image.as_ref().map_or(1.0, |i| i.mean_luminance());
             for t in mesh.indices.chunks_exact(3) {
                 let p = [0, 1, 2].map(|k| self.prims.positions[(base + t[k]) as usize]);
                 let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
@@ -280,7 +295,8 @@ impl Builder {
                     p,
                     n,
                     area,
-                    radiance: rgb(*radiance),
+                    radiance: rgb(*radiance)
+                        * power_scale(*power, area, *two_sided, image_luminance),
                     two_sided: *two_sided,
                     uv,
                     alpha: surface(None).alpha,
@@ -358,6 +374,7 @@ impl Builder {
             radiance,
             image,
             two_sided,
+            power,
             ..
         }) = &shape.area_light
         {
@@ -369,10 +386,11 @@ impl Builder {
             }
             self.light_media.resize(self.lights.len(), None);
             self.light_media.push(media);
+            let area = 4.0 * std::f32::consts::PI * world_radius * world_radius;
             self.lights.push(Light::Sphere(SphereLight {
                 center: center.as_vec3().into(),
                 radius: world_radius,
-                radiance: rgb(*radiance),
+                radiance: rgb(*radiance) * power_scale(*power, area, *two_sided, 1.0),
                 two_sided: *two_sided,
                 inward: shape.reverse_orientation,
                 alpha: surface(None).alpha,

@@ -20,29 +20,53 @@ impl Parser {
         let scaled = |rgb: Rgb| rgb.map(|c| c * scale);
         let ctm = self.gs.ctm;
         let point = |p: [f64; 3]| ctm.transform_point3(DVec3::from(p));
-        if params.loc_of("power").is_some() || params.loc_of("illuminance").is_some() {
-            return Err(SceneError::at(
-                loc,
-                format!(
-                    "LightSource '{ty}': \"power\"/\"illuminance\" are not supported yet; give the radiance or intensity"
-                ),
-            ));
-        }
+        // pbrt-v4's photometric targets: the spectrum is normalised to luminance 1 (RGB keeps
+        // its values), then "power" (lumens) or "illuminance" (lux) sets the brightness.
+        let target = |name: &str, allowed: bool| -> Result<Option<f32>> {
+            let Some(at) = params.loc_of(name) else {
+                return Ok(None);
+            };
+            let v = params.float(name, -1.0)?;
+            if !allowed {
+                return Err(SceneError::at(
+                    &at,
+                    format!("LightSource '{ty}': \"{name}\" is not supported for this light yet"),
+                ));
+            }
+            // As pbrt-v4: a value that is not positive leaves the light as given.
+            Ok((v > 0.0 && v.is_finite()).then_some(v as f32))
+        };
+        let power = target("power", matches!(ty, "point" | "spot"))?;
+        let illuminance = target("illuminance", ty == "distant" || ty == "infinite")?;
         let kind = match ty {
-            "point" => LightKind::Point {
-                position: point(params.point3("from", [0.0; 3])?),
-                intensity: scaled(
-                    params
-                        .rgb("I", SpectrumUse::Illuminant)?
-                        .unwrap_or([1.0; 3]),
-                ),
-            },
+            "point" => {
+                // Φ = 4π I.
+                let k = power.map_or(1.0, |phi| phi / (4.0 * std::f32::consts::PI));
+                LightKind::Point {
+                    position: point(params.point3("from", [0.0; 3])?),
+                    intensity: scaled(
+                        params
+                            .rgb("I", SpectrumUse::Illuminant)?
+                            .unwrap_or([1.0; 3]),
+                    )
+                    .map(|c| c * k),
+                }
+            }
             "spot" => {
                 let from = params.point3("from", [0.0; 3])?;
                 let to = params.point3("to", [0.0, 0.0, 1.0])?;
                 let direction = (point(to) - point(from)).normalize();
                 let cone = params.float("coneangle", 30.0)?;
-                let delta = params.float("conedelta", 5.0)?;
+                let delta = params.float("conedeltaangle", 5.0)?;
+                let (cos_end, cos_start) =
+                    (cone.to_radians().cos(), (cone - delta).to_radians().cos());
+                // Φ = 2π I ((1 − cos start) + (cos start − cos end) / 2), pbrt-v4's k_e.
+                let k = power.map_or(1.0, |phi| {
+                    let k_e = 2.0
+                        * std::f64::consts::PI
+                        * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0);
+                    (f64::from(phi) / k_e) as f32
+                });
                 LightKind::Spot {
                     position: point(from),
                     direction,
@@ -50,22 +74,32 @@ impl Parser {
                         params
                             .rgb("I", SpectrumUse::Illuminant)?
                             .unwrap_or([1.0; 3]),
-                    ),
-                    cos_falloff_end: cone.to_radians().cos(),
-                    cos_falloff_start: (cone - delta).to_radians().cos(),
+                    )
+                    .map(|c| c * k),
+                    cos_falloff_end: cos_end,
+                    cos_falloff_start: cos_start,
                 }
             }
             "distant" => {
                 let from = DVec3::from(params.point3("from", [0.0; 3])?);
                 let to = DVec3::from(params.point3("to", [0.0, 0.0, 1.0])?);
+                // E = L on a patch facing the light.
+                let k = illuminance.unwrap_or(1.0);
                 LightKind::Distant {
                     direction: ctm.transform_vector3(from - to).normalize(),
                     radiance: scaled(
                         params
                             .rgb("L", SpectrumUse::Illuminant)?
                             .unwrap_or([1.0; 3]),
-                    ),
+                    )
+                    .map(|c| c * k),
                 }
+            }
+            "infinite" if illuminance.is_some() && params.loc_of("filename").is_some() => {
+                return Err(SceneError::at(
+                    loc,
+                    "LightSource 'infinite': \"illuminance\" with an image is not supported yet",
+                ));
             }
             "infinite" => match params.string("filename")? {
                 Some(name) => {
@@ -97,12 +131,14 @@ impl Parser {
                         light_to_world: ctm,
                     }
                 }
+                // E = π L on an upward-facing patch.
                 None => LightKind::UniformInfinite {
                     radiance: scaled(
                         params
                             .rgb("L", SpectrumUse::Illuminant)?
                             .unwrap_or([1.0; 3]),
-                    ),
+                    )
+                    .map(|c| c * illuminance.map_or(1.0, |e| e / std::f32::consts::PI)),
                 },
             },
             "dome" => {
@@ -147,12 +183,10 @@ impl Parser {
                 ),
             ));
         }
-        if params.loc_of("power").is_some() {
-            return Err(SceneError::at(
-                loc,
-                "AreaLightSource: \"power\" is not supported yet; give the radiance L",
-            ));
-        }
+        // pbrt-v4's "power": each shape (each triangle of a mesh) emits that many lumens;
+        // the renderer divides by the shape's area. Not positive: the light as given.
+        let power = params.float("power", -1.0)?;
+        let power = (power > 0.0 && power.is_finite()).then_some(power as f32);
         let scale = params.float("scale", 1.0)? as f32;
         // pbrt-v4: an image gives the radiance (linear RGB, looked up at the surface's uv)
         // in place of L, and only "scale" multiplies it.
@@ -192,6 +226,7 @@ impl Parser {
             radiance,
             image,
             two_sided,
+            power,
             loc: loc.clone(),
         });
         Ok(())
