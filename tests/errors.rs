@@ -367,7 +367,8 @@ fn motion_blur_is_an_error_not_a_still() {
     let still = write_scene(
         dir.path(),
         "still.pbrt",
-        "Film \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]\nWorldBegin\nActiveTransform EndTime\nTranslate 1 0 0\nTranslate -1 0 0\nActiveTransform All\nShape \"sphere\"\n",
+        // TransformBegin/End restores both transforms, as AttributeBegin/End does.
+        "Film \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]\nWorldBegin\nActiveTransform EndTime\nTranslate 1 0 0\nTranslate -1 0 0\nActiveTransform All\nShape \"sphere\"\nTransformBegin\nTransform [ 1 0 0 0 0 1 0 0 0 0 1 0 0 2 0 1 ]\nShape \"sphere\"\nTransformEnd\nShape \"sphere\" \"float radius\" [ 0.5 ]\n",
     );
     let out = kiln()
         .arg("render")

@@ -212,6 +212,7 @@ impl Parser {
         };
         if only_transform {
             self.gs.ctm = saved.ctm;
+            self.gs.ctm_end = saved.ctm_end;
             self.gs.active = saved.active;
         } else {
             self.gs = saved;
