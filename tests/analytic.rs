@@ -1,6 +1,6 @@
 //! Scenes whose answer is known exactly.
 
-use crate::util::{render, scene, write_scene};
+use crate::util::{assert_matches_pbrt, render, scene, write_scene};
 
 /// Inside a closed surface of albedo 0.5 that emits 0.5, radiance is 1 everywhere.
 fn check_furnace(file: &str) {
@@ -225,13 +225,7 @@ Shape "sphere" "float radius" [ 1 ]
     for (film, camera, pbrt, within) in cases {
         let path = write_scene(dir.path(), "film.pbrt", &scene(film, camera));
         let img = render(&path, dir.path(), "film", &[]).image;
-        let kiln = img.mean();
-        for c in 0..3 {
-            assert!(
-                (kiln[c] / pbrt[c] - 1.0).abs() < within,
-                "{film} {camera}: channel {c}: Kiln {kiln:?} vs pbrt-v4 {pbrt:?}"
-            );
-        }
+        assert_matches_pbrt(&format!("{film} {camera}"), img.mean(), pbrt, within, 3);
         images.push(img);
     }
     // ISO 400 over half the time is exactly twice the plain image.
@@ -371,11 +365,6 @@ AttributeEnd"#,
     for (light, pbrt) in cases {
         let path = write_scene(dir.path(), "lit.pbrt", &floor(light));
         let kiln = render(&path, dir.path(), "lit", &[]).image.mean();
-        for c in 0..3 {
-            assert!(
-                (kiln[c] / pbrt[c] - 1.0).abs() < 0.01,
-                "{light}: channel {c}: Kiln {kiln:?} vs pbrt-v4 {pbrt:?}"
-            );
-        }
+        assert_matches_pbrt(light, kiln, pbrt, 0.01, 3);
     }
 }

@@ -2,7 +2,9 @@
 //! scattering, emission (emissive grids sampled as lights), and estimators that must
 //! agree through them.
 
-use crate::util::{assert_strategies_agree, render, render_strategies, scene, write_scene};
+use crate::util::{
+    assert_matches_pbrt, assert_strategies_agree, render, render_strategies, scene, write_scene,
+};
 
 /// pbrt-v4's convention: the source term is sigma_a * Le, so a ray through the centre of a
 /// non-scattering emissive sphere sees Le (1 - exp(-2 r sigma_a)); off centre, the chord.
@@ -566,11 +568,6 @@ Shape "trianglemesh" "point3 P" [ -2 -2 -1  2 -2 -1  2 2 -1  -2 2 -1  -2 -2 1  2
             &format!("{integrator}{camera}{body}\n"),
         );
         let kiln = render(&path, dir.path(), "glow", &[]).image.mean();
-        for c in 0..channels {
-            assert!(
-                (kiln[c] / pbrt[c] - 1.0).abs() < 0.01,
-                "{what}, channel {c}: Kiln {kiln:?} vs pbrt-v4 {pbrt:?}"
-            );
-        }
+        assert_matches_pbrt(what, kiln, pbrt, 0.01, channels);
     }
 }

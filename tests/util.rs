@@ -305,3 +305,20 @@ Material "interface"
 Shape "sphere" "float radius" [ 1.8 ]
 AttributeEnd
 "#;
+
+/// Asserts that Kiln's mean RGB is within the relative `within` of pbrt-v4's recorded mean in
+/// the first `channels` channels.
+pub fn assert_matches_pbrt(
+    what: &str,
+    kiln: [f64; 3],
+    pbrt: [f64; 3],
+    within: f64,
+    channels: usize,
+) {
+    for c in 0..channels {
+        assert!(
+            (kiln[c] / pbrt[c] - 1.0).abs() < within,
+            "{what}, channel {c}: Kiln {kiln:?} vs pbrt-v4 {pbrt:?}"
+        );
+    }
+}
