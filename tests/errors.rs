@@ -384,3 +384,29 @@ fn motion_blur_is_an_error_not_a_still() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// pbrt-v4's "regularize" changes the image: refused, not ignored; "false" is no change.
+#[test]
+fn regularize_is_refused_where_it_would_change_the_image() {
+    let (err, _d) = failing("Integrator \"path\"\n  \"bool regularize\" true\nWorldBegin\n");
+    assert_names(&err, "scene.pbrt", 2, "\"regularize\"");
+    let dir = tempfile::tempdir().unwrap();
+    let off = write_scene(
+        dir.path(),
+        "off.pbrt",
+        "Integrator \"path\" \"bool regularize\" false\nFilm \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]\nWorldBegin\nShape \"sphere\"\n",
+    );
+    let out = kiln()
+        .arg("render")
+        .arg(&off)
+        .arg("-o")
+        .arg(dir.path().join("off.exr"))
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

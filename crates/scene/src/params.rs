@@ -75,6 +75,26 @@ pub const PARAM_TYPES: &[&str] = &[
 ];
 
 impl ParamSet {
+    /// This set with `defaults` (pbrt-v4's `Attribute` values) added where it does not give
+    /// the parameter itself. The defaults count as used: like pbrt-v4, Kiln does not
+    /// complain about an attribute a shape or light has no use for.
+    pub fn with_defaults(&self, defaults: &[Param]) -> ParamSet {
+        let mut set = self.clone();
+        for d in defaults {
+            if !set.params.iter().any(|p| p.name == d.name) {
+                let d = d.clone();
+                d.used.set(true);
+                set.params.push(d);
+            }
+        }
+        set
+    }
+
+    /// Its parameters, consumed.
+    pub fn into_params(self) -> Vec<Param> {
+        self.params
+    }
+
     pub fn push(&mut self, param: Param) -> Result<()> {
         if self.params.iter().any(|p| p.name == param.name) {
             return Err(SceneError::at(

@@ -145,6 +145,7 @@ impl Parser {
                 material: MaterialId(0),
                 area_light: None,
                 media: (String::new(), String::new()),
+                attributes: Default::default(),
             },
             stack: Vec::new(),
             named_coordinate_systems: HashMap::new(),
@@ -399,49 +400,44 @@ impl Parser {
             // Scene entities (media.rs, materials.rs, lights.rs, shapes.rs).
             "MakeNamedMedium" => {
                 let name = c.string(directive, "medium name")?;
-                let params = c.params()?;
+                let params = self.with_attributes("medium", &c.params()?);
                 self.medium(name, &params, loc)?;
             }
             "Material" => {
                 let ty = c.string(directive, "material type")?;
-                let params = c.params()?;
+                let params = self.with_attributes("material", &c.params()?);
                 let id = self.material(&ty, &params, None, loc)?;
                 self.gs.material = id;
             }
             "MakeNamedMaterial" => {
                 let name = c.string(directive, "material name")?;
-                let params = c.params()?;
+                let params = self.with_attributes("material", &c.params()?);
                 self.make_named_material(name, &params, loc)?;
             }
             "Texture" => {
                 let name = c.string(directive, "texture name")?;
                 let ty = c.string(directive, "texture type")?;
                 let class = c.string(directive, "texture class")?;
-                let params = c.params()?;
+                let params = self.with_attributes("texture", &c.params()?);
                 self.texture(name, &ty, &class, &params, loc)?;
             }
             "LightSource" => {
                 let ty = c.string(directive, "light type")?;
-                let params = c.params()?;
+                let params = self.with_attributes("light", &c.params()?);
                 self.light(&ty, &params, loc)?;
             }
             "AreaLightSource" => {
                 let ty = c.string(directive, "area light type")?;
-                let params = c.params()?;
+                let params = self.with_attributes("light", &c.params()?);
                 self.area_light(&ty, &params, loc)?;
             }
             "Shape" => {
                 let ty = c.string(directive, "shape type")?;
-                let params = c.params()?;
+                let params = self.with_attributes("shape", &c.params()?);
                 self.shape(&ty, &params, loc)?;
             }
             "Include" | "Import" => self.include(directive, c, loc, depth)?,
-            "Attribute" => {
-                return Err(SceneError::at(
-                    loc,
-                    "the Attribute directive is not supported yet",
-                ));
-            }
+            "Attribute" => self.attribute(c, loc)?,
             other => {
                 return Err(SceneError::at(loc, format!("unknown directive '{other}'")));
             }

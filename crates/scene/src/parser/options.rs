@@ -422,7 +422,15 @@ impl Parser {
                 "Integrator: causticphotons must be 0 to 5*10^7 (each stored photon takes 64 bytes) and causticradius not negative",
             ));
         }
-        self.check_unused(params, "Integrator", &["regularize"])?;
+        // pbrt-v4's "regularize" roughens near-specular surfaces after the first diffuse
+        // bounce: that changes the image, so Kiln refuses it rather than ignore it.
+        if params.bool("regularize", false)? {
+            return Err(SceneError::at(
+                &params.loc_of("regularize").unwrap_or_else(|| loc.clone()),
+                "Integrator: \"regularize\" (roughening near-specular surfaces after a diffuse bounce) is not supported yet and would change the image",
+            ));
+        }
+        self.check_unused(params, "Integrator", &[])?;
         self.integrator = Some(IntegratorDesc {
             name: ty.to_string(),
             kind: if ty == "path" {

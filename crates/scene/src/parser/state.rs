@@ -7,6 +7,7 @@ use super::cursor::Cursor;
 use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
 use crate::lexer::TokenKind;
+use crate::params::ParamSet;
 use glam::{DMat4, DVec3, DVec4};
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -29,7 +30,13 @@ pub(super) struct GraphicsState {
     pub(super) area_light: Option<AreaLightDesc>,
     /// Names of the current inside and outside media ("" is vacuum).
     pub(super) media: (String, String),
+    /// pbrt-v4's `Attribute` defaults, per target (shape, light, material, medium,
+    /// texture), in the order of [`ATTRIBUTE_TARGETS`].
+    pub(super) attributes: [Vec<crate::params::Param>; 5],
 }
+
+/// What an `Attribute` directive may give defaults to.
+pub(super) const ATTRIBUTE_TARGETS: [&str; 5] = ["shape", "light", "material", "medium", "texture"];
 
 impl Parser {
     pub(super) fn apply_transform(&mut self, m: DMat4) {
@@ -192,6 +199,38 @@ impl Parser {
         Ok(())
     }
 
+    /// `Attribute "target" params...`: defaults for the parameters of later shapes, lights,
+    /// materials, media or textures in this attribute scope; a later value replaces an
+    /// earlier one.
+    pub(super) fn attribute(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let target = c.string("Attribute", "target")?;
+        let Some(i) = ATTRIBUTE_TARGETS.iter().position(|t| *t == target) else {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "Attribute: unknown target '{target}' (pbrt-v4 has {})",
+                    ATTRIBUTE_TARGETS.join(", ")
+                ),
+            ));
+        };
+        for param in c.params()?.into_params() {
+            let defaults = &mut self.gs.attributes[i];
+            defaults.retain(|p| p.name != param.name);
+            defaults.push(param);
+        }
+        Ok(())
+    }
+
+    /// A directive's parameters with the `Attribute` defaults of `target` added.
+    pub(super) fn with_attributes(&self, target: &str, params: &ParamSet) -> ParamSet {
+        match ATTRIBUTE_TARGETS.iter().position(|t| *t == target) {
+            Some(i) if !self.gs.attributes[i].is_empty() => {
+                params.with_defaults(&self.gs.attributes[i])
+            }
+            _ => params.clone(),
+        }
+    }
+
     pub(super) fn reverse_orientation(&mut self) {
         self.gs.reverse_orientation = !self.gs.reverse_orientation;
     }
@@ -333,6 +372,50 @@ fn look_at_matrix(eye: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
 mod tests {
     use super::*;
     use crate::parser::tests::load;
+
+    /// pbrt-v4's Attribute: defaults for later shapes (or lights, ...) in the attribute
+    /// scope; a parameter given on the shape wins; a default a shape does not use is no
+    /// error; an unknown target is.
+    #[test]
+    fn attributes_give_defaults_in_their_scope() {
+        let s = load(
+            "WorldBegin
+             AttributeBegin
+               Attribute \"shape\" \"float radius\" [ 0.5 ]
+               Attribute \"light\" \"rgb L\" [ 2 2 2 ]
+               Shape \"sphere\"
+               Shape \"sphere\" \"float radius\" [ 3 ]
+               Shape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ]
+               Attribute \"shape\" \"float radius\" [ 0.25 ]
+               AreaLightSource \"diffuse\"
+               Shape \"sphere\"
+             AttributeEnd
+             Shape \"sphere\"",
+        );
+        let radius = |i: usize| match s.shapes[i].kind {
+            ShapeKind::Sphere { radius } => radius,
+            _ => panic!("shape {i} is a sphere"),
+        };
+        assert_eq!(radius(0), 0.5);
+        assert_eq!(radius(1), 3.0);
+        assert_eq!(radius(3), 0.25);
+        assert_eq!(radius(4), 1.0, "the attribute ends with its scope");
+        match &s.shapes[3].area_light {
+            Some(AreaLightDesc::Diffuse { radiance, .. }) => assert_eq!(*radiance, [2.0; 3]),
+            other => panic!("{other:?}"),
+        }
+        let err = crate::parser::load_str(
+            "WorldBegin\nAttribute \"camera\" \"float fov\" [ 30 ]\n",
+            std::path::Path::new("t.pbrt"),
+            std::path::Path::new("."),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("t.pbrt:2") && err.contains("unknown target 'camera'"),
+            "{err}"
+        );
+    }
 
     #[test]
     fn look_at_puts_the_camera_at_the_eye_looking_at_the_target() {
