@@ -1,6 +1,6 @@
 //! Bad scenes exit non-zero with a message that names the file and line.
 
-use crate::util::{failing, kiln, write_scene};
+use crate::util::{failing, kiln, render, write_scene};
 
 /// Renders a scene file that must fail; returns kiln's stderr.
 fn render_failure(scene: &std::path::Path, dir: &std::path::Path) -> String {
@@ -370,19 +370,8 @@ fn motion_blur_is_an_error_not_a_still() {
         // TransformBegin/End restores both transforms, as AttributeBegin/End does.
         "Film \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]\nWorldBegin\nActiveTransform EndTime\nTranslate 1 0 0\nTranslate -1 0 0\nActiveTransform All\nShape \"sphere\"\nTransformBegin\nTransform [ 1 0 0 0 0 1 0 0 0 0 1 0 0 2 0 1 ]\nShape \"sphere\"\nTransformEnd\nShape \"sphere\" \"float radius\" [ 0.5 ]\n",
     );
-    let out = kiln()
-        .arg("render")
-        .arg(&still)
-        .arg("-o")
-        .arg(dir.path().join("still.exr"))
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // Renders (util::render panics with kiln's stderr if it fails).
+    render(&still, dir.path(), "still", &[]);
 }
 
 /// pbrt-v4's "regularize" changes the image: refused, not ignored; "false" is no change.
@@ -396,17 +385,6 @@ fn regularize_is_refused_where_it_would_change_the_image() {
         "off.pbrt",
         "Integrator \"path\" \"bool regularize\" false\nFilm \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]\nWorldBegin\nShape \"sphere\"\n",
     );
-    let out = kiln()
-        .arg("render")
-        .arg(&off)
-        .arg("-o")
-        .arg(dir.path().join("off.exr"))
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // Renders (util::render panics with kiln's stderr if it fails).
+    render(&off, dir.path(), "off", &[]);
 }

@@ -675,6 +675,25 @@ Shape "trianglemesh" "point3 P" [ 0 0 0  1 0 0  1 1 0  0 1 0 ] "integer indices"
     }
 }
 
+/// The mean of a unit sphere of `material` filling a `size`-pixel square orthographic view
+/// under a uniform white sky, rendered with `settings` (Integrator and Sampler lines).
+fn ball_under_sky(dir: &Path, settings: &str, size: u32, material: &str) -> [f64; 3] {
+    let text = format!(
+        r#"{settings}
+PixelFilter "box"
+Film "rgb" "integer xresolution" [ {size} ] "integer yresolution" [ {size} ]
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "orthographic" "float screenwindow" [ -0.6 0.6 -0.6 0.6 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+{material}
+Shape "sphere" "float radius" [ 1 ]
+"#
+    );
+    let path = write_scene(dir, "ball.pbrt", &text);
+    render(&path, dir, "ball", &[]).image.mean()
+}
+
 /// The layered materials against pbrt-v4 itself: a unit sphere filling a 32x32 orthographic
 /// view under a uniform white sky, 1024 spp, max depth 20. pbrt-v4's means were rendered
 /// with pbrt-v4 (github.com/mmp/pbrt-v4, built from source here, 2026-11-24) from these
@@ -710,22 +729,10 @@ fn layered_materials_match_pbrt_v4_under_a_uniform_sky() {
         ),
     ];
     let luminance = |c: [f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let settings = r#"Integrator "volpath" "integer maxdepth" [ 20 ]
+Sampler "independent" "integer pixelsamples" [ 1024 ]"#;
     for (material, pbrt) in cases {
-        let text = format!(
-            r#"Integrator "volpath" "integer maxdepth" [ 20 ]
-Sampler "independent" "integer pixelsamples" [ 1024 ]
-PixelFilter "box"
-Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ]
-LookAt 0 0 5  0 0 0  0 1 0
-Camera "orthographic" "float screenwindow" [ -0.6 0.6 -0.6 0.6 ]
-WorldBegin
-LightSource "infinite" "rgb L" [ 1 1 1 ]
-{material}
-Shape "sphere" "float radius" [ 1 ]
-"#
-        );
-        let path = write_scene(dir.path(), "ball.pbrt", &text);
-        let kiln = render(&path, dir.path(), "ball", &[]).image.mean();
+        let kiln = ball_under_sky(dir.path(), settings, 32, material);
         let (k, p) = (luminance(kiln), luminance(pbrt.map(f64::from)));
         assert!(
             (k / p - 1.0).abs() < 0.02,
@@ -746,23 +753,9 @@ fn a_measured_brdf_renders_as_the_brdf_it_tabulates() {
         kiln_scene::files::measured::lambertian_bsdf_file(0.6, 16, 32),
     )
     .unwrap();
-    let ball = |material: &str| {
-        let text = format!(
-            r#"Integrator "path" "integer maxdepth" [ 1 ]
-Sampler "sobol" "integer pixelsamples" [ 256 ]
-PixelFilter "box"
-Film "rgb" "integer xresolution" [ 24 ] "integer yresolution" [ 24 ]
-LookAt 0 0 5  0 0 0  0 1 0
-Camera "orthographic" "float screenwindow" [ -0.6 0.6 -0.6 0.6 ]
-WorldBegin
-LightSource "infinite" "rgb L" [ 1 1 1 ]
-{material}
-Shape "sphere" "float radius" [ 1 ]
-"#
-        );
-        let path = write_scene(dir.path(), "ball.pbrt", &text);
-        render(&path, dir.path(), "ball", &[]).image.mean()
-    };
+    let settings = r#"Integrator "path" "integer maxdepth" [ 1 ]
+Sampler "sobol" "integer pixelsamples" [ 256 ]"#;
+    let ball = |material: &str| ball_under_sky(dir.path(), settings, 24, material);
     let diffuse = ball(r#"Material "diffuse" "rgb reflectance" [ 0.6 0.6 0.6 ]"#);
     let measured = ball(r#"Material "measured" "string filename" "lambert.bsdf""#);
     for c in 0..3 {

@@ -71,23 +71,28 @@ fn topology(n_vertices: usize, tris: &[[u32; 3]]) -> Result<Topology, String> {
     }
     let rings = fans
         .into_iter()
-        .map(|fan| {
+        .map(|mut fan| {
             if fan.is_empty() {
                 return (Vec::new(), false);
             }
             // Chain the faces around the vertex: face (next, prev) is followed by the face
             // whose next is this prev. A boundary vertex's chain starts at a `next` that no
-            // face has as its `prev`.
+            // face has as its `prev`. Sorted lookups keep a vertex of huge valence (a fan of
+            // a million triangles in a file) at n log n.
+            fan.sort_unstable();
+            let mut prevs: Vec<u32> = fan.iter().map(|f| f.1).collect();
+            prevs.sort_unstable();
+            let by_next = |n: u32| fan.binary_search_by_key(&n, |f| f.0).ok();
             let start = fan
                 .iter()
-                .position(|&(n, _)| !fan.iter().any(|&(_, p)| p == n))
-                .unwrap_or(0);
-            let boundary = fan.iter().any(|&(n, _)| !fan.iter().any(|&(_, p)| p == n));
+                .position(|&(n, _)| prevs.binary_search(&n).is_err());
+            let boundary = start.is_some();
+            let start = start.unwrap_or(0);
             let mut ring = vec![fan[start].0];
             let mut cur = start;
             for _ in 0..fan.len() {
                 let prev = fan[cur].1;
-                match fan.iter().position(|&(n, _)| n == prev) {
+                match by_next(prev) {
                     Some(next) if next != start => {
                         ring.push(prev);
                         cur = next;

@@ -78,8 +78,8 @@ impl ParamSet {
     /// This set with `defaults` (pbrt-v4's `Attribute` values) added where it does not give
     /// the parameter itself. The defaults count as used: like pbrt-v4, Kiln does not
     /// complain about an attribute a shape or light has no use for.
-    pub fn with_defaults(&self, defaults: &[Param]) -> ParamSet {
-        let mut set = self.clone();
+    pub fn with_defaults(self, defaults: &[Param]) -> ParamSet {
+        let mut set = self;
         for d in defaults {
             if !set.params.iter().any(|p| p.name == d.name) {
                 let d = d.clone();

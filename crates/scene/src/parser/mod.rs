@@ -400,40 +400,40 @@ impl Parser {
             // Scene entities (media.rs, materials.rs, lights.rs, shapes.rs).
             "MakeNamedMedium" => {
                 let name = c.string(directive, "medium name")?;
-                let params = self.with_attributes("medium", &c.params()?);
+                let params = self.with_attributes("medium", c.params()?);
                 self.medium(name, &params, loc)?;
             }
             "Material" => {
                 let ty = c.string(directive, "material type")?;
-                let params = self.with_attributes("material", &c.params()?);
+                let params = self.with_attributes("material", c.params()?);
                 let id = self.material(&ty, &params, None, loc)?;
                 self.gs.material = id;
             }
             "MakeNamedMaterial" => {
                 let name = c.string(directive, "material name")?;
-                let params = self.with_attributes("material", &c.params()?);
+                let params = self.with_attributes("material", c.params()?);
                 self.make_named_material(name, &params, loc)?;
             }
             "Texture" => {
                 let name = c.string(directive, "texture name")?;
                 let ty = c.string(directive, "texture type")?;
                 let class = c.string(directive, "texture class")?;
-                let params = self.with_attributes("texture", &c.params()?);
+                let params = self.with_attributes("texture", c.params()?);
                 self.texture(name, &ty, &class, &params, loc)?;
             }
             "LightSource" => {
                 let ty = c.string(directive, "light type")?;
-                let params = self.with_attributes("light", &c.params()?);
+                let params = self.with_attributes("light", c.params()?);
                 self.light(&ty, &params, loc)?;
             }
             "AreaLightSource" => {
                 let ty = c.string(directive, "area light type")?;
-                let params = self.with_attributes("light", &c.params()?);
+                let params = self.with_attributes("light", c.params()?);
                 self.area_light(&ty, &params, loc)?;
             }
             "Shape" => {
                 let ty = c.string(directive, "shape type")?;
-                let params = self.with_attributes("shape", &c.params()?);
+                let params = self.with_attributes("shape", c.params()?);
                 self.shape(&ty, &params, loc)?;
             }
             "Include" | "Import" => self.include(directive, c, loc, depth)?,

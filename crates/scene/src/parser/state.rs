@@ -221,13 +221,14 @@ impl Parser {
         Ok(())
     }
 
-    /// A directive's parameters with the `Attribute` defaults of `target` added.
-    pub(super) fn with_attributes(&self, target: &str, params: &ParamSet) -> ParamSet {
+    /// A directive's parameters with the `Attribute` defaults of `target` added (moved
+    /// through unchanged when there are none: a mesh's arrays are not copied).
+    pub(super) fn with_attributes(&self, target: &str, params: ParamSet) -> ParamSet {
         match ATTRIBUTE_TARGETS.iter().position(|t| *t == target) {
             Some(i) if !self.gs.attributes[i].is_empty() => {
                 params.with_defaults(&self.gs.attributes[i])
             }
-            _ => params.clone(),
+            _ => params,
         }
     }
 
