@@ -113,6 +113,12 @@ fn volume_lights_are_bit_identical_across_tiles_and_threads() {
 }
 
 #[test]
+fn quadrics_are_bit_identical_across_tiles_and_threads() {
+    let path = scene("shapes/scene.pbrt");
+    assert_same_bits_for_any_split("shapes", load(&path, 4, Some((48, 32))));
+}
+
+#[test]
 fn media_are_bit_identical_across_tiles_and_threads() {
     assert_same_bits_for_any_split("fog", load(&scene("media/fog.pbrt"), 4, Some((60, 40))));
     // Caustic photon maps: built once per render, the same for every tile.

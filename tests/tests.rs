@@ -10,5 +10,6 @@ mod estimators;
 mod farm;
 mod media;
 mod reference;
+mod shapes;
 mod textures;
 mod volume_light;

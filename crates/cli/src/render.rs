@@ -95,10 +95,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         p
     });
     eprintln!(
-        "kiln: {} ({} triangles, {} spheres, {} lights), {}x{} ({}x{} rendered), {} spp, {} tiles, {} threads",
+        "kiln: {} ({} triangles, {} spheres, {} other quadrics, {} lights), {}x{} ({}x{} rendered), {} spp, {} tiles, {} threads",
         args.scene.display(),
         scene.geometry.triangle_count(),
         scene.geometry.prims.spheres.len(),
+        scene.geometry.prims.quadrics.len(),
         scene.lights.len(),
         film.xresolution,
         film.yresolution,

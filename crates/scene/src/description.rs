@@ -277,7 +277,42 @@ pub struct MeshDisplacement {
 #[derive(Debug, Clone)]
 pub enum ShapeKind {
     Mesh(Arc<TriangleMeshData>),
-    Sphere { radius: f64 },
+    /// pbrt-v4's sphere about the object-space origin, cut to `z_min ≤ z ≤ z_max` and
+    /// `0 ≤ φ ≤ phi_max` (radians; a whole sphere has `z_min = -radius`, `z_max = radius`,
+    /// `phi_max = 2π`).
+    Sphere {
+        radius: f64,
+        z_min: f64,
+        z_max: f64,
+        phi_max: f64,
+    },
+    /// pbrt-v4's disk: the annulus `inner_radius ≤ r ≤ radius` in the plane `z = height`,
+    /// facing +z, cut to `0 ≤ φ ≤ phi_max` (radians).
+    Disk {
+        height: f64,
+        radius: f64,
+        inner_radius: f64,
+        phi_max: f64,
+    },
+    /// pbrt-v4's cylinder about the z axis, open at both ends, facing outwards.
+    Cylinder {
+        radius: f64,
+        z_min: f64,
+        z_max: f64,
+        phi_max: f64,
+    },
+}
+
+impl ShapeKind {
+    /// A whole sphere of `radius`.
+    pub fn sphere(radius: f64) -> ShapeKind {
+        ShapeKind::Sphere {
+            radius,
+            z_min: -radius,
+            z_max: radius,
+            phi_max: std::f64::consts::TAU,
+        }
+    }
 }
 
 /// Emission attached to a shape by AreaLightSource.

@@ -1,12 +1,14 @@
 //! Diffuse area lights: a shape that emits constant radiance from its surface, one light per
-//! emitting triangle (so the light sampler chooses faces by power) or per sphere.
+//! emitting triangle (so the light sampler chooses faces by power), per sphere or per
+//! quadric (disk, cylinder, partial or transformed sphere).
 
 use super::LightSample;
 use crate::math::{Color, luminance};
 use crate::sampling::{uniform_sphere, uniform_triangle};
-use crate::shapes::Geometry;
+use crate::shapes::quadric::QuadricPoint;
 use crate::shapes::sphere::{sample_sphere, sphere_pdf, sphere_uv};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
+use crate::shapes::{Geometry, ShapeSample};
 use glam::{Vec2, Vec3A};
 use kiln_scene::textures::TextureImage;
 use std::f32::consts::PI;
@@ -250,6 +252,102 @@ impl SphereLight {
                 self.radiance
             },
             area: 4.0 * PI * self.radius * self.radius,
+            two_sided: self.two_sided,
+        }
+    }
+}
+
+/// An emitting quadric (a disk, a cylinder, a partial or transformed sphere), sampled
+/// uniformly by area; `n` of its points is its emitting side.
+#[derive(Debug, Clone)]
+pub struct QuadricLight {
+    /// Index into the geometry's quadrics.
+    pub quadric: u32,
+    /// The radiance, or with an image the scale that multiplies it.
+    pub radiance: Color,
+    pub two_sided: bool,
+    /// World-space area.
+    pub area: f32,
+    pub alpha: Option<u32>,
+    pub image: Option<Arc<EmissionImage>>,
+}
+
+impl QuadricLight {
+    pub fn power(&self) -> f32 {
+        let radiance = match &self.image {
+            Some(image) => self.radiance * image.mean,
+            None => self.radiance,
+        };
+        PI * self.area * luminance(radiance) * sides(self.two_sided)
+    }
+
+    /// Radiance leaving the quadric's point `q` (normal `n`, oriented as hits are) in
+    /// direction `w`.
+    pub fn le(&self, geometry: &Geometry, q: Vec3A, n: Vec3A, w: Vec3A) -> Color {
+        if !self.two_sided && n.dot(w) <= 0.0 {
+            return Color::ZERO;
+        }
+        self.emitted(
+            geometry,
+            &geometry.prims.quadrics[self.quadric as usize].point_at(q),
+        )
+    }
+
+    fn emitted(&self, geometry: &Geometry, at: &QuadricPoint) -> Color {
+        if let Some(alpha) = self.alpha
+            && alpha_masked(geometry, alpha, at.p, at.n, at.uv)
+        {
+            return Color::ZERO;
+        }
+        match &self.image {
+            Some(image) => self.radiance * image.lookup(at.uv),
+            None => self.radiance,
+        }
+    }
+
+    pub fn sample(&self, geometry: &Geometry, p: Vec3A, u: Vec2) -> Option<LightSample> {
+        let quadric = &geometry.prims.quadrics[self.quadric as usize];
+        let (q, area_pdf) = quadric.sample(u);
+        let d = q.p - p;
+        let dist2 = d.length_squared();
+        if dist2 == 0.0 || area_pdf == 0.0 {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let wi = d / dist;
+        let cos = q.n.dot(wi).abs();
+        if cos == 0.0 || (!self.two_sided && q.n.dot(wi) >= 0.0) {
+            return None;
+        }
+        let radiance = self.emitted(geometry, &q);
+        let point = ShapeSample {
+            wi,
+            pdf: area_pdf * dist2 / cos,
+            distance: dist,
+            n: q.n,
+        };
+        (radiance != Color::ZERO).then(|| LightSample::on_surface(point, radiance))
+    }
+
+    pub fn pdf(&self, geometry: &Geometry, p: Vec3A, wi: Vec3A, q: Vec3A) -> f32 {
+        let quadric = &geometry.prims.quadrics[self.quadric as usize];
+        let at = quadric.point_at(q);
+        let cos = at.n.dot(wi).abs();
+        if cos == 0.0 {
+            return 0.0;
+        }
+        quadric.area_density(&at) * (q - p).length_squared() / cos
+    }
+
+    /// A photon's starting point. Its `area` is the reciprocal of the sampled point's area
+    /// density, which under a non-uniform scale varies over the surface.
+    pub fn emission_point(&self, geometry: &Geometry, u: Vec2) -> EmissionPoint {
+        let (q, area_pdf) = geometry.prims.quadrics[self.quadric as usize].sample(u);
+        EmissionPoint {
+            p: q.p,
+            n: q.n,
+            radiance: self.emitted(geometry, &q),
+            area: if area_pdf > 0.0 { 1.0 / area_pdf } else { 0.0 },
             two_sided: self.two_sided,
         }
     }

@@ -17,7 +17,7 @@ mod point;
 mod spot;
 pub mod volume;
 
-pub use area::{EmissionImage, EmissionPoint, SphereLight, TriangleLight};
+pub use area::{EmissionImage, EmissionPoint, QuadricLight, SphereLight, TriangleLight};
 pub use distant::DistantLight;
 pub use infinite::{
     DomeLight, ImageInfiniteLight, UniformInfiniteLight, equal_area_sphere_to_square,
@@ -50,6 +50,7 @@ pub enum Light {
     Distant(DistantLight),
     Triangle(TriangleLight),
     Sphere(SphereLight),
+    Quadric(QuadricLight),
     VolumeTriangle(VolumeTriangleLight),
     VolumeSphere(VolumeSphereLight),
     Medium(MediumLight),
@@ -190,6 +191,7 @@ impl Light {
             | Light::Distant(_)
             | Light::Triangle(_)
             | Light::Sphere(_)
+            | Light::Quadric(_)
             | Light::VolumeTriangle(_)
             | Light::VolumeSphere(_)
             | Light::Medium(_) => false,
@@ -204,6 +206,7 @@ impl Light {
             Light::Distant(l) => l.power(scene_radius),
             Light::Triangle(l) => l.power(),
             Light::Sphere(l) => l.power(),
+            Light::Quadric(l) => l.power(),
             Light::VolumeTriangle(l) => l.power,
             Light::VolumeSphere(l) => l.power,
             Light::Medium(l) => l.power,
@@ -219,6 +222,7 @@ impl Light {
         match self {
             Light::Triangle(l) => (l.le(ctx.geometry, p, ng, w), 0),
             Light::Sphere(l) => (l.le(ctx.geometry, p, ng, w), 0),
+            Light::Quadric(l) => (l.le(ctx.geometry, p, ng, w), 0),
             Light::VolumeTriangle(l) => l.le(ctx, p, ng, ns, w),
             Light::VolumeSphere(l) => l.le(ctx, p, ng, ns, w),
             Light::Point(_)
@@ -242,6 +246,7 @@ impl Light {
             | Light::Distant(_)
             | Light::Triangle(_)
             | Light::Sphere(_)
+            | Light::Quadric(_)
             | Light::VolumeTriangle(_)
             | Light::VolumeSphere(_)
             | Light::Medium(_) => Color::ZERO,
@@ -257,6 +262,7 @@ impl Light {
             Light::Distant(l) => (l.sample(), 0),
             Light::Triangle(l) => (l.sample(ctx.geometry, p, u), 0),
             Light::Sphere(l) => (l.sample(ctx.geometry, p, u), 0),
+            Light::Quadric(l) => (l.sample(ctx.geometry, p, u), 0),
             Light::VolumeTriangle(l) => l.sample(ctx, p, u),
             Light::VolumeSphere(l) => l.sample(ctx, p, u),
             Light::Medium(l) => (l.sample(ctx, p, u), 0),
@@ -283,6 +289,7 @@ impl Light {
             Light::Point(_) | Light::Spot(_) | Light::Distant(_) => 0.0,
             Light::Triangle(l) => pmf * l.pdf(p, wi, q, n),
             Light::Sphere(l) => pmf * l.pdf(p, wi, q, n),
+            Light::Quadric(l) => pmf * l.pdf(ctx.geometry, p, wi, q),
             Light::VolumeTriangle(l) => pmf * l.pdf(p, wi, q, n),
             Light::VolumeSphere(l) => pmf * l.pdf(p, wi, q, n),
             Light::Medium(l) => l.pdf(ctx, pmf, p, q),
@@ -296,7 +303,7 @@ impl Light {
     /// area lights only; the path tracer keeps counting the caustics of the others).
     pub fn shoots_photons(&self) -> bool {
         match self {
-            Light::Triangle(_) | Light::Sphere(_) => true,
+            Light::Triangle(_) | Light::Sphere(_) | Light::Quadric(_) => true,
             Light::Point(_)
             | Light::Spot(_)
             | Light::Distant(_)
@@ -315,6 +322,7 @@ impl Light {
         match self {
             Light::Triangle(l) => Some(l.emission_point(ctx.geometry, u)),
             Light::Sphere(l) => Some(l.emission_point(ctx.geometry, u)),
+            Light::Quadric(l) => Some(l.emission_point(ctx.geometry, u)),
             Light::Point(_)
             | Light::Spot(_)
             | Light::Distant(_)

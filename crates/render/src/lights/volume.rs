@@ -236,6 +236,7 @@ pub fn power_estimates(lights: &[super::Light], ctx: &LightContext, seed: u32) -
             | super::Light::Distant(_)
             | super::Light::Triangle(_)
             | super::Light::Sphere(_)
+            | super::Light::Quadric(_)
             | super::Light::Medium(_)
             | super::Light::UniformInfinite(_)
             | super::Light::ImageInfinite(_)

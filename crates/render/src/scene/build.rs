@@ -7,14 +7,19 @@ use crate::camera::Camera;
 use crate::filter::Filter;
 use crate::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use crate::lights::{
-    EmissionImage, Light, MediumLight, SphereLight, TriangleLight, VolumeInterior,
+    EmissionImage, Light, MediumLight, QuadricLight, SphereLight, TriangleLight, VolumeInterior,
     VolumeSphereLight, VolumeTriangleLight,
 };
 use crate::materials::{DielectricMaterial, Material, Model, Perturbation, RoughnessTexture};
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::sampling::AliasTable;
-use crate::shapes::{Geometry, MeshInfo, NO_MEDIUM, Primitives, Sphere, SurfaceInfo};
+use crate::shapes::cylinder::Cylinder;
+use crate::shapes::disk::Disk;
+use crate::shapes::sphere::PartialSphere;
+use crate::shapes::{
+    Geometry, MeshInfo, NO_MEDIUM, Primitives, Quadric, QuadricShape, Sphere, SurfaceInfo,
+};
 use crate::textures::Textures;
 use glam::{Affine3A, DMat4, Vec2, Vec3A};
 use kiln_scene::{
@@ -105,6 +110,21 @@ impl Builder {
             loc: shape.loc.clone(),
             message,
         };
+        let closed = match shape.kind {
+            ShapeKind::Mesh(_) => true,
+            ShapeKind::Sphere {
+                radius,
+                z_min,
+                z_max,
+                phi_max,
+            } => z_min <= -radius && z_max >= radius && phi_max >= std::f64::consts::TAU,
+            ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } => false,
+        };
+        if !closed {
+            return Err(unsupported(
+                "a VolumeLight (AreaLightSource \"volume\") needs a closed shape with an inside: a mesh or a whole sphere".into(),
+            ));
+        }
         let material = shape.material.0;
         let eta = match &self.materials[material as usize] {
             Material {
@@ -144,8 +164,11 @@ impl Builder {
                     (lo.min(p), hi.max(p))
                 },
             ),
-            ShapeKind::Sphere { radius } => {
+            ShapeKind::Sphere { radius, .. } => {
                 (glam::DVec3::splat(-radius), glam::DVec3::splat(*radius))
+            }
+            ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } => {
+                unreachable!("open shapes were refused above")
             }
         };
         let extent = (hi - lo).max(glam::DVec3::splat(1e-12));
@@ -207,7 +230,71 @@ impl Builder {
                 }
                 None => self.add_mesh(shape, mesh, to_world, surface),
             },
-            ShapeKind::Sphere { radius } => self.add_sphere(shape, *radius, to_world, surface),
+            &ShapeKind::Sphere {
+                radius,
+                z_min,
+                z_max,
+                phi_max,
+            } => {
+                // A sphere with an emission image needs (u, v) on its light samples, which
+                // quadrics have.
+                let imaged = matches!(
+                    &shape.area_light,
+                    Some(AreaLightDesc::Diffuse { image: Some(_), .. })
+                );
+                let whole = !imaged
+                    && z_min <= -radius
+                    && z_max >= radius
+                    && phi_max >= std::f64::consts::TAU;
+                match similarity_scale(&to_world) {
+                    Some(scale) if whole => {
+                        self.add_sphere(shape, radius, scale, to_world, surface)
+                    }
+                    _ => self.add_quadric(
+                        shape,
+                        QuadricShape::Sphere(PartialSphere {
+                            radius: radius as f32,
+                            z_min: z_min as f32,
+                            z_max: z_max as f32,
+                            phi_max: phi_max as f32,
+                        }),
+                        to_world,
+                        surface,
+                    ),
+                }
+            }
+            &ShapeKind::Disk {
+                height,
+                radius,
+                inner_radius,
+                phi_max,
+            } => self.add_quadric(
+                shape,
+                QuadricShape::Disk(Disk {
+                    height: height as f32,
+                    radius: radius as f32,
+                    inner_radius: inner_radius as f32,
+                    phi_max: phi_max as f32,
+                }),
+                to_world,
+                surface,
+            ),
+            &ShapeKind::Cylinder {
+                radius,
+                z_min,
+                z_max,
+                phi_max,
+            } => self.add_quadric(
+                shape,
+                QuadricShape::Cylinder(Cylinder {
+                    radius: radius as f32,
+                    z_min: z_min as f32,
+                    z_max: z_max as f32,
+                    phi_max: phi_max as f32,
+                }),
+                to_world,
+                surface,
+            ),
         }
     }
 
@@ -337,27 +424,23 @@ impl Builder {
     }
 
     /// A sphere in world space (uniform scales only); one light if it emits.
+    /// A whole sphere under a similarity transform (uniform scale `scale`): in world space,
+    /// sampled by its visible cone.
     fn add_sphere(
         &mut self,
         shape: &ShapeDesc,
         radius: f64,
+        scale: f64,
         to_world: DMat4,
         surface: SurfaceInfo,
     ) -> Result<(), BuildError> {
         let (volume, media) = (surface.volume, surface.media);
         let surface = |light| SurfaceInfo { light, ..surface };
         let center = to_world.transform_point3(glam::DVec3::ZERO);
-        let axes = [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z]
-            .map(|a| to_world.transform_vector3(a).length());
-        if (axes[0] - axes[1]).abs() > 1e-6 * axes[0] || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
-        {
-            return Err(BuildError::Unsupported {
-                loc: shape.loc.clone(),
-                message: "a sphere under a non-uniform scale (an ellipsoid) is not supported yet"
-                    .into(),
-            });
-        }
-        let world_radius = (radius * axes[0]) as f32;
+        // pbrt-v4 orients quadrics by the object-space normal carried to the world and then
+        // flips them for ReverseOrientation xor a handedness-swapping transform.
+        let flip = shape.reverse_orientation ^ (to_world.determinant() < 0.0);
+        let world_radius = (radius * scale) as f32;
         let center_f32 = Vec3A::from(center.as_vec3());
         if !within_world_limit(center_f32 + world_radius)
             || !within_world_limit(center_f32 - world_radius)
@@ -378,21 +461,17 @@ impl Builder {
             ..
         }) = &shape.area_light
         {
-            if image.is_some() {
-                return Err(BuildError::Unsupported {
-                    loc: shape.loc.clone(),
-                    message: "an emission image (AreaLightSource \"filename\") on a sphere is not supported yet; it works on triangle meshes".into(),
-                });
-            }
+            debug_assert!(image.is_none(), "spheres with emission images are quadrics");
             self.light_media.resize(self.lights.len(), None);
             self.light_media.push(media);
-            let area = 4.0 * std::f32::consts::PI * world_radius * world_radius;
+            // pbrt-v4's "power" divides by the object-space area, whatever the transform.
+            let area = 4.0 * std::f32::consts::PI * (radius * radius) as f32;
             self.lights.push(Light::Sphere(SphereLight {
                 center: center.as_vec3().into(),
                 radius: world_radius,
                 radiance: rgb(*radiance) * power_scale(*power, area, *two_sided, 1.0),
                 two_sided: *two_sided,
-                inward: shape.reverse_orientation,
+                inward: flip,
                 alpha: surface(None).alpha,
             }));
         }
@@ -414,10 +493,85 @@ impl Builder {
             center: center.as_vec3().into(),
             radius: world_radius,
             surface: surface(light),
-            flip: shape.reverse_orientation,
+            flip,
         });
         Ok(())
     }
+
+    /// A disk, a cylinder, or a sphere that is partial or under a transform other than a
+    /// similarity, intersected in its object space.
+    fn add_quadric(
+        &mut self,
+        shape: &ShapeDesc,
+        kind: QuadricShape,
+        to_world: DMat4,
+        surface: SurfaceInfo,
+    ) -> Result<(), BuildError> {
+        let object_area = kind.area();
+        if object_area.is_nan() || object_area <= 0.0 {
+            // pbrt-v4 accepts an empty quadric (zero radius, zmin = zmax, phimax 0) and draws
+            // nothing; so does Kiln.
+            return Ok(());
+        }
+        let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
+        let quadric = Quadric::new(
+            kind,
+            to_world,
+            SurfaceInfo { light, ..surface },
+            shape.reverse_orientation,
+        )
+        .ok_or_else(|| BuildError::Unsupported {
+            loc: shape.loc.clone(),
+            message: "this shape's transform cannot be inverted (a zero scale?)".into(),
+        })?;
+        let (lo, hi) = quadric.bounds();
+        if !within_world_limit(lo) || !within_world_limit(hi) {
+            return Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: format!(
+                    "this shape (bounds {lo} to {hi} in world space): {WORLD_LIMIT_TEXT}"
+                ),
+            });
+        }
+        if let Some(AreaLightDesc::Diffuse {
+            radiance,
+            image,
+            two_sided,
+            power,
+            ..
+        }) = &shape.area_light
+        {
+            let image = image.clone().map(|i| Arc::new(EmissionImage::new(i)));
+            let luminance = image.as_ref().map_or(1.0, |i| i.mean_luminance());
+            self.light_media.resize(self.lights.len(), None);
+            self.light_media.push(surface.media);
+            self.lights.push(Light::Quadric(QuadricLight {
+                quadric: self.prims.quadrics.len() as u32,
+                // pbrt-v4's "power" divides by the object-space area, whatever the transform.
+                radiance: rgb(*radiance) * power_scale(*power, object_area, *two_sided, luminance),
+                two_sided: *two_sided,
+                area: quadric.world_area(),
+                alpha: surface.alpha,
+                image,
+            }));
+        }
+        self.prims.quadrics.push(quadric);
+        Ok(())
+    }
+}
+
+/// The uniform scale of a similarity transform (rotation, reflection, translation and one
+/// scale), or None.
+fn similarity_scale(m: &DMat4) -> Option<f64> {
+    let axes = [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z].map(|a| m.transform_vector3(a));
+    let s = axes[0].length();
+    let orthogonal = axes[0].dot(axes[1]).abs() <= 1e-6 * s * s
+        && axes[0].dot(axes[2]).abs() <= 1e-6 * s * s
+        && axes[1].dot(axes[2]).abs() <= 1e-6 * s * s;
+    let equal =
+        (axes[1].length() - s).abs() <= 1e-6 * s && (axes[2].length() - s).abs() <= 1e-6 * s;
+    (s > 0.0 && orthogonal && equal && m.row(3) == glam::DVec4::new(0.0, 0.0, 0.0, 1.0))
+        .then_some(s)
 }
 
 impl Scene {

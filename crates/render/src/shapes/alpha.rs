@@ -38,7 +38,7 @@ impl Geometry {
         self.opaque(alpha, p, n, super::sphere::sphere_uv(n), origin, dir)
     }
 
-    fn opaque(
+    pub(super) fn opaque(
         &self,
         alpha: u32,
         p: Vec3A,

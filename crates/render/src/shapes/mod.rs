@@ -1,5 +1,6 @@
 //! Shapes and the aggregate that holds them: scene geometry in world space, triangle meshes
-//! ([`triangle`]) and spheres ([`sphere`]), each kind in an obvhs compressed wide BVH
+//! ([`triangle`]), whole spheres ([`sphere`]) and pbrt-v4's other quadrics, partial or
+//! transformed spheres, disks and cylinders ([`quadric`]), each kind in an obvhs compressed wide BVH
 //! (CWBVH), with the primitives laid out in BVH order as obvhs recommends, so a leaf's
 //! triangles are contiguous in memory.
 //!
@@ -9,11 +10,15 @@
 //! indices a [`SurfaceInfo`] carries.
 
 mod alpha;
+pub mod cylinder;
+pub mod disk;
 pub mod displace;
+pub mod quadric;
 pub use alpha::hash_float;
 pub mod sphere;
 pub mod triangle;
 
+pub use quadric::{Quadric, QuadricShape};
 pub use sphere::Sphere;
 pub use triangle::barycentrics;
 
@@ -38,6 +43,14 @@ pub struct SurfaceInfo {
     pub media: Option<[u32; 2]>,
     /// The alpha texture (index into `Primitives::alphas`) where rays may pass through.
     pub alpha: Option<u32>,
+}
+
+/// Which kind of primitive a hit is on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum HitKind {
+    Triangle,
+    Sphere,
+    Quadric,
 }
 
 /// Vacuum, in [`SurfaceInfo::media`].
@@ -98,6 +111,7 @@ pub struct Primitives {
     /// The mesh each triangle belongs to.
     pub triangle_mesh: Vec<u32>,
     pub spheres: Vec<Sphere>,
+    pub quadrics: Vec<Quadric>,
     /// Alpha textures, referred to by `SurfaceInfo::alpha`.
     pub alphas: Vec<FloatTexture>,
 }
@@ -112,6 +126,7 @@ pub struct Geometry {
     /// For each BVH slot, the triangle's index in declaration order.
     bvh_triangle_ids: Vec<u32>,
     sphere_bvh: Option<CwBvh>,
+    quadric_bvh: Option<CwBvh>,
     /// Some surface has an alpha texture: candidate hits must be tested against it.
     any_alpha: bool,
     /// Time spent building BVHs.
@@ -143,6 +158,7 @@ impl Geometry {
             positions,
             triangle_vertices,
             spheres,
+            quadrics,
             ..
         } = &primitives;
         let mut build_time = Duration::ZERO;
@@ -203,6 +219,16 @@ impl Geometry {
                 ));
             });
         }
+        let mut quadric_bvh = None;
+        if !quadrics.is_empty() {
+            build(&mut || {
+                quadric_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                    quadrics,
+                    BvhBuildParams::medium_build(),
+                    &mut build_time,
+                ));
+            });
+        }
         Geometry {
             any_alpha: !primitives.alphas.is_empty(),
             prims: primitives,
@@ -210,6 +236,7 @@ impl Geometry {
             bvh_triangles,
             bvh_triangle_ids,
             sphere_bvh,
+            quadric_bvh,
             build_time,
         }
     }
@@ -220,11 +247,11 @@ impl Geometry {
 
     /// The closest hit along `ray` within (0, tmax).
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<SurfaceHit> {
-        let (t, is_triangle, id) = self.closest(ray, tmax)?;
-        Some(if is_triangle {
-            self.triangle_hit(ray, t, id)
-        } else {
-            self.sphere_hit(ray, t, id)
+        let (t, kind, id) = self.closest(ray, tmax)?;
+        Some(match kind {
+            HitKind::Triangle => self.triangle_hit(ray, t, id),
+            HitKind::Sphere => self.sphere_hit(ray, t, id),
+            HitKind::Quadric => self.quadric_hit(ray, t, id),
         })
     }
 
@@ -233,16 +260,19 @@ impl Geometry {
         self.closest(ray, tmax).map(|(t, _, _)| t)
     }
 
-    /// Distance, kind (triangle or sphere) and index of the closest hit.
-    fn closest(&self, ray: &Ray, tmax: f32) -> Option<(f32, bool, u32)> {
+    /// Distance, kind and index of the closest hit.
+    fn closest(&self, ray: &Ray, tmax: f32) -> Option<(f32, HitKind, u32)> {
         let bray = bvh_ray(ray.origin, ray.dir, 0.0, tmax);
         let mut best_t = tmax;
-        let mut best: Option<(bool, u32)> = None;
+        let mut best: Option<(HitKind, u32)> = None;
         if let Some(bvh) = &self.triangle_bvh {
             let mut hit = RayHit::none();
             if bvh.ray_traverse(bray, &mut hit, |r, id| self.triangle_t(r, id)) && hit.t < best_t {
                 best_t = hit.t;
-                best = Some((true, self.bvh_triangle_ids[hit.primitive_id as usize]));
+                best = Some((
+                    HitKind::Triangle,
+                    self.bvh_triangle_ids[hit.primitive_id as usize],
+                ));
             }
         }
         if let Some(bvh) = &self.sphere_bvh {
@@ -253,11 +283,42 @@ impl Geometry {
             }) && hit.t < best_t
             {
                 best_t = hit.t;
-                best = Some((false, bvh.primitive_indices[hit.primitive_id as usize]));
+                best = Some((
+                    HitKind::Sphere,
+                    bvh.primitive_indices[hit.primitive_id as usize],
+                ));
             }
         }
-        let (is_triangle, id) = best?;
-        Some((best_t, is_triangle, id))
+        if let Some(bvh) = &self.quadric_bvh {
+            let mut hit = RayHit::none();
+            let qray = bvh_ray(ray.origin, ray.dir, 0.0, best_t);
+            if bvh.ray_traverse(qray, &mut hit, |r, id| {
+                self.quadric_t(r, bvh.primitive_indices[id], r.tmin.max(1e-7))
+            }) && hit.t < best_t
+            {
+                best_t = hit.t;
+                best = Some((
+                    HitKind::Quadric,
+                    bvh.primitive_indices[hit.primitive_id as usize],
+                ));
+            }
+        }
+        let (kind, id) = best?;
+        Some((best_t, kind, id))
+    }
+
+    /// The distance to quadric `id` along `r` beyond `tmin`, as [`Self::triangle_t`].
+    #[inline(always)]
+    fn quadric_t(&self, r: &BvhRay, id: u32, tmin: f32) -> f32 {
+        let q = &self.prims.quadrics[id as usize];
+        let t = q.intersect(r.origin, r.direction, tmin, r.tmax);
+        if self.any_alpha
+            && t < f32::INFINITY
+            && !self.quadric_is_opaque_at(id, r.origin, r.direction, t)
+        {
+            return f32::INFINITY;
+        }
+        t
     }
 
     /// The distance to triangle BVH slot `slot` along `r`, infinite on a miss or where its
@@ -303,6 +364,13 @@ impl Geometry {
                 return false;
             }
         }
+        if let Some(bvh) = &self.quadric_bvh {
+            if !bvh.ray_traverse_miss(bray, |r, id| {
+                self.quadric_t(r, bvh.primitive_indices[id], 1e-7)
+            }) {
+                return false;
+            }
+        }
         true
     }
 
@@ -317,6 +385,11 @@ impl Geometry {
         for s in &self.prims.spheres {
             lo = lo.min(s.center - Vec3A::splat(s.radius));
             hi = hi.max(s.center + Vec3A::splat(s.radius));
+        }
+        for q in &self.prims.quadrics {
+            let (a, b) = q.bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
         }
         if lo.x > hi.x {
             (Vec3A::ZERO, Vec3A::ZERO)

@@ -1,10 +1,12 @@
-//! Spheres: ray intersection, hit records, and sampling (the visible cone from outside,
-//! the area from inside).
+//! Spheres: whole spheres in world space (ray intersection, hit records, and sampling: the
+//! visible cone from outside, the area from inside), and pbrt-v4's partial spheres in
+//! object space ([`PartialSphere`]), which [`super::quadric`] places in the world.
 
+use super::quadric::{LocalPoint, phi_of, solve_quadratic};
 use super::{Geometry, ShapeSample, SurfaceHit, SurfaceInfo};
 use crate::math::{Frame, Ray};
 use crate::sampling::{uniform_cone, uniform_sphere};
-use glam::{Vec2, Vec3A};
+use glam::{DVec3, Vec2, Vec3A};
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
 use std::f32::consts::PI;
@@ -161,5 +163,107 @@ pub fn sphere_pdf(center: Vec3A, radius: f32, p: Vec3A, wi: Vec3A, q: Vec3A, n: 
         let sin2_max = r2 / dc2;
         let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
         1.0 / (2.0 * PI * (sin2_max / (1.0 + cos_max)))
+    }
+}
+
+/// pbrt-v4's sphere in object space, centred at the origin, cut to `z_min ≤ z ≤ z_max` and
+/// `0 ≤ φ ≤ phi_max`: partial spheres, and whole ones under transforms that are not
+/// similarities. [`super::quadric`] places it in the world.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PartialSphere {
+    pub radius: f32,
+    pub z_min: f32,
+    pub z_max: f32,
+    /// Radians, in [0, 2π].
+    pub phi_max: f32,
+}
+
+impl PartialSphere {
+    /// θ (from +z) at `z_min` and at `z_max`.
+    fn theta_range(&self) -> (f32, f32) {
+        (
+            (self.z_min / self.radius).clamp(-1.0, 1.0).acos(),
+            (self.z_max / self.radius).clamp(-1.0, 1.0).acos(),
+        )
+    }
+
+    /// The ray parameter of the nearest hit in (tmin, tmax), or infinity.
+    pub fn intersect(&self, o: DVec3, d: DVec3, tmin: f64, tmax: f64) -> f64 {
+        let r = f64::from(self.radius);
+        let a = d.length_squared();
+        let b = 2.0 * d.dot(o);
+        let c = o.length_squared() - r * r;
+        // The discriminant from the ray's closest approach to the centre (pbrt-v4's form,
+        // which keeps its precision for distant spheres).
+        let len = (o - d * (b / (2.0 * a))).length();
+        let Some((t0, t1)) = solve_quadratic(a, b, c, 4.0 * a * (r + len) * (r - len)) else {
+            return f64::INFINITY;
+        };
+        let whole_z = self.z_min <= -self.radius && self.z_max >= self.radius;
+        for t in [t0, t1] {
+            if t <= tmin || t >= tmax {
+                continue;
+            }
+            let p = o + d * t;
+            let (x, y) = if p.x == 0.0 && p.y == 0.0 {
+                (1e-5 * r, p.y)
+            } else {
+                (p.x, p.y)
+            };
+            if (whole_z || (p.z >= f64::from(self.z_min) && p.z <= f64::from(self.z_max)))
+                && phi_of(x, y) <= f64::from(self.phi_max)
+            {
+                return t;
+            }
+        }
+        f64::INFINITY
+    }
+
+    /// The surface at (the point nearest) `p`, parametrised as pbrt-v4 does: u = φ/φmax,
+    /// v = (θ − θ(zmin))/(θ(zmax) − θ(zmin)).
+    pub fn local(&self, p: Vec3A) -> LocalPoint {
+        let n = p.normalize_or(Vec3A::Z);
+        let mut p = n * self.radius;
+        if p.x == 0.0 && p.y == 0.0 {
+            p.x = 1e-5 * self.radius;
+        }
+        let phi = phi_of(f64::from(p.x), f64::from(p.y)) as f32;
+        let (theta_min, theta_max) = self.theta_range();
+        let cos_theta = (p.z / self.radius).clamp(-1.0, 1.0);
+        let theta = cos_theta.acos();
+        let r_xy = (p.x * p.x + p.y * p.y).sqrt();
+        let (cos_phi, sin_phi) = (p.x / r_xy, p.y / r_xy);
+        let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+        LocalPoint {
+            p,
+            n,
+            dpdu: Vec3A::new(-self.phi_max * p.y, self.phi_max * p.x, 0.0),
+            dpdv: (theta_max - theta_min)
+                * Vec3A::new(p.z * cos_phi, p.z * sin_phi, -self.radius * sin_theta),
+            uv: Vec2::new(
+                phi / self.phi_max,
+                (theta - theta_min) / (theta_max - theta_min),
+            ),
+        }
+    }
+
+    pub fn area(&self) -> f32 {
+        self.phi_max * self.radius * (self.z_max - self.z_min)
+    }
+
+    /// A point uniformly distributed over the area (Archimedes: z is uniform).
+    pub fn sample(&self, u: Vec2) -> Vec3A {
+        let z = self.z_min + u.x * (self.z_max - self.z_min);
+        let r_xy = (self.radius * self.radius - z * z).max(0.0).sqrt();
+        let phi = u.y * self.phi_max;
+        Vec3A::new(r_xy * phi.cos(), r_xy * phi.sin(), z)
+    }
+
+    /// Object-space bounds.
+    pub fn bounds(&self) -> (Vec3A, Vec3A) {
+        (
+            Vec3A::new(-self.radius, -self.radius, self.z_min),
+            Vec3A::new(self.radius, self.radius, self.z_max),
+        )
     }
 }

@@ -1,4 +1,4 @@
-//! Shapes: spheres and triangle meshes (inline `trianglemesh` and `bilinearmesh`, or read
+//! Shapes: spheres, disks, cylinders and triangle meshes (inline `trianglemesh` and `bilinearmesh`, or read
 //! from PLY and OBJ files), with the graphics state they are made in.
 
 use super::Parser;
@@ -17,19 +17,49 @@ impl Parser {
         let kind = match ty {
             "sphere" => {
                 let radius = params.float("radius", 1.0)?;
-                if radius <= 0.0 {
+                if !(radius > 0.0 && radius.is_finite()) {
                     return Err(SceneError::at(loc, "sphere: radius must be positive"));
                 }
-                let zmin = params.float("zmin", -radius)?;
-                let zmax = params.float("zmax", radius)?;
-                let phimax = params.float("phimax", 360.0)?;
-                if zmin > -radius || zmax < radius || phimax < 360.0 {
+                let (z0, z1) = (
+                    params.float("zmin", -radius)?,
+                    params.float("zmax", radius)?,
+                );
+                // pbrt-v4 orders the two and clamps them to the sphere.
+                ShapeKind::Sphere {
+                    radius,
+                    z_min: z0.min(z1).clamp(-radius, radius),
+                    z_max: z0.max(z1).clamp(-radius, radius),
+                    phi_max: phi_max(params, loc)?,
+                }
+            }
+            "disk" => {
+                let radius = params.float("radius", 1.0)?;
+                let inner_radius = params.float("innerradius", 0.0)?;
+                if !(radius >= 0.0 && inner_radius >= 0.0 && radius.is_finite()) {
                     return Err(SceneError::at(
                         loc,
-                        "sphere: partial spheres (zmin, zmax, phimax) are not supported yet",
+                        "disk: radius and innerradius must be non-negative",
                     ));
                 }
-                ShapeKind::Sphere { radius }
+                ShapeKind::Disk {
+                    height: params.float("height", 0.0)?,
+                    radius,
+                    inner_radius,
+                    phi_max: phi_max(params, loc)?,
+                }
+            }
+            "cylinder" => {
+                let radius = params.float("radius", 1.0)?;
+                if !(radius >= 0.0 && radius.is_finite()) {
+                    return Err(SceneError::at(loc, "cylinder: radius must be non-negative"));
+                }
+                let (z0, z1) = (params.float("zmin", -1.0)?, params.float("zmax", 1.0)?);
+                ShapeKind::Cylinder {
+                    radius,
+                    z_min: z0.min(z1),
+                    z_max: z0.max(z1),
+                    phi_max: phi_max(params, loc)?,
+                }
             }
             "trianglemesh" => ShapeKind::Mesh(Arc::new(mesh_from_params(params, loc)?)),
             "loopsubdiv" => ShapeKind::Mesh(Arc::new(loop_subdiv_from_params(params, loc)?)),
@@ -60,7 +90,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, loopsubdiv, plymesh, objmesh, sphere)"
+                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, loopsubdiv, plymesh, objmesh, sphere, disk, cylinder)"
                     ),
                 ));
             }
@@ -128,6 +158,18 @@ impl Parser {
             edge_length: edge_length as f32,
         }))
     }
+}
+
+/// A quadric's "phimax", in degrees, clamped to [0, 360] as pbrt-v4 does, in radians.
+fn phi_max(params: &ParamSet, loc: &Loc) -> Result<f64> {
+    let degrees = params.float("phimax", 360.0)?;
+    if degrees.is_nan() {
+        return Err(SceneError::at(
+            &params.loc_of("phimax").unwrap_or_else(|| loc.clone()),
+            "\"phimax\" must be a number of degrees",
+        ));
+    }
+    Ok(degrees.clamp(0.0, 360.0).to_radians())
 }
 
 /// pbrt-v4's "loopsubdiv": the control mesh ("point3 P", "integer indices") subdivided

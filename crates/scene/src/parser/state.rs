@@ -394,7 +394,7 @@ mod tests {
              Shape \"sphere\"",
         );
         let radius = |i: usize| match s.shapes[i].kind {
-            ShapeKind::Sphere { radius } => radius,
+            ShapeKind::Sphere { radius, .. } => radius,
             _ => panic!("shape {i} is a sphere"),
         };
         assert_eq!(radius(0), 0.5);
