@@ -179,6 +179,9 @@ pub enum MaterialKind {
         eta: RgbValue,
         k: RgbValue,
         roughness: Roughness,
+        /// eta and k as the spectra they were given as, when both were sampled spectra
+        /// (inline or from files): the renderer then reflects by their spectral Fresnel.
+        spectra: Option<Arc<ConductorSpectra>>,
     },
     /// A conductor given by its reflectance at normal incidence instead of eta and k.
     ConductorReflectance {
@@ -199,6 +202,8 @@ pub enum MaterialKind {
         /// eta and k, or (if `reflectance` is given) eta 1 and k from it.
         conductor_eta: RgbValue,
         conductor_k: RgbValue,
+        /// As [`MaterialKind::Conductor`]'s.
+        conductor_spectra: Option<Arc<ConductorSpectra>>,
         reflectance: Option<RgbValue>,
         conductor_roughness: Roughness,
         layer: LayerDesc,
@@ -265,6 +270,13 @@ pub struct TriangleMeshData {
     pub uvs: Option<Vec<[f32; 2]>>,
     /// Three per triangle.
     pub indices: Vec<u32>,
+}
+
+/// A conductor's eta and k as sampled spectra: (wavelength nm, value) pairs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConductorSpectra {
+    pub eta: Vec<(f32, f32)>,
+    pub k: Vec<(f32, f32)>,
 }
 
 /// A plymesh's displacement: a float texture and the longest edge to refine to.

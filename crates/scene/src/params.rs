@@ -375,6 +375,24 @@ impl ParamSet {
         }
     }
 
+    /// A `spectrum` parameter given as (wavelength, value) pairs (inline, or read from a
+    /// file), as given; None when it is absent or given any other way. (It is not marked
+    /// used: the parameter's RGB is read too.)
+    pub fn sampled_spectrum(&self, name: &str) -> Option<Vec<(f32, f32)>> {
+        let p = self
+            .params
+            .iter()
+            .find(|p| p.name == name && p.ty == "spectrum")?;
+        match &p.values {
+            ParamValues::Numbers(v) if v.len() >= 2 && v.len() % 2 == 0 => Some(
+                v.chunks_exact(2)
+                    .map(|c| (c[0] as f32, c[1] as f32))
+                    .collect(),
+            ),
+            _ => None,
+        }
+    }
+
     /// The `spectrum` parameters given as one string that names no built-in spectrum: files
     /// of (wavelength, value) pairs, as (parameter name, file name, location).
     pub fn spectrum_files(&self) -> Vec<(String, String, Loc)> {

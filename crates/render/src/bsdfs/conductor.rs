@@ -1,21 +1,32 @@
 //! Conductors: complex Fresnel reflection, perfectly smooth or Trowbridge-Reitz rough.
 
-use super::fresnel::fresnel_complex;
+use super::fresnel::{FresnelTable, fresnel_complex};
 use super::{BsdfSample, TrowbridgeReitz, reflect, same_hemisphere};
 use crate::math::Color;
 use glam::{Vec2, Vec3A};
 
 /// A conductor: complex Fresnel reflection, smooth or Trowbridge-Reitz rough.
 #[derive(Debug, Clone, Copy)]
-pub struct ConductorBxdf {
+pub struct ConductorBxdf<'a> {
     pub eta: Color,
     pub k: Color,
     pub distrib: TrowbridgeReitz,
+    /// The spectral Fresnel reflectance in RGB, which replaces that of `eta` and `k` when
+    /// the material was given spectra.
+    pub table: Option<&'a FresnelTable>,
 }
 
-impl ConductorBxdf {
+impl ConductorBxdf<'_> {
+    /// The Fresnel reflectance at `cos`.
+    fn fresnel(&self, cos: f32) -> Color {
+        match self.table {
+            Some(t) => t.eval(cos),
+            None => fresnel_complex(cos, self.eta, self.k),
+        }
+    }
+
     pub fn f(&self, wo: Vec3A, wi: Vec3A) -> Color {
-        let ConductorBxdf { eta, k, distrib } = *self;
+        let distrib = self.distrib;
         if !same_hemisphere(wo, wi) || distrib.effectively_smooth() {
             return Color::ZERO;
         }
@@ -25,7 +36,7 @@ impl ConductorBxdf {
             return Color::ZERO;
         }
         let wm = wm.normalize();
-        let f = fresnel_complex(wo.dot(wm).abs(), eta, k);
+        let f = self.fresnel(wo.dot(wm).abs());
         distrib.d(wm) * f * distrib.g(wo, wi) / (4.0 * cos_i * cos_o)
     }
 
@@ -46,12 +57,12 @@ impl ConductorBxdf {
     }
 
     pub fn sample(&self, wo: Vec3A, _uc: f32, u: Vec2) -> Option<BsdfSample> {
-        let ConductorBxdf { eta, k, distrib } = *self;
+        let distrib = self.distrib;
         if distrib.effectively_smooth() {
             let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
             let cos = wi.z.abs();
             return Some(BsdfSample {
-                f: fresnel_complex(cos, eta, k) / cos,
+                f: self.fresnel(cos) / cos,
                 wi,
                 pdf: 1.0,
                 specular: true,

@@ -98,6 +98,28 @@ fn fresnel_complex_1(cos_i: f32, eta: f32, k: f32) -> f32 {
     (r_parl.norm() + r_perp.norm()) / 2.0
 }
 
+/// A conductor's Fresnel reflectance tabulated in RGB over cos θ from 0 to 1 (evenly
+/// spaced), from its spectral eta and k (`kiln_scene::spectrum::conductor_fresnel_rgb`):
+/// what the spectral reflectance looks like, where the Fresnel of RGB eta and k misses it.
+#[derive(Debug, Clone)]
+pub struct FresnelTable(Vec<Color>);
+
+impl FresnelTable {
+    /// From at least two entries.
+    pub fn new(rgb: &[[f32; 3]]) -> FresnelTable {
+        assert!(rgb.len() >= 2, "a Fresnel table needs two entries");
+        FresnelTable(rgb.iter().map(|c| Color::from_array(*c)).collect())
+    }
+
+    /// The reflectance at `cos_i`, linearly interpolated.
+    pub fn eval(&self, cos_i: f32) -> Color {
+        let x = cos_i.clamp(0.0, 1.0) * (self.0.len() - 1) as f32;
+        let i = (x as usize).min(self.0.len() - 2);
+        let t = x - i as f32;
+        self.0[i] * (1.0 - t) + self.0[i + 1] * t
+    }
+}
+
 pub fn fresnel_complex(cos_i: f32, eta: Color, k: Color) -> Color {
     Color::new(
         fresnel_complex_1(cos_i, eta.x, k.x),

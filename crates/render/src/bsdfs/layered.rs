@@ -16,15 +16,15 @@ use glam::{Vec2, Vec3A};
 
 /// What lies under the coat.
 #[derive(Debug, Clone, Copy)]
-pub enum Base {
+pub enum Base<'a> {
     Diffuse(DiffuseBxdf),
-    Conductor(ConductorBxdf),
+    Conductor(ConductorBxdf<'a>),
 }
 
 #[derive(Debug, Clone, Copy)]
-pub struct LayeredBxdf {
+pub struct LayeredBxdf<'a> {
     pub top: DielectricBxdf,
-    pub bottom: Base,
+    pub bottom: Base<'a>,
     pub thickness: f32,
     pub albedo: Color,
     pub g: f32,
@@ -34,12 +34,12 @@ pub struct LayeredBxdf {
 
 /// One of the two interfaces, as the random walk meets them.
 #[derive(Clone, Copy)]
-enum Layer<'a> {
+enum Layer<'a, 'b> {
     Top(&'a DielectricBxdf),
-    Bottom(&'a Base),
+    Bottom(&'a Base<'b>),
 }
 
-impl Layer<'_> {
+impl Layer<'_, '_> {
     fn f(self, wo: Vec3A, wi: Vec3A, importance: bool) -> Color {
         match self {
             Layer::Top(d) => d.f_mode(wo, wi, importance),
@@ -134,7 +134,7 @@ impl Rng {
     }
 }
 
-impl LayeredBxdf {
+impl LayeredBxdf<'_> {
     fn phase(&self) -> Phase {
         Phase::HenyeyGreenstein { g: self.g }
     }

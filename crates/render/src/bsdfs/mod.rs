@@ -21,7 +21,7 @@ pub use conductor::ConductorBxdf;
 pub use dielectric::DielectricBxdf;
 pub use diffuse::DiffuseBxdf;
 pub use diffuse_transmission::DiffuseTransmissionBxdf;
-pub use fresnel::{fresnel_complex, fresnel_dielectric, refract};
+pub use fresnel::{FresnelTable, fresnel_complex, fresnel_dielectric, refract};
 pub use layered::{Base, LayeredBxdf};
 pub use measured::{MeasuredBxdf, MeasuredTables};
 pub use microfacet::TrowbridgeReitz;
@@ -46,10 +46,10 @@ pub struct BsdfSample {
 pub enum Bsdf<'a> {
     Diffuse(DiffuseBxdf),
     DiffuseTransmission(DiffuseTransmissionBxdf),
-    Conductor(ConductorBxdf),
+    Conductor(ConductorBxdf<'a>),
     Dielectric(DielectricBxdf),
     ThinDielectric(ThinDielectricBxdf),
-    Layered(LayeredBxdf),
+    Layered(LayeredBxdf<'a>),
     Measured(MeasuredBxdf<'a>),
 }
 
@@ -215,11 +215,13 @@ mod tests {
                 eta: Color::new(0.2, 0.9, 1.1),
                 k: Color::new(3.9, 2.4, 2.1),
                 distrib: TrowbridgeReitz::new(0.3, 0.3),
+                table: None,
             }),
             Bsdf::Conductor(ConductorBxdf {
                 eta: Color::splat(0.2),
                 k: Color::splat(3.0),
                 distrib: TrowbridgeReitz::new(0.1, 0.4),
+                table: None,
             }),
             Bsdf::Dielectric(DielectricBxdf {
                 eta: 1.5,
@@ -305,6 +307,7 @@ mod tests {
                 eta: Color::splat(0.0),
                 k: Color::splat(1e4),
                 distrib: TrowbridgeReitz::new(alpha, alpha),
+                table: None,
             })
         };
         for base in [white, mirror(0.0)] {
@@ -348,6 +351,7 @@ mod tests {
             eta: Color::splat(0.0),
             k: Color::splat(1e4),
             distrib: TrowbridgeReitz::new(0.2, 0.2),
+            table: None,
         });
         let wo = wo_at(1.0);
         let n = 1 << 14;

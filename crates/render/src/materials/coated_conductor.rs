@@ -20,7 +20,7 @@ pub struct CoatedConductorMaterial {
 impl CoatedConductorMaterial {
     pub fn is_textured(&self) -> bool {
         let spec = match &self.conductor {
-            ConductorSpec::EtaK { eta, k } => {
+            ConductorSpec::EtaK { eta, k, .. } => {
                 eta.as_constant().is_none() || k.as_constant().is_none()
             }
             ConductorSpec::Reflectance(r) => r.as_constant().is_none(),
@@ -30,25 +30,32 @@ impl CoatedConductorMaterial {
             || self.layer.is_textured()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'_> {
         let top = DielectricBxdf {
             eta: self.interface_eta,
             distrib: self.interface_roughness.distribution(ctx),
         };
         let distrib = self.conductor_roughness.distribution(ctx);
         // Inside the coat the conductor meets a medium of index interface_eta: pbrt-v4
-        // divides its eta and k by it.
-        let (eta, k) = match &self.conductor {
-            ConductorSpec::EtaK { eta, k } => (eta.evaluate(ctx), k.evaluate(ctx)),
+        // divides its eta and k by it (and the spectral table was made so).
+        let (eta, k, table) = match &self.conductor {
+            ConductorSpec::EtaK { eta, k, table } => {
+                (eta.evaluate(ctx), k.evaluate(ctx), table.as_deref())
+            }
             ConductorSpec::Reflectance(r) => {
                 let r = r.evaluate(ctx).clamp(Color::ZERO, Color::splat(0.9999));
-                (Color::ONE, 2.0 * r.powf(0.5) / (Color::ONE - r).powf(0.5))
+                (
+                    Color::ONE,
+                    2.0 * r.powf(0.5) / (Color::ONE - r).powf(0.5),
+                    None,
+                )
             }
         };
         let bottom = Base::Conductor(ConductorBxdf {
             eta: eta / self.interface_eta,
             k: k / self.interface_eta,
             distrib,
+            table,
         });
         Bsdf::Layered(self.layer.bxdf(top, bottom, ctx))
     }

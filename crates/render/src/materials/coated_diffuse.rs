@@ -41,7 +41,7 @@ impl CoatedDiffuseMaterial {
             || self.layer.is_textured()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'_> {
         let top = DielectricBxdf {
             eta: self.eta,
             distrib: self.roughness.distribution(ctx),

@@ -2,15 +2,19 @@
 //! their reflectance at normal incidence, smooth or rough, any of them textured.
 
 use super::RoughnessTexture;
-use crate::bsdfs::{Bsdf, ConductorBxdf};
+use crate::bsdfs::{Bsdf, ConductorBxdf, FresnelTable};
 use crate::math::Color;
 use crate::textures::{SpectrumTexture, TextureEvalContext};
+use std::sync::Arc;
 
 #[derive(Debug, Clone)]
 pub enum ConductorSpec {
     EtaK {
         eta: SpectrumTexture,
         k: SpectrumTexture,
+        /// The spectral Fresnel reflectance, when eta and k were given as spectra (and
+        /// so are constant).
+        table: Option<Arc<FresnelTable>>,
     },
     Reflectance(SpectrumTexture),
 }
@@ -19,14 +23,15 @@ pub enum ConductorSpec {
 pub struct ConductorMaterial {
     spec: ConductorSpec,
     roughness: RoughnessTexture,
-    /// The BxDF, when nothing about it varies over the surface.
-    fixed: Option<ConductorBxdf>,
+    /// The BxDF, when nothing about it varies over the surface (its `table` is attached
+    /// when it is handed out).
+    fixed: Option<ConductorBxdf<'static>>,
 }
 
 impl ConductorMaterial {
     pub fn new(spec: ConductorSpec, roughness: RoughnessTexture) -> ConductorMaterial {
         let constant = match &spec {
-            ConductorSpec::EtaK { eta, k } => {
+            ConductorSpec::EtaK { eta, k, .. } => {
                 eta.as_constant().is_some() && k.as_constant().is_some()
             }
             ConductorSpec::Reflectance(r) => r.as_constant().is_some(),
@@ -42,13 +47,15 @@ impl ConductorMaterial {
         m
     }
 
-    fn bxdf(&self, ctx: &TextureEvalContext) -> ConductorBxdf {
+    /// The BxDF at `ctx`, without its spectral Fresnel table.
+    fn bxdf(&self, ctx: &TextureEvalContext) -> ConductorBxdf<'static> {
         let distrib = self.roughness.distribution(ctx);
         match &self.spec {
-            ConductorSpec::EtaK { eta, k } => ConductorBxdf {
+            ConductorSpec::EtaK { eta, k, .. } => ConductorBxdf {
                 eta: eta.evaluate(ctx),
                 k: k.evaluate(ctx),
                 distrib,
+                table: None,
             },
             // pbrt-v4: a conductor of reflectance r has eta = 1 and k = 2 sqrt(r) / sqrt(1 - r).
             ConductorSpec::Reflectance(r) => {
@@ -57,6 +64,7 @@ impl ConductorMaterial {
                     eta: Color::ONE,
                     k: 2.0 * r.powf(0.5) / (Color::ONE - r).powf(0.5),
                     distrib,
+                    table: None,
                 }
             }
         }
@@ -66,7 +74,11 @@ impl ConductorMaterial {
         self.fixed.is_none()
     }
 
-    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
-        Bsdf::Conductor(self.fixed.unwrap_or_else(|| self.bxdf(ctx)))
+    pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'_> {
+        let mut b: ConductorBxdf<'_> = self.fixed.unwrap_or_else(|| self.bxdf(ctx));
+        if let ConductorSpec::EtaK { table, .. } = &self.spec {
+            b.table = table.as_deref();
+        }
+        Bsdf::Conductor(b)
     }
 }

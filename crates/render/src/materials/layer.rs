@@ -33,7 +33,12 @@ impl Layer {
     }
 
     /// The layered BSDF of `top` over `bottom` at the point of `ctx`.
-    pub fn bxdf(&self, top: DielectricBxdf, bottom: Base, ctx: &TextureEvalContext) -> LayeredBxdf {
+    pub fn bxdf<'a>(
+        &self,
+        top: DielectricBxdf,
+        bottom: Base<'a>,
+        ctx: &TextureEvalContext,
+    ) -> LayeredBxdf<'a> {
         LayeredBxdf {
             top,
             bottom,

@@ -114,15 +114,19 @@ impl Model {
             MaterialKind::ThinDielectric { eta } => {
                 Model::ThinDielectric(ThinDielectricMaterial { eta: *eta })
             }
-            MaterialKind::Conductor { eta, k, roughness } => {
-                Model::Conductor(ConductorMaterial::new(
-                    ConductorSpec::EtaK {
-                        eta: textures.rgb_value(eta),
-                        k: textures.rgb_value(k),
-                    },
-                    rough(roughness),
-                ))
-            }
+            MaterialKind::Conductor {
+                eta,
+                k,
+                roughness,
+                spectra,
+            } => Model::Conductor(ConductorMaterial::new(
+                ConductorSpec::EtaK {
+                    eta: textures.rgb_value(eta),
+                    k: textures.rgb_value(k),
+                    table: fresnel_table(spectra.as_deref(), 1.0)?,
+                },
+                rough(roughness),
+            )),
             MaterialKind::ConductorReflectance {
                 reflectance,
                 roughness,
@@ -146,6 +150,7 @@ impl Model {
                 interface_eta,
                 conductor_eta,
                 conductor_k,
+                conductor_spectra,
                 reflectance,
                 conductor_roughness,
                 layer,
@@ -157,6 +162,7 @@ impl Model {
                     None => ConductorSpec::EtaK {
                         eta: textures.rgb_value(conductor_eta),
                         k: textures.rgb_value(conductor_k),
+                        table: fresnel_table(conductor_spectra.as_deref(), *interface_eta)?,
                     },
                 },
                 conductor_roughness: rough(conductor_roughness),
@@ -218,4 +224,20 @@ impl Model {
     pub fn is_interface(&self) -> bool {
         matches!(self, Model::Interface)
     }
+}
+
+/// The spectral Fresnel table of a conductor given spectra, seen from a medium of index
+/// `outside_eta`.
+fn fresnel_table(
+    spectra: Option<&kiln_scene::ConductorSpectra>,
+    outside_eta: f32,
+) -> Result<Option<std::sync::Arc<crate::bsdfs::FresnelTable>>, String> {
+    let Some(s) = spectra else {
+        return Ok(None);
+    };
+    let rgb = kiln_scene::spectrum::conductor_fresnel_rgb(&s.eta, &s.k, outside_eta)
+        .map_err(|e| format!("conductor spectra: {e}"))?;
+    Ok(Some(std::sync::Arc::new(crate::bsdfs::FresnelTable::new(
+        &rgb,
+    ))))
 }

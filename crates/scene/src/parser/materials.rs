@@ -139,6 +139,7 @@ impl Parser {
                             named("metal-Cu-k"),
                         )?,
                         roughness,
+                        spectra: conductor_spectra(params, "eta", "k"),
                     },
                 }
             }
@@ -169,6 +170,7 @@ impl Parser {
                         SpectrumUse::Unbounded,
                         named("metal-Cu-k"),
                     )?,
+                    conductor_spectra: conductor_spectra(params, "conductor.eta", "conductor.k"),
                     reflectance: self.rgb_value(params, "reflectance", SpectrumUse::Albedo)?,
                     conductor_roughness: prefixed("conductor.")?,
                     layer: self.layer(params)?,
@@ -272,4 +274,12 @@ impl Parser {
 
 fn named(name: &str) -> Rgb {
     spectrum::named_spectrum_rgb(name).unwrap_or([1.0; 3])
+}
+
+/// A conductor's eta and k as spectra, when both were given as sampled spectra.
+fn conductor_spectra(params: &ParamSet, eta: &str, k: &str) -> Option<Arc<ConductorSpectra>> {
+    Some(Arc::new(ConductorSpectra {
+        eta: params.sampled_spectrum(eta)?,
+        k: params.sampled_spectrum(k)?,
+    }))
 }
