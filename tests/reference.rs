@@ -162,9 +162,10 @@ fn volumetric_caustic_matches_an_independent_estimate() {
 /// spp): a disk light, loopsubdiv, an image texture scaled by another, and gold from .spd
 /// files. The whole frame within 1.5%; the plain gold body within 1.5% per channel, which
 /// the spectral Fresnel table makes possible (with the Fresnel of RGB eta and k its red
-/// was 3.5% low). The coated body stays within 4%: inside the coat the light meets the
+/// was 3.5% low). The coated body stays within 6%: inside the coat the light meets the
 /// gold several times, and the RGB product of its colour with itself is not the spectral
-/// one (measured −2.4%, −3.5%, −0.6%).
+/// one (measured at 256 spp: −2.4%, −3.5%, −0.6%; at the test's 32 spp the layered BSDF's
+/// stochastic estimates move the region's green by 1.5% from seed to seed).
 #[test]
 fn killeroos_in_gold_match_pbrt_v4() {
     let cases = [
@@ -178,7 +179,7 @@ fn killeroos_in_gold_match_pbrt_v4() {
             "killeroo-coated-gold",
             [0.386782, 0.355710, 0.305895],
             [0.434794, 0.341642, 0.190303],
-            0.04,
+            0.06,
         ),
     ];
     for (name, whole, body, body_within) in cases {

@@ -107,7 +107,18 @@ pub struct SamplerDesc {
 pub enum FilterKind {
     Box,
     Triangle,
-    Gaussian { sigma: f64 },
+    Gaussian {
+        sigma: f64,
+    },
+    /// pbrt-v4's Mitchell-Netravali filter (negative lobes).
+    Mitchell {
+        b: f64,
+        c: f64,
+    },
+    /// pbrt-v4's "sinc": a Lanczos-windowed sinc (negative lobes).
+    Sinc {
+        tau: f64,
+    },
 }
 
 #[derive(Debug, Clone)]

@@ -93,6 +93,12 @@ struct Parser {
     warnings: Vec<Diagnostic>,
     gs: GraphicsState,
     stack: Vec<(GraphicsState, Loc, bool)>,
+    /// The TransformBegin deprecation has been warned about (once per scene, as pbrt-v4).
+    warned_transform_begin: bool,
+    /// pbrt-v4's `Option "seed"`: the sampler's seed where the Sampler gives none.
+    option_seed: Option<u32>,
+    /// The Sampler directive gave a "seed".
+    sampler_seed_given: bool,
     /// Named coordinate systems: the transforms at the shutter's start and end.
     named_coordinate_systems: HashMap<String, (DMat4, DMat4)>,
     in_world: bool,
@@ -148,6 +154,9 @@ impl Parser {
                 attributes: Default::default(),
             },
             stack: Vec::new(),
+            warned_transform_begin: false,
+            option_seed: None,
+            sampler_seed_given: false,
             named_coordinate_systems: HashMap::new(),
             in_world: false,
             camera: None,
@@ -367,7 +376,7 @@ impl Parser {
             "ObjectEnd" => self.object_end(loc)?,
             "ObjectInstance" => self.object_instance(c, loc)?,
             // Rendering options, before WorldBegin (options.rs).
-            "Option" => self.option(c)?,
+            "Option" => self.option(c, loc)?,
             "ColorSpace" => self.color_space(c, loc)?,
             "Camera" => {
                 let ty = c.string(directive, "type")?;
@@ -503,12 +512,18 @@ impl Parser {
         Ok(SceneDescription {
             camera,
             film,
-            sampler: self.sampler.unwrap_or_else(|| SamplerDesc {
-                name: "zsobol".into(),
-                pixel_samples: 16,
-                seed: 0,
-                loc: Loc::synthetic("default sampler"),
-            }),
+            sampler: {
+                let mut s = self.sampler.unwrap_or_else(|| SamplerDesc {
+                    name: "zsobol".into(),
+                    pixel_samples: 16,
+                    seed: 0,
+                    loc: Loc::synthetic("default sampler"),
+                });
+                if let Some(seed) = self.option_seed.filter(|_| !self.sampler_seed_given) {
+                    s.seed = seed;
+                }
+                s
+            },
             filter: self.filter.unwrap_or_else(|| FilterDesc {
                 kind: FilterKind::Gaussian { sigma: 0.5 },
                 radius: [1.5, 1.5],

@@ -6,18 +6,93 @@ use super::Parser;
 use super::cursor::Cursor;
 use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
+use crate::lexer::TokenKind;
 use crate::params::ParamSet;
 use glam::DMat4;
 
 impl Parser {
     /// `Option`: Kiln uses none of pbrt's options; each one given is a warning.
-    pub(super) fn option(&mut self, c: &mut Cursor) -> Result<()> {
-        let params = c.params()?;
-        for p in params.unused() {
-            self.warn(
-                &p.loc,
-                format!("Option \"{}\" is not used by Kiln; ignored", p.name),
-            );
+    /// pbrt-v4's `Option "name" value`: an untyped name and one value.
+    pub(super) fn option(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
+        let name = c.string("Option", "option name")?;
+        let value = match c.peek() {
+            Some(t) => {
+                c.pos += 1;
+                match &t.kind {
+                    TokenKind::Word(w) | TokenKind::Str(w) | TokenKind::Number(w) => w.clone(),
+                    TokenKind::OpenBracket | TokenKind::CloseBracket => {
+                        return Err(SceneError::at(
+                            loc,
+                            format!("Option \"{name}\" takes one value, not a list"),
+                        ));
+                    }
+                }
+            }
+            None => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("Option \"{name}\" needs a value"),
+                ));
+            }
+        };
+        let truthy = match value.as_str() {
+            "true" => Some(true),
+            "false" => Some(false),
+            _ => None,
+        };
+        match name.to_ascii_lowercase().as_str() {
+            "seed" => {
+                let seed = value.parse::<i64>().map_err(|_| {
+                    SceneError::at(
+                        loc,
+                        format!("Option \"seed\" needs an integer, got '{value}'"),
+                    )
+                })?;
+                self.option_seed = Some(seed as u32);
+            }
+            // Options that only change how pbrt-v4 runs or reports, never the image.
+            "rendercoordsys"
+            | "pixelstats"
+            | "wavefront"
+            | "msereferenceimage"
+            | "msereferenceout"
+            | "disablewavelengthjitter" => self.warn(
+                loc,
+                format!("Option \"{name}\" does not change Kiln's image; ignored"),
+            ),
+            "disablepixeljitter" | "disabletexturefiltering" | "forcediffuse" => match truthy {
+                Some(false) => {}
+                Some(true) => {
+                    return Err(SceneError::at(
+                        loc,
+                        format!(
+                            "Option \"{name}\" true changes the image in pbrt-v4 and is not supported by Kiln"
+                        ),
+                    ));
+                }
+                None => {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("Option \"{name}\" needs true or false, got '{value}'"),
+                    ));
+                }
+            },
+            "displacementedgescale" => {
+                if value.parse::<f64>().ok() != Some(1.0) {
+                    return Err(SceneError::at(
+                        loc,
+                        format!(
+                            "Option \"displacementedgescale\" {value}: scales pbrt-v4's displacement refinement; Kiln supports only 1"
+                        ),
+                    ));
+                }
+            }
+            _ => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("Option \"{name}\": pbrt-v4 knows no such option"),
+                ));
+            }
         }
         Ok(())
     }
@@ -293,6 +368,7 @@ impl Parser {
             ));
         }
         let seed = params.int("seed", 0)?;
+        self.sampler_seed_given = params.loc_of("seed").is_some();
         self.check_unused(params, "Sampler", &["jitter", "randomization"])?;
         self.sampler = Some(SamplerDesc {
             name: ty.to_string(),
@@ -314,13 +390,19 @@ impl Parser {
                 },
                 1.5,
             ),
-            "mitchell" | "lanczos" => {
-                params.mark_used("B");
-                params.mark_used("C");
-                params.mark_used("tau");
-                self.warn(loc, format!("PixelFilter '{ty}' has negative lobes; Kiln uses a gaussian of the same radius instead"));
-                (FilterKind::Gaussian { sigma: 0.5 }, 2.0)
-            }
+            "mitchell" => (
+                FilterKind::Mitchell {
+                    b: params.float("B", 1.0 / 3.0)?,
+                    c: params.float("C", 1.0 / 3.0)?,
+                },
+                2.0,
+            ),
+            "sinc" => (
+                FilterKind::Sinc {
+                    tau: params.float("tau", 3.0)?,
+                },
+                4.0,
+            ),
             other => {
                 return Err(SceneError::at(
                     loc,
@@ -453,7 +535,27 @@ impl Parser {
 #[cfg(test)]
 mod tests {
     use crate::description::*;
-    use crate::parser::tests::load;
+    use crate::parser::tests::{load, load_err};
+
+    /// pbrt-v4's `Option "name" value`: the seed stands in for a Sampler's missing one;
+    /// options that cannot change the image are ignored; those that would are errors.
+    #[test]
+    fn options_take_pbrt_v4_syntax() {
+        let s = load(
+            "Option \"seed\" 7\nOption \"disablepixeljitter\" false\nOption \"rendercoordsys\" \"world\"\nWorldBegin",
+        );
+        assert_eq!(s.sampler.seed, 7);
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        let s = load("Option \"seed\" 7\nSampler \"halton\" \"integer seed\" [ 2 ]\nWorldBegin");
+        assert_eq!(s.sampler.seed, 2, "the Sampler's own seed wins");
+        let err = load_err("\nOption \"forcediffuse\" true\nWorldBegin");
+        assert!(
+            err.contains("t.pbrt:2") && err.contains("forcediffuse"),
+            "{err}"
+        );
+        let err = load_err("Option \"nosuchthing\" 1\nWorldBegin");
+        assert!(err.contains("no such option"), "{err}");
+    }
 
     #[test]
     fn film_sampler_filter_and_integrator_settings() {

@@ -155,12 +155,13 @@ impl Parser {
                 self.gs.ctm = start;
                 self.gs.ctm_end = end;
             }
-            None => {
-                return Err(SceneError::at(
-                    loc,
-                    format!("CoordSysTransform: no coordinate system named '{name}'"),
-                ));
-            }
+            // pbrt-v4 warns and keeps the current transform; so does Kiln.
+            None => self.warn(
+                loc,
+                format!(
+                    "CoordSysTransform: no coordinate system named '{name}'; the transform is left as it was (as pbrt-v4 does)"
+                ),
+            ),
         }
         Ok(())
     }
@@ -236,27 +237,28 @@ impl Parser {
         self.gs.reverse_orientation = !self.gs.reverse_orientation;
     }
 
-    /// `AttributeBegin` saves the whole graphics state, `TransformBegin` only the transform.
+    /// `AttributeBegin` saves the whole graphics state. So does `TransformBegin`: pbrt-v4
+    /// reads it as `AttributeBegin` (with a warning that it is deprecated), so a material or
+    /// light set inside a TransformBegin/End block ends with it.
     pub(super) fn attribute_begin(&mut self, directive: &str, loc: &Loc) {
-        let only_transform = directive == "TransformBegin";
-        self.stack
-            .push((self.gs.clone(), loc.clone(), only_transform));
+        if directive == "TransformBegin" && !self.warned_transform_begin {
+            self.warned_transform_begin = true;
+            self.warn(
+                loc,
+                "TransformBegin/End are deprecated: pbrt-v4 reads them as AttributeBegin/End (the whole graphics state is saved and restored), and so does Kiln",
+            );
+        }
+        self.stack.push((self.gs.clone(), loc.clone(), false));
     }
 
     pub(super) fn attribute_end(&mut self, directive: &str, loc: &Loc) -> Result<()> {
-        let Some((saved, _, only_transform)) = self.stack.pop() else {
+        let Some((saved, _, _)) = self.stack.pop() else {
             return Err(SceneError::at(
                 loc,
                 format!("{directive} without a matching begin"),
             ));
         };
-        if only_transform {
-            self.gs.ctm = saved.ctm;
-            self.gs.ctm_end = saved.ctm_end;
-            self.gs.active = saved.active;
-        } else {
-            self.gs = saved;
-        }
+        self.gs = saved;
         Ok(())
     }
 
@@ -497,5 +499,32 @@ mod tests {
             (position - DVec3::new(0.0, 0.0, -5.0)).length() < 1e-12,
             "the light sits at the camera"
         );
+    }
+
+    /// TransformBegin/End save and restore the whole graphics state, as pbrt-v4 reads them
+    /// (as AttributeBegin/End); an unknown CoordSysTransform keeps the transform, with a
+    /// warning, as in pbrt-v4.
+    #[test]
+    fn transform_blocks_and_unknown_coordinate_systems_behave_as_in_pbrt_v4() {
+        let s = crate::parser::tests::load(
+            "WorldBegin
+             TransformBegin
+               Material \"conductor\"
+               Translate 1 0 0
+             TransformEnd
+             Shape \"sphere\"
+             CoordSysTransform \"nowhere\"
+             Shape \"sphere\"",
+        );
+        assert!(
+            matches!(
+                s.materials[s.shapes[0].material.0 as usize].kind,
+                MaterialKind::Diffuse { .. }
+            ),
+            "the material set inside the block ends with it"
+        );
+        assert_eq!(s.shapes[0].object_to_world, DMat4::IDENTITY);
+        assert_eq!(s.shapes[1].object_to_world, DMat4::IDENTITY);
+        assert_eq!(s.warnings.len(), 2, "{:?}", s.warnings);
     }
 }
