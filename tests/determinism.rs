@@ -113,9 +113,11 @@ fn volume_lights_are_bit_identical_across_tiles_and_threads() {
 }
 
 #[test]
-fn quadrics_are_bit_identical_across_tiles_and_threads() {
+fn quadrics_and_curves_are_bit_identical_across_tiles_and_threads() {
     let path = scene("shapes/scene.pbrt");
     assert_same_bits_for_any_split("shapes", load(&path, 4, Some((48, 32))));
+    let path = scene("shapes/curves.pbrt");
+    assert_same_bits_for_any_split("curves", load(&path, 4, Some((48, 36))));
 }
 
 #[test]

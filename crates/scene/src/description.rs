@@ -283,6 +283,30 @@ pub struct TriangleMeshData {
     pub indices: Vec<u32>,
 }
 
+/// How a curve is drawn (pbrt-v4's "type").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CurveType {
+    /// A ribbon that always faces the ray.
+    Flat,
+    /// A flat ribbon shaded as if it were a cylinder (its normal turns across the width).
+    Cylinder,
+    /// A ribbon oriented by normals given at the segments' ends.
+    Ribbon,
+}
+
+/// A curve in object space: cubic Bézier segments, each with its widths at its two ends
+/// (the curve's "width0" to "width1" spread evenly over the segments) and, for ribbons,
+/// its normals there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CurveData {
+    pub segments: Vec<[[f32; 3]; 4]>,
+    pub widths: Vec<[f32; 2]>,
+    pub normals: Option<Vec<[[f32; 3]; 2]>>,
+    pub kind: CurveType,
+    /// Each segment is split into 2^split_depth pieces for the BVH (pbrt-v4's "splitdepth").
+    pub split_depth: u32,
+}
+
 /// A conductor's eta and k as sampled spectra: (wavelength nm, value) pairs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConductorSpectra {
@@ -317,6 +341,8 @@ pub enum ShapeKind {
         inner_radius: f64,
         phi_max: f64,
     },
+    /// pbrt-v4's "curve": cubic Bézier segments (b-splines and quadratics converted).
+    Curve(Arc<CurveData>),
     /// pbrt-v4's cylinder about the z axis, open at both ends, facing outwards.
     Cylinder {
         radius: f64,

@@ -14,6 +14,7 @@ use crate::materials::{DielectricMaterial, Material, Model, Perturbation, Roughn
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::sampling::AliasTable;
+use crate::shapes::curve::{CurvePiece, CurveSegment};
 use crate::shapes::cylinder::Cylinder;
 use crate::shapes::disk::Disk;
 use crate::shapes::sphere::PartialSphere;
@@ -118,7 +119,7 @@ impl Builder {
                 z_max,
                 phi_max,
             } => z_min <= -radius && z_max >= radius && phi_max >= std::f64::consts::TAU,
-            ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } => false,
+            ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } | ShapeKind::Curve(_) => false,
         };
         if !closed {
             return Err(unsupported(
@@ -167,7 +168,7 @@ impl Builder {
             ShapeKind::Sphere { radius, .. } => {
                 (glam::DVec3::splat(-radius), glam::DVec3::splat(*radius))
             }
-            ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } => {
+            ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } | ShapeKind::Curve(_) => {
                 unreachable!("open shapes were refused above")
             }
         };
@@ -279,6 +280,7 @@ impl Builder {
                 to_world,
                 surface,
             ),
+            ShapeKind::Curve(curve) => self.add_curve(shape, curve, to_world, surface),
             &ShapeKind::Cylinder {
                 radius,
                 z_min,
@@ -495,6 +497,70 @@ impl Builder {
             surface: surface(light),
             flip,
         });
+        Ok(())
+    }
+
+    /// A curve's segments in world space, each split into 2^splitdepth BVH pieces.
+    fn add_curve(
+        &mut self,
+        shape: &ShapeDesc,
+        curve: &kiln_scene::CurveData,
+        to_world: DMat4,
+        surface: SurfaceInfo,
+    ) -> Result<(), BuildError> {
+        let refuse = |message: &str| {
+            Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: message.into(),
+            })
+        };
+        if shape.area_light.is_some() {
+            return refuse("a curve cannot be an area light (pbrt-v4 cannot sample curves either)");
+        }
+        if surface.alpha.is_some() {
+            return refuse("\"alpha\" on a curve is not supported yet");
+        }
+        let m = to_world.as_mat4();
+        let normal_m = to_world.inverse().transpose().as_mat4();
+        // Widths scale with the transform's mean scale (exact for similarity transforms).
+        let scale = to_world.determinant().abs().cbrt() as f32;
+        if !(scale > 0.0 && scale.is_finite()) {
+            return refuse("this curve's transform cannot be inverted (a zero scale?)");
+        }
+        let pieces = 1u32 << curve.split_depth;
+        for (i, (cp, width)) in curve.segments.iter().zip(&curve.widths).enumerate() {
+            let cp = cp.map(|p| Vec3A::from(m.transform_point3(glam::Vec3::from(p))));
+            if let Some(p) = cp.iter().find(|p| !within_world_limit(**p)) {
+                return Err(BuildError::Unsupported {
+                    loc: shape.loc.clone(),
+                    message: format!(
+                        "a curve control point is at {p} in world space: {WORLD_LIMIT_TEXT}"
+                    ),
+                });
+            }
+            let normals = curve.normals.as_ref().map(|ns| {
+                let n = ns[i].map(|n| {
+                    Vec3A::from(normal_m.transform_vector3(glam::Vec3::from(n))).normalize_or_zero()
+                });
+                (n, n[0].dot(n[1]).clamp(-1.0, 1.0).acos())
+            });
+            let segment = CurveSegment {
+                cp,
+                width: width.map(|w| w * scale),
+                normals,
+                kind: curve.kind,
+                surface,
+                flip: shape.reverse_orientation,
+            };
+            let index = self.prims.curve_segments.len() as u32;
+            for k in 0..pieces {
+                let (u0, u1) = (k as f32 / pieces as f32, (k + 1) as f32 / pieces as f32);
+                self.prims
+                    .curve_pieces
+                    .push(CurvePiece::new(&segment, index, u0, u1));
+            }
+            self.prims.curve_segments.push(segment);
+        }
         Ok(())
     }
 

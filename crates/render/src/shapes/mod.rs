@@ -1,6 +1,6 @@
 //! Shapes and the aggregate that holds them: scene geometry in world space, triangle meshes
 //! ([`triangle`]), whole spheres ([`sphere`]) and pbrt-v4's other quadrics, partial or
-//! transformed spheres, disks and cylinders ([`quadric`]), each kind in an obvhs compressed wide BVH
+//! transformed spheres, disks and cylinders ([`quadric`]) and curves ([`curve`]), each kind in an obvhs compressed wide BVH
 //! (CWBVH), with the primitives laid out in BVH order as obvhs recommends, so a leaf's
 //! triangles are contiguous in memory.
 //!
@@ -10,6 +10,7 @@
 //! indices a [`SurfaceInfo`] carries.
 
 mod alpha;
+pub mod curve;
 pub mod cylinder;
 pub mod disk;
 pub mod displace;
@@ -51,6 +52,7 @@ enum HitKind {
     Triangle,
     Sphere,
     Quadric,
+    Curve,
 }
 
 /// Vacuum, in [`SurfaceInfo::media`].
@@ -112,6 +114,9 @@ pub struct Primitives {
     pub triangle_mesh: Vec<u32>,
     pub spheres: Vec<Sphere>,
     pub quadrics: Vec<Quadric>,
+    pub curve_segments: Vec<curve::CurveSegment>,
+    /// The BVH's curve primitives: pieces of the segments.
+    pub curve_pieces: Vec<curve::CurvePiece>,
     /// Alpha textures, referred to by `SurfaceInfo::alpha`.
     pub alphas: Vec<FloatTexture>,
 }
@@ -127,6 +132,7 @@ pub struct Geometry {
     bvh_triangle_ids: Vec<u32>,
     sphere_bvh: Option<CwBvh>,
     quadric_bvh: Option<CwBvh>,
+    curve_bvh: Option<CwBvh>,
     /// Some surface has an alpha texture: candidate hits must be tested against it.
     any_alpha: bool,
     /// Time spent building BVHs.
@@ -159,6 +165,7 @@ impl Geometry {
             triangle_vertices,
             spheres,
             quadrics,
+            curve_pieces,
             ..
         } = &primitives;
         let mut build_time = Duration::ZERO;
@@ -229,6 +236,16 @@ impl Geometry {
                 ));
             });
         }
+        let mut curve_bvh = None;
+        if !curve_pieces.is_empty() {
+            build(&mut || {
+                curve_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                    curve_pieces,
+                    BvhBuildParams::medium_build(),
+                    &mut build_time,
+                ));
+            });
+        }
         Geometry {
             any_alpha: !primitives.alphas.is_empty(),
             prims: primitives,
@@ -237,6 +254,7 @@ impl Geometry {
             bvh_triangle_ids,
             sphere_bvh,
             quadric_bvh,
+            curve_bvh,
             build_time,
         }
     }
@@ -252,6 +270,7 @@ impl Geometry {
             HitKind::Triangle => self.triangle_hit(ray, t, id),
             HitKind::Sphere => self.sphere_hit(ray, t, id),
             HitKind::Quadric => self.quadric_hit(ray, t, id),
+            HitKind::Curve => self.curve_hit(ray, t, id),
         })
     }
 
@@ -299,6 +318,20 @@ impl Geometry {
                 best_t = hit.t;
                 best = Some((
                     HitKind::Quadric,
+                    bvh.primitive_indices[hit.primitive_id as usize],
+                ));
+            }
+        }
+        if let Some(bvh) = &self.curve_bvh {
+            let mut hit = RayHit::none();
+            let cray = bvh_ray(ray.origin, ray.dir, 0.0, best_t);
+            if bvh.ray_traverse(cray, &mut hit, |r, id| {
+                self.curve_t(r.origin, r.direction, bvh.primitive_indices[id], r.tmax)
+            }) && hit.t < best_t
+            {
+                best_t = hit.t;
+                best = Some((
+                    HitKind::Curve,
                     bvh.primitive_indices[hit.primitive_id as usize],
                 ));
             }
@@ -371,6 +404,13 @@ impl Geometry {
                 return false;
             }
         }
+        if let Some(bvh) = &self.curve_bvh {
+            if !bvh.ray_traverse_miss(bray, |r, id| {
+                self.curve_t(r.origin, r.direction, bvh.primitive_indices[id], r.tmax)
+            }) {
+                return false;
+            }
+        }
         true
     }
 
@@ -385,6 +425,11 @@ impl Geometry {
         for s in &self.prims.spheres {
             lo = lo.min(s.center - Vec3A::splat(s.radius));
             hi = hi.max(s.center + Vec3A::splat(s.radius));
+        }
+        for c in &self.prims.curve_pieces {
+            let (a, b) = c.bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
         }
         for q in &self.prims.quadrics {
             let (a, b) = q.bounds();
