@@ -219,6 +219,15 @@ pub enum MaterialKind {
         conductor_roughness: Roughness,
         layer: LayerDesc,
     },
+    /// pbrt-v4's "hair": Chiang et al.'s fibre BSDF, for curves.
+    Hair {
+        absorption: HairAbsorption,
+        eta: FloatValue,
+        beta_m: FloatValue,
+        beta_n: FloatValue,
+        /// The cuticle scales' tilt, in degrees.
+        alpha: FloatValue,
+    },
     /// Lambertian reflection and transmission, each scaled by `scale` and clamped to [0, 1].
     DiffuseTransmission {
         reflectance: RgbValue,
@@ -281,6 +290,20 @@ pub struct TriangleMeshData {
     pub uvs: Option<Vec<[f32; 2]>>,
     /// Three per triangle.
     pub indices: Vec<u32>,
+}
+
+/// How a hair fibre's absorption is given (pbrt-v4 takes the first given of these).
+#[derive(Debug, Clone, PartialEq)]
+pub enum HairAbsorption {
+    /// Absorption per unit of the fibre's diameter.
+    SigmaA(RgbValue),
+    /// The colour the fibre should have after multiple scattering ("reflectance" or "color").
+    Reflectance(RgbValue),
+    /// Eumelanin and pheomelanin concentrations.
+    Melanin {
+        eumelanin: FloatValue,
+        pheomelanin: FloatValue,
+    },
 }
 
 /// How a curve is drawn (pbrt-v4's "type").

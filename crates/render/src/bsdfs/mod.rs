@@ -3,7 +3,8 @@
 //! [`Bsdf`] is the closed set of BSDFs and its dispatch; each BSDF lives in its own file.
 //! The formulas follow pbrt-v4's BxDFs: Lambertian diffuse, conductors and dielectrics with
 //! Fresnel and an anisotropic Trowbridge-Reitz (GGX) microfacet distribution sampled by
-//! visible normals, thin dielectrics, and a dielectric coat over a diffuse base.
+//! visible normals, thin dielectrics, a dielectric coat over a diffuse base, measured
+//! BRDFs and hair fibres.
 //!
 //! BSDFs know nothing of materials, textures or scenes: a material makes one at a hit.
 
@@ -12,6 +13,7 @@ pub mod dielectric;
 mod diffuse;
 mod diffuse_transmission;
 pub mod fresnel;
+mod hair;
 mod layered;
 mod measured;
 mod microfacet;
@@ -22,6 +24,7 @@ pub use dielectric::DielectricBxdf;
 pub use diffuse::DiffuseBxdf;
 pub use diffuse_transmission::DiffuseTransmissionBxdf;
 pub use fresnel::{FresnelTable, fresnel_complex, fresnel_dielectric, refract};
+pub use hair::HairBxdf;
 pub use layered::{Base, LayeredBxdf};
 pub use measured::{MeasuredBxdf, MeasuredTables};
 pub use microfacet::TrowbridgeReitz;
@@ -51,6 +54,7 @@ pub enum Bsdf<'a> {
     ThinDielectric(ThinDielectricBxdf),
     Layered(LayeredBxdf<'a>),
     Measured(MeasuredBxdf<'a>),
+    Hair(HairBxdf),
 }
 
 impl Bsdf<'_> {
@@ -60,7 +64,8 @@ impl Bsdf<'_> {
             Bsdf::Diffuse(_)
             | Bsdf::DiffuseTransmission(_)
             | Bsdf::Layered(_)
-            | Bsdf::Measured(_) => false,
+            | Bsdf::Measured(_)
+            | Bsdf::Hair(_) => false,
             Bsdf::Conductor(b) => b.distrib.effectively_smooth(),
             Bsdf::Dielectric(b) => b.distrib.effectively_smooth(),
             Bsdf::ThinDielectric(_) => true,
@@ -85,6 +90,7 @@ impl Bsdf<'_> {
             Bsdf::ThinDielectric(b) => b.f(wo, wi),
             Bsdf::Layered(b) => b.f(wo, wi),
             Bsdf::Measured(b) => b.f(wo, wi),
+            Bsdf::Hair(b) => b.f(wo, wi),
         }
     }
 
@@ -97,6 +103,7 @@ impl Bsdf<'_> {
             Bsdf::ThinDielectric(b) => b.pdf(wo, wi),
             Bsdf::Layered(b) => b.pdf(wo, wi),
             Bsdf::Measured(b) => b.pdf(wo, wi),
+            Bsdf::Hair(b) => b.pdf(wo, wi),
         }
     }
 
@@ -112,6 +119,7 @@ impl Bsdf<'_> {
             Bsdf::Dielectric(b) => b.sample(wo, uc, u),
             Bsdf::ThinDielectric(b) => b.sample(wo, uc, u),
             Bsdf::Measured(b) => b.sample(wo, uc, u),
+            Bsdf::Hair(b) => b.sample(wo, uc, u),
             // The walk's f and pdf have the right ratio, but its pdf is only proportional to
             // the density multiple importance sampling needs: rescale both to the estimated
             // density (pbrt-v4's pdfIsProportional), keeping the ratio.

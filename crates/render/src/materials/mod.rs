@@ -12,6 +12,7 @@ mod conductor;
 mod dielectric;
 mod diffuse;
 mod diffuse_transmission;
+mod hair;
 mod layer;
 mod measured;
 mod mix;
@@ -25,6 +26,7 @@ pub use conductor::{ConductorMaterial, ConductorSpec};
 pub use dielectric::DielectricMaterial;
 pub use diffuse::DiffuseMaterial;
 pub use diffuse_transmission::DiffuseTransmissionMaterial;
+pub use hair::{HairAbsorptionTexture, HairMaterial};
 pub use layer::Layer;
 pub use measured::MeasuredMaterial;
 pub use mix::MixMaterial;
@@ -56,6 +58,7 @@ pub enum Model {
     CoatedDiffuse(CoatedDiffuseMaterial),
     CoatedConductor(CoatedConductorMaterial),
     Measured(MeasuredMaterial),
+    Hair(HairMaterial),
     /// Marks a boundary between media: rays pass through unchanged.
     Interface,
 }
@@ -177,6 +180,33 @@ impl Model {
                 transmittance: textures.rgb_value(transmittance),
                 scale: *scale,
             }),
+            MaterialKind::Hair {
+                absorption,
+                eta,
+                beta_m,
+                beta_n,
+                alpha,
+            } => Model::Hair(HairMaterial {
+                absorption: match absorption {
+                    kiln_scene::HairAbsorption::SigmaA(s) => {
+                        HairAbsorptionTexture::SigmaA(textures.rgb_value(s))
+                    }
+                    kiln_scene::HairAbsorption::Reflectance(c) => {
+                        HairAbsorptionTexture::Reflectance(textures.rgb_value(c))
+                    }
+                    kiln_scene::HairAbsorption::Melanin {
+                        eumelanin,
+                        pheomelanin,
+                    } => HairAbsorptionTexture::Melanin {
+                        eumelanin: textures.float_value(eumelanin),
+                        pheomelanin: textures.float_value(pheomelanin),
+                    },
+                },
+                eta: textures.float_value(eta),
+                beta_m: textures.float_value(beta_m),
+                beta_n: textures.float_value(beta_n),
+                alpha: textures.float_value(alpha),
+            }),
             MaterialKind::Mix { materials, amount } => Model::Mix(MixMaterial {
                 materials: materials.map(|m| m.0),
                 amount: textures.float_value(amount),
@@ -201,6 +231,7 @@ impl Model {
             Model::CoatedDiffuse(m) => Some(m.bsdf(ctx)),
             Model::CoatedConductor(m) => Some(m.bsdf(ctx)),
             Model::Measured(m) => Some(m.bsdf()),
+            Model::Hair(m) => Some(m.bsdf(ctx)),
             Model::Interface => None,
         }
     }
@@ -217,6 +248,8 @@ impl Model {
             Model::CoatedDiffuse(m) => m.is_textured(),
             Model::CoatedConductor(m) => m.is_textured(),
             Model::ThinDielectric(_) | Model::Measured(_) | Model::Interface => false,
+            // Where across the fibre a ray struck (the hit's v) shapes the BSDF.
+            Model::Hair(_) => true,
         }
     }
 

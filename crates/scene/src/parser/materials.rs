@@ -176,6 +176,60 @@ impl Parser {
                     layer: self.layer(params)?,
                 }
             }
+            "hair" => {
+                let given = |n: &str| params.loc_of(n).is_some();
+                let absorption = if given("sigma_a") {
+                    HairAbsorption::SigmaA(self.rgb_value_or(
+                        params,
+                        "sigma_a",
+                        SpectrumUse::Unbounded,
+                        [0.0; 3],
+                    )?)
+                } else if given("reflectance") || given("color") {
+                    let name = if given("reflectance") {
+                        "reflectance"
+                    } else {
+                        "color"
+                    };
+                    HairAbsorption::Reflectance(self.rgb_value_or(
+                        params,
+                        name,
+                        SpectrumUse::Albedo,
+                        [0.5; 3],
+                    )?)
+                } else if given("eumelanin") || given("pheomelanin") {
+                    HairAbsorption::Melanin {
+                        eumelanin: self.float_value(params, "eumelanin", 0.0)?,
+                        pheomelanin: self.float_value(params, "pheomelanin", 0.0)?,
+                    }
+                } else {
+                    // pbrt-v4's default: brown hair.
+                    HairAbsorption::Melanin {
+                        eumelanin: FloatValue::Constant(1.3),
+                        pheomelanin: FloatValue::Constant(0.0),
+                    }
+                };
+                // pbrt-v4 ignores the ways not taken (with a warning; Kiln's unused-parameter
+                // check is spared them).
+                for name in [
+                    "sigma_a",
+                    "reflectance",
+                    "color",
+                    "eumelanin",
+                    "pheomelanin",
+                ] {
+                    if given(name) {
+                        params.mark_used(name);
+                    }
+                }
+                MaterialKind::Hair {
+                    absorption,
+                    eta: self.float_value(params, "eta", 1.55)?,
+                    beta_m: self.float_value(params, "beta_m", 0.3)?,
+                    beta_n: self.float_value(params, "beta_n", 0.3)?,
+                    alpha: self.float_value(params, "alpha", 2.0)?,
+                }
+            }
             "diffusetransmission" => MaterialKind::DiffuseTransmission {
                 reflectance: self.rgb_value_or(
                     params,
@@ -240,7 +294,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, coatedconductor, measured, mix, interface)"
+                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, coatedconductor, measured, hair, mix, interface)"
                     ),
                 ));
             }

@@ -11,7 +11,6 @@ use crate::params::ParamSet;
 use glam::DMat4;
 
 impl Parser {
-    /// `Option`: Kiln uses none of pbrt's options; each one given is a warning.
     /// pbrt-v4's `Option "name" value`: an untyped name and one value.
     pub(super) fn option(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
         let name = c.string("Option", "option name")?;
@@ -174,7 +173,25 @@ impl Parser {
             }
         }
         let screen_window = match params.floats("screenwindow")? {
-            None => None,
+            // pbrt-v4 derives the screen window from "frameaspectratio" where it is given
+            // and the window is not (from the film's aspect otherwise).
+            None => match params.loc_of("frameaspectratio") {
+                Some(at) => {
+                    let f = params.float("frameaspectratio", 1.0)?;
+                    if !(f.is_finite() && f > 0.0) {
+                        return Err(SceneError::at(
+                            &at,
+                            format!("Camera: \"frameaspectratio\" must be positive, got {f}"),
+                        ));
+                    }
+                    Some(if f > 1.0 {
+                        [-f, f, -1.0, 1.0]
+                    } else {
+                        [-1.0, 1.0, -1.0 / f, 1.0 / f]
+                    })
+                }
+                None => None,
+            },
             Some(v) if v.len() == 4 => Some([v[0], v[1], v[2], v[3]]),
             Some(_) => {
                 return Err(SceneError::at(
@@ -204,7 +221,8 @@ impl Parser {
                 ),
             ));
         }
-        self.check_unused(params, "Camera", &["frameaspectratio"])?;
+        params.mark_used("frameaspectratio");
+        self.check_unused(params, "Camera", &[])?;
         self.camera = Some(CameraDesc {
             projection,
             camera_to_world,
@@ -536,6 +554,19 @@ impl Parser {
 mod tests {
     use crate::description::*;
     use crate::parser::tests::{load, load_err};
+
+    /// pbrt-v4 takes the screen window from "frameaspectratio" when none is given.
+    #[test]
+    fn frame_aspect_ratio_sets_the_screen_window() {
+        let s = load("Camera \"perspective\" \"float frameaspectratio\" [ 2 ]\nWorldBegin");
+        assert_eq!(s.camera.screen_window, Some([-2.0, 2.0, -1.0, 1.0]));
+        let s = load("Camera \"orthographic\" \"float frameaspectratio\" [ 0.5 ]\nWorldBegin");
+        assert_eq!(s.camera.screen_window, Some([-1.0, 1.0, -2.0, 2.0]));
+        let s = load(
+            "Camera \"orthographic\" \"float frameaspectratio\" [ 0.5 ] \"float screenwindow\" [ -1 1 -1 1 ]\nWorldBegin",
+        );
+        assert_eq!(s.camera.screen_window, Some([-1.0, 1.0, -1.0, 1.0]));
+    }
 
     /// pbrt-v4's `Option "name" value`: the seed stands in for a Sampler's missing one;
     /// options that cannot change the image are ignored; those that would are errors.
