@@ -113,13 +113,15 @@ fn volume_lights_are_bit_identical_across_tiles_and_threads() {
 }
 
 #[test]
-fn quadrics_curves_and_hair_are_bit_identical_across_tiles_and_threads() {
+fn quadrics_curves_hair_and_motion_are_bit_identical_across_tiles_and_threads() {
     let path = scene("shapes/scene.pbrt");
     assert_same_bits_for_any_split("shapes", load(&path, 4, Some((48, 32))));
     let path = scene("shapes/curves.pbrt");
     assert_same_bits_for_any_split("curves", load(&path, 4, Some((48, 36))));
     let path = scene("shapes/hair.pbrt");
     assert_same_bits_for_any_split("hair", load(&path, 4, Some((48, 32))));
+    let path = scene("motion/scene.pbrt");
+    assert_same_bits_for_any_split("motion", load(&path, 4, Some((48, 36))));
 }
 
 #[test]

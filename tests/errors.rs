@@ -346,23 +346,19 @@ fn loop_subdivision_errors_name_the_line() {
     }
 }
 
-/// Motion blur (a transform that differs at the shutter's end) is an error naming the line
-/// of what would move, not a still image of the start; a transform that ends where it
-/// starts is no motion and renders.
+/// What Kiln cannot yet blur is an error naming its line, not a still image of the start:
+/// a moving LightSource, a moving area light; a transform that ends where it starts is no
+/// motion and renders.
 #[test]
-fn motion_blur_is_an_error_not_a_still() {
-    let moving = "WorldBegin\nAttributeBegin\nActiveTransform EndTime\nTranslate 1 0 0\nActiveTransform All\nShape \"sphere\"\nAttributeEnd\n";
-    let (err, _d) = failing(moving);
-    assert_names(
-        &err,
-        "scene.pbrt",
-        6,
-        "Kiln does not render motion blur yet",
-    );
+fn motion_kiln_cannot_blur_is_an_error_not_a_still() {
     let (err, _d) = failing(
-        "ActiveTransform StartTime\nLookAt 0 0 5  0 0 0  0 1 0\nActiveTransform EndTime\nLookAt 1 0 5  0 0 0  0 1 0\nActiveTransform All\nCamera \"perspective\"\nWorldBegin\n",
+        "WorldBegin\nAttributeBegin\nActiveTransform EndTime\nTranslate 1 0 0\nActiveTransform All\nLightSource \"point\"\nAttributeEnd\n",
     );
-    assert_names(&err, "scene.pbrt", 6, "Camera: its transform differs");
+    assert_names(&err, "scene.pbrt", 6, "its transform differs");
+    let (err, _d) = failing(
+        "WorldBegin\nAttributeBegin\nActiveTransform EndTime\nTranslate 1 0 0\nActiveTransform All\nAreaLightSource \"diffuse\"\nShape \"sphere\"\nAttributeEnd\n",
+    );
+    assert_names(&err, "scene.pbrt", 7, "moving area light");
     let dir = tempfile::tempdir().unwrap();
     let still = write_scene(
         dir.path(),

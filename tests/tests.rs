@@ -9,6 +9,7 @@ mod errors;
 mod estimators;
 mod farm;
 mod media;
+mod motion;
 mod reference;
 mod shapes;
 mod textures;

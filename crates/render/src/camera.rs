@@ -3,6 +3,7 @@
 //! pixel's footprint on a surface (for texture filtering).
 
 use crate::math::{Frame, Ray};
+use crate::motion::AnimatedTransform;
 use crate::sampling::concentric_disk;
 use glam::{Affine3A, Mat3A, Vec2, Vec3A};
 use kiln_scene::{CameraDesc, Projection};
@@ -18,6 +19,8 @@ pub struct Camera {
     lens_radius: f32,
     focal_distance: f32,
     footprint: Footprint,
+    /// A moving camera's transform over the shutter (the footprint uses the start).
+    motion: Option<AnimatedTransform>,
 }
 
 /// pbrt-v4's camera-ray footprint approximation: the smallest change of a camera ray's
@@ -34,6 +37,21 @@ struct Footprint {
 }
 
 impl Camera {
+    /// A camera whose transform interpolates between `desc`'s start and end transforms at
+    /// `times` (pbrt-v4's TransformTimes), if it moves.
+    pub fn new_moving(desc: &CameraDesc, xres: u32, yres: u32, times: [f64; 2]) -> Camera {
+        let mut camera = Camera::new(desc, xres, yres);
+        camera.motion = desc
+            .camera_to_world_end
+            .map(|end| AnimatedTransform::new(desc.camera_to_world, end, times));
+        camera
+    }
+
+    /// Whether the camera moves over the shutter.
+    pub fn moves(&self) -> bool {
+        self.motion.is_some()
+    }
+
     pub fn new(desc: &CameraDesc, xres: u32, yres: u32) -> Camera {
         let aspect = xres as f64 / yres as f64;
         let screen = desc.screen_window.unwrap_or(if aspect > 1.0 {
@@ -57,6 +75,7 @@ impl Camera {
             lens_radius: desc.lens_radius as f32,
             focal_distance: desc.focal_distance as f32,
             footprint: Footprint::default(),
+            motion: None,
         };
         camera.footprint = camera.minimum_differentials();
         camera
@@ -64,10 +83,20 @@ impl Camera {
 
     /// The world-space ray through continuous raster position `film` (pixels, y down), lens sample `lens`.
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        self.generate_ray_at(film, lens, 0.0)
+    }
+
+    /// As [`Camera::generate_ray`], at `time` in the shutter (where a moving camera is then).
+    pub fn generate_ray_at(&self, film: Vec2, lens: Vec2, time: f32) -> Ray {
         let (origin, dir) = self.camera_space_ray(film, lens);
-        Ray::new(
-            self.camera_to_world.transform_point3a(origin),
-            self.camera_to_world.transform_vector3a(dir).normalize(),
+        let to_world = match &self.motion {
+            Some(m) => m.affine_at(time).0,
+            None => self.camera_to_world,
+        };
+        Ray::at_time(
+            to_world.transform_point3a(origin),
+            to_world.transform_vector3a(dir).normalize(),
+            time,
         )
     }
 
@@ -180,6 +209,7 @@ mod tests {
         let desc = CameraDesc {
             projection: Projection::Perspective { fov_degrees: 90.0 },
             camera_to_world: DMat4::from_translation(glam::DVec3::new(1.0, 2.0, 3.0)),
+            camera_to_world_end: None,
             lens_radius: 0.0,
             focal_distance: 1e6,
             screen_window: None,
@@ -206,6 +236,7 @@ mod tests {
         let desc = CameraDesc {
             projection: Projection::Perspective { fov_degrees: 90.0 },
             camera_to_world: DMat4::IDENTITY,
+            camera_to_world_end: None,
             lens_radius: 0.0,
             focal_distance: 1e6,
             screen_window: None,

@@ -35,6 +35,7 @@ pub mod lights;
 pub mod materials;
 pub mod math;
 pub mod media;
+pub mod motion;
 pub mod phase;
 pub mod sampling;
 pub mod scene;

@@ -18,11 +18,32 @@ pub struct Ray {
     pub origin: Vec3A,
     /// Unit length.
     pub dir: Vec3A,
+    /// The instant within the shutter the ray travels at (moving shapes are where they
+    /// are then); 0 for rays outside any camera path.
+    pub time: f32,
 }
 
 impl Ray {
     pub fn new(origin: Vec3A, dir: Vec3A) -> Ray {
-        Ray { origin, dir }
+        Ray {
+            origin,
+            dir,
+            time: 0.0,
+        }
+    }
+
+    /// A ray at `time`.
+    pub fn at_time(origin: Vec3A, dir: Vec3A, time: f32) -> Ray {
+        Ray { origin, dir, time }
+    }
+
+    /// A ray leaving from `origin` towards `dir` at this ray's time (a path's next segment).
+    pub fn spawn(&self, origin: Vec3A, dir: Vec3A) -> Ray {
+        Ray {
+            origin,
+            dir,
+            time: self.time,
+        }
     }
 
     pub fn at(&self, t: f32) -> Vec3A {

@@ -246,6 +246,9 @@ pub fn render_pixel(renderer: &Renderer, x: u32, y: u32, stats: &mut TileStats) 
     sum.map(|v| (v / weight_sum) as f32)
 }
 
+/// The sampler dimension a camera sample's time comes from: far from the path's own.
+const TIME_DIMENSION: u32 = 0x4000_0000;
+
 /// One camera sample: its radiance (zeroed if not finite) and filter weight.
 pub fn render_sample(
     renderer: &Renderer,
@@ -259,7 +262,15 @@ pub fn render_sample(
     let (offset, weight) = scene.filter.sample(sampler.get_2d());
     let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
     let lens = sampler.get_2d();
-    let ray = scene.camera.generate_ray(film, lens);
+    // The sample's instant in the shutter, from a dimension of its own (so still scenes
+    // keep every other dimension as they were).
+    let time = if scene.has_motion {
+        let u = sampler.value(TIME_DIMENSION);
+        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * u
+    } else {
+        0.0
+    };
+    let ray = scene.camera.generate_ray_at(film, lens, time);
     let mut work = Work::default();
     let mut l = settings.integrator.li(
         &renderer.prepass,

@@ -32,6 +32,9 @@ pub struct SceneDescription {
     /// Named objects (ObjectBegin/End), referred to by [`InstanceDesc::object`].
     pub objects: Vec<ObjectDesc>,
     pub instances: Vec<InstanceDesc>,
+    /// pbrt-v4's TransformTimes: the times of the start and end transforms (0 and 1 by
+    /// default); between them a moving transform is interpolated, outside them held.
+    pub transform_times: [f64; 2],
     /// Every file the scene read besides its main file (includes, meshes, maps, grids), in order.
     pub files: Vec<std::path::PathBuf>,
     /// Warnings found while loading (errors abort loading instead).
@@ -50,8 +53,11 @@ pub enum Projection {
 #[derive(Debug, Clone)]
 pub struct CameraDesc {
     pub projection: Projection,
-    /// Camera space to world space (pbrt's convention: the camera looks down +z, +y up).
+    /// Camera space to world space (pbrt's convention: the camera looks down +z, +y up), at
+    /// the start of the transform times.
     pub camera_to_world: DMat4,
+    /// At their end, where it differs: the camera moves over the shutter.
+    pub camera_to_world_end: Option<DMat4>,
     pub lens_radius: f64,
     pub focal_distance: f64,
     /// [xmin, xmax, ymin, ymax] of the screen window; `None` means pbrt's default for the aspect ratio.
@@ -437,7 +443,11 @@ pub struct VoxelGrid {
 #[derive(Debug, Clone)]
 pub struct ShapeDesc {
     pub kind: ShapeKind,
+    /// The transform at the start of the transform times.
     pub object_to_world: DMat4,
+    /// The transform at their end, where it differs (ActiveTransform): the shape moves,
+    /// and is motion-blurred over the shutter.
+    pub object_to_world_end: Option<DMat4>,
     /// ReverseOrientation was in effect when the shape was declared. (Whether the
     /// transform swaps handedness is the renderer's to derive from `object_to_world`.)
     pub reverse_orientation: bool,
@@ -597,6 +607,8 @@ pub struct ObjectDesc {
 pub struct InstanceDesc {
     pub object: usize,
     pub instance_to_world: DMat4,
+    /// As [`ShapeDesc::object_to_world_end`].
+    pub instance_to_world_end: Option<DMat4>,
     pub loc: Loc,
 }
 

@@ -3,7 +3,7 @@
 //! media; and Russian roulette.
 
 use super::PathSettings;
-use crate::math::{Color, offset_origin};
+use crate::math::{Color, Ray, offset_origin};
 use crate::sampling::{PixelSampler, TrackingRng, power_heuristic};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
@@ -55,6 +55,8 @@ pub(super) struct Vertex<'a> {
     pub p: Vec3A,
     pub surface: Option<&'a SurfaceHit>,
     pub medium: Option<u32>,
+    /// The path's time within the shutter.
+    pub time: f32,
 }
 
 impl Vertex<'_> {
@@ -108,12 +110,24 @@ pub(super) fn sample_direct(
         let d = target - origin;
         let len = d.length();
         if len > 0.0 {
-            scene.transmittance(origin, d / len, len * (1.0 - 1e-4), medium, &mut rng, work)
+            scene.transmittance(
+                Ray::at_time(origin, d / len, v.time),
+                len * (1.0 - 1e-4),
+                medium,
+                &mut rng,
+                work,
+            )
         } else {
             (Color::ZERO, medium)
         }
     } else {
-        scene.transmittance(origin, ls.wi, f32::INFINITY, medium, &mut rng, work)
+        scene.transmittance(
+            Ray::at_time(origin, ls.wi, v.time),
+            f32::INFINITY,
+            medium,
+            &mut rng,
+            work,
+        )
     };
     let (tr, end_medium) = tr;
     if tr == Color::ZERO {

@@ -212,6 +212,7 @@ fn medium_step(
             p,
             surface: None,
             medium: state.medium,
+            time: ray.time,
         };
         state.l += state.beta
             * sample_direct(
@@ -230,7 +231,7 @@ fn medium_step(
     state.first_or_specular = false;
     state.prev_pdf = pdf;
     state.prev_p = p;
-    *ray = Ray::new(p, wi);
+    *ray = ray.spawn(p, wi);
     if let Some((volume, _)) = state.inside {
         state.inside = Some((volume, true));
     }
@@ -325,7 +326,7 @@ fn surface_step(
         if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
             state.medium = next;
         }
-        *ray = Ray::new(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+        *ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
         return Next::Continue;
     };
     if state.depth == settings.max_depth || bsdf.is_black() {
@@ -359,6 +360,7 @@ fn surface_step(
             p: hit.p,
             surface: Some(hit),
             medium: state.medium,
+            time: ray.time,
         };
         let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
         let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
@@ -381,7 +383,7 @@ fn surface_step(
     if bs.eta != 1.0 {
         state.eta_scale *= bs.eta * bs.eta;
     }
-    *ray = Ray::new(offset_origin(hit.p, hit.ng, wi), wi);
+    *ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
     if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
         state.medium = next;
     }

@@ -241,7 +241,9 @@ fn trace_photon(
             let m = if dir.dot(n) > 0.0 { outside } else { inside };
             (m != NO_MEDIUM).then_some(m)
         });
-    let mut ray = Ray::new(offset_origin(p, n, dir), dir);
+    // A photon flies at one instant of the shutter, as a camera path does.
+    let time = scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32();
+    let mut ray = Ray::at_time(offset_origin(p, n, dir), dir, time);
     let mut specular_bounces = 0u32;
     for _ in 0..64 {
         let found = scene.geometry.intersect(&ray, f32::INFINITY);
@@ -277,7 +279,7 @@ fn trace_photon(
             if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
                 medium = next;
             }
-            ray = Ray::new(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+            ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
             continue;
         };
         if !bsdf.is_specular() {
@@ -303,7 +305,7 @@ fn trace_photon(
         if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
             medium = next;
         }
-        ray = Ray::new(offset_origin(hit.p, hit.ng, wi), wi);
+        ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
     }
 }
 

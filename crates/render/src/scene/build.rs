@@ -13,10 +13,12 @@ use crate::lights::{
 use crate::materials::{DielectricMaterial, Material, Model, Perturbation, RoughnessTexture};
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
+use crate::motion::AnimatedTransform;
 use crate::sampling::AliasTable;
 use crate::shapes::curve::{CurvePiece, CurveSegment};
 use crate::shapes::cylinder::Cylinder;
 use crate::shapes::disk::Disk;
+use crate::shapes::mover::Mover;
 use crate::shapes::sphere::PartialSphere;
 use crate::shapes::{
     Geometry, MeshInfo, NO_MEDIUM, Primitives, Quadric, QuadricShape, Sphere, SurfaceInfo,
@@ -500,6 +502,69 @@ impl Builder {
         Ok(())
     }
 
+    /// Shapes that move over the shutter: each placed by `to_object` (its place in the
+    /// group), all built in the group's own space and moved together from `start` to `end`.
+    fn add_mover(
+        &mut self,
+        shapes: &[(&ShapeDesc, DMat4)],
+        start: DMat4,
+        end: DMat4,
+        times: [f64; 2],
+        loc: &kiln_scene::Loc,
+    ) -> Result<(), BuildError> {
+        let refuse = |loc: &kiln_scene::Loc, message: &str| {
+            Err(BuildError::Unsupported {
+                loc: loc.clone(),
+                message: message.into(),
+            })
+        };
+        for (shape, _) in shapes {
+            if shape.area_light.is_some() {
+                return refuse(
+                    &shape.loc,
+                    "a moving area light is not supported yet (motion blur covers surfaces that do not emit)",
+                );
+            }
+            if shape.media.is_some() && self.use_media {
+                return refuse(&shape.loc, "a moving medium boundary is not supported yet");
+            }
+        }
+        let (d0, d1) = (start.determinant(), end.determinant());
+        if !(d0 > 0.0 && d1 > 0.0 && start.is_finite() && end.is_finite()) {
+            return refuse(
+                loc,
+                "a moving transform must be invertible and keep its handedness throughout (a mirrored or degenerate one is not supported)",
+            );
+        }
+        let outer = std::mem::take(&mut self.prims);
+        let built = shapes
+            .iter()
+            .try_for_each(|(shape, to_group)| self.add_shape(shape, *to_group));
+        let inner = std::mem::replace(&mut self.prims, outer);
+        built?;
+        let inner = finish_primitives(inner);
+        if inner.triangle_vertices.is_empty()
+            && inner.spheres.is_empty()
+            && inner.quadrics.is_empty()
+            && inner.curve_pieces.is_empty()
+        {
+            return Ok(());
+        }
+        let motion = AnimatedTransform::new(start, end, times);
+        let mover = Mover::new(Geometry::new(inner), motion);
+        let (lo, hi) = mover.bounds();
+        if !within_world_limit(lo) || !within_world_limit(hi) {
+            return Err(BuildError::Unsupported {
+                loc: loc.clone(),
+                message: format!(
+                    "this moving shape sweeps {lo} to {hi} in world space: {WORLD_LIMIT_TEXT}"
+                ),
+            });
+        }
+        self.prims.movers.push(mover);
+        Ok(())
+    }
+
     /// A curve's segments in world space, each split into 2^splitdepth BVH pieces.
     fn add_curve(
         &mut self,
@@ -626,6 +691,18 @@ impl Builder {
     }
 }
 
+/// Fills in the per-vertex arrays that only some meshes gave.
+fn finish_primitives(mut prims: Primitives) -> Primitives {
+    let n_positions = prims.positions.len();
+    if !prims.normals.is_empty() {
+        prims.normals.resize(n_positions, Vec3A::Z);
+    }
+    if !prims.uvs.is_empty() {
+        prims.uvs.resize(n_positions, Vec2::ZERO);
+    }
+    prims
+}
+
 /// The uniform scale of a similarity transform (rotation, reflection, translation and one
 /// scale), or None.
 fn similarity_scale(m: &DMat4) -> Option<f64> {
@@ -665,24 +742,45 @@ impl Scene {
             light_media: Vec::new(),
             textures,
         };
+        let times = desc.transform_times;
         for shape in &desc.shapes {
-            b.add_shape(shape, shape.object_to_world)?;
-        }
-        // Instances are flattened into world space: simple and as fast to trace as
-        // anything for the scene sizes Kiln renders today, at the cost of memory.
-        for instance in &desc.instances {
-            for shape in &desc.objects[instance.object].shapes {
-                b.add_shape(shape, instance.instance_to_world * shape.object_to_world)?;
+            match shape.object_to_world_end {
+                None => b.add_shape(shape, shape.object_to_world)?,
+                Some(end) => b.add_mover(
+                    &[(shape, DMat4::IDENTITY)],
+                    shape.object_to_world,
+                    end,
+                    times,
+                    &shape.loc,
+                )?,
             }
         }
-        let n_positions = b.prims.positions.len();
-        if !b.prims.normals.is_empty() {
-            b.prims.normals.resize(n_positions, Vec3A::Z);
+        // Instances are flattened into world space: simple and as fast to trace as
+        // anything for the scene sizes Kiln renders today, at the cost of memory. A moving
+        // instance is one moving group.
+        for instance in &desc.instances {
+            let shapes = &desc.objects[instance.object].shapes;
+            match instance.instance_to_world_end {
+                None => {
+                    for shape in shapes {
+                        b.add_shape(shape, instance.instance_to_world * shape.object_to_world)?;
+                    }
+                }
+                Some(end) => {
+                    let group: Vec<(&ShapeDesc, DMat4)> =
+                        shapes.iter().map(|s| (s, s.object_to_world)).collect();
+                    b.add_mover(
+                        &group,
+                        instance.instance_to_world,
+                        end,
+                        times,
+                        &instance.loc,
+                    )?;
+                }
+            }
         }
-        if !b.prims.uvs.is_empty() {
-            b.prims.uvs.resize(n_positions, Vec2::ZERO);
-        }
-        let geometry = Geometry::new(b.prims);
+        let has_motion = !b.prims.movers.is_empty();
+        let geometry = Geometry::new(finish_primitives(b.prims));
         let (lo, hi) = geometry.bounds();
         let radius = ((hi - lo).length() / 2.0).max(1e-3);
         let mut lights = b.lights;
@@ -700,13 +798,20 @@ impl Scene {
             light_sampler: AliasTable::default(),
             lights,
             infinite_lights,
-            camera: Camera::new(&desc.camera, film.xresolution, film.yresolution),
+            camera: Camera::new_moving(
+                &desc.camera,
+                film.xresolution,
+                film.yresolution,
+                desc.transform_times,
+            ),
             filter: Filter::new(&desc.filter),
             sensor: crate::sensor::Sensor::new(
                 &film.sensor,
                 desc.camera.shutter[1] - desc.camera.shutter[0],
             ),
             resolution: (film.xresolution, film.yresolution),
+            shutter: [desc.camera.shutter[0] as f32, desc.camera.shutter[1] as f32],
+            has_motion: has_motion || desc.camera.camera_to_world_end.is_some(),
             radius,
             volumes: b.volumes,
             media: desc

@@ -36,6 +36,10 @@ pub struct Scene {
     /// The film's pixel sensor (ISO, clamp, white balance).
     pub sensor: crate::sensor::Sensor,
     pub resolution: (u32, u32),
+    /// The camera's shutter interval: each camera sample's time lies in it.
+    pub shutter: [f32; 2],
+    /// Some shape moves over the shutter (motion blur).
+    pub has_motion: bool,
     /// Radius of the scene's bounding sphere.
     pub radius: f32,
     /// The interiors of VolumeLights, referred to by `SurfaceInfo::volume`.
@@ -90,22 +94,24 @@ impl Scene {
         self.lights[light as usize].pdf(&self.light_context(), pmf, p, wi, q, n)
     }
 
-    /// Transmittance from `origin` along `dir` over `tmax`, starting in `medium`, through
+    /// Transmittance along `ray` (at its time) over `tmax`, starting in `medium`, through
     /// media and the interface surfaces that bound them; zero if any other surface blocks it.
     /// Also returns the medium the segment ends in. Grid media are crossed by ratio
     /// tracking, with numbers from `rng`.
     pub fn transmittance(
         &self,
-        origin: Vec3A,
-        dir: Vec3A,
+        ray: Ray,
         tmax: f32,
         mut medium: Option<u32>,
         rng: &mut TrackingRng,
         work: &mut Work,
     ) -> (Color, Option<u32>) {
+        let Ray {
+            origin, dir, time, ..
+        } = ray;
         if self.media.is_empty() {
             work.rays += 1;
-            let tr = if self.geometry.unoccluded(origin, dir, tmax) {
+            let tr = if self.geometry.unoccluded(origin, dir, tmax, time) {
                 Color::ONE
             } else {
                 Color::ZERO
@@ -117,7 +123,9 @@ impl Scene {
         let mut remaining = tmax;
         for _ in 0..64 {
             work.rays += 1;
-            let hit = self.geometry.intersect(&Ray::new(o, dir), remaining);
+            let hit = self
+                .geometry
+                .intersect(&Ray::at_time(o, dir, time), remaining);
             let seg = hit.as_ref().map_or(remaining, |h| h.t);
             if let Some(m) = medium {
                 let Some(t) = self.media[m as usize].transmittance(o, dir, seg, rng) else {

@@ -14,6 +14,7 @@ pub mod curve;
 pub mod cylinder;
 pub mod disk;
 pub mod displace;
+pub mod mover;
 pub mod quadric;
 pub use alpha::hash_float;
 pub mod sphere;
@@ -53,6 +54,7 @@ enum HitKind {
     Sphere,
     Quadric,
     Curve,
+    Mover,
 }
 
 /// Vacuum, in [`SurfaceInfo::media`].
@@ -117,6 +119,8 @@ pub struct Primitives {
     pub curve_segments: Vec<curve::CurveSegment>,
     /// The BVH's curve primitives: pieces of the segments.
     pub curve_pieces: Vec<curve::CurvePiece>,
+    /// Moving groups of shapes, each already built in its own object space.
+    pub movers: Vec<mover::Mover>,
     /// Alpha textures, referred to by `SurfaceInfo::alpha`.
     pub alphas: Vec<FloatTexture>,
 }
@@ -133,6 +137,7 @@ pub struct Geometry {
     sphere_bvh: Option<CwBvh>,
     quadric_bvh: Option<CwBvh>,
     curve_bvh: Option<CwBvh>,
+    mover_bvh: Option<CwBvh>,
     /// Some surface has an alpha texture: candidate hits must be tested against it.
     any_alpha: bool,
     /// Time spent building BVHs.
@@ -166,6 +171,7 @@ impl Geometry {
             spheres,
             quadrics,
             curve_pieces,
+            movers,
             ..
         } = &primitives;
         let mut build_time = Duration::ZERO;
@@ -246,6 +252,16 @@ impl Geometry {
                 ));
             });
         }
+        let mut mover_bvh = None;
+        if !movers.is_empty() {
+            build(&mut || {
+                mover_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                    movers,
+                    BvhBuildParams::medium_build(),
+                    &mut build_time,
+                ));
+            });
+        }
         Geometry {
             any_alpha: !primitives.alphas.is_empty(),
             prims: primitives,
@@ -255,6 +271,7 @@ impl Geometry {
             sphere_bvh,
             quadric_bvh,
             curve_bvh,
+            mover_bvh,
             build_time,
         }
     }
@@ -271,6 +288,13 @@ impl Geometry {
             HitKind::Sphere => self.sphere_hit(ray, t, id),
             HitKind::Quadric => self.quadric_hit(ray, t, id),
             HitKind::Curve => self.curve_hit(ray, t, id),
+            HitKind::Mover => {
+                let mover = &self.prims.movers[id as usize];
+                // Traced again for the whole record, a hair beyond the distance found.
+                return mover
+                    .intersect(ray, t * (1.0 + 1e-5) + 1e-30)
+                    .or_else(|| mover.intersect(ray, tmax));
+            }
         })
     }
 
@@ -336,6 +360,25 @@ impl Geometry {
                 ));
             }
         }
+        if let Some(bvh) = &self.mover_bvh {
+            let mut hit = RayHit::none();
+            let mray = bvh_ray(ray.origin, ray.dir, 0.0, best_t);
+            if bvh.ray_traverse(mray, &mut hit, |r, id| {
+                self.prims.movers[bvh.primitive_indices[id] as usize].hit_t(
+                    r.origin,
+                    r.direction,
+                    r.tmax,
+                    ray.time,
+                )
+            }) && hit.t < best_t
+            {
+                best_t = hit.t;
+                best = Some((
+                    HitKind::Mover,
+                    bvh.primitive_indices[hit.primitive_id as usize],
+                ));
+            }
+        }
         let (kind, id) = best?;
         Some((best_t, kind, id))
     }
@@ -383,7 +426,7 @@ impl Geometry {
     }
 
     /// True when nothing blocks the segment from `origin` along `dir` up to `tmax`.
-    pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, tmax: f32) -> bool {
+    pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, tmax: f32, time: f32) -> bool {
         let bray = bvh_ray(origin, dir, 0.0, tmax);
         if let Some(bvh) = &self.triangle_bvh {
             if !bvh.ray_traverse_miss(bray, |r, id| self.triangle_t(r, id)) {
@@ -411,6 +454,18 @@ impl Geometry {
                 return false;
             }
         }
+        if let Some(bvh) = &self.mover_bvh {
+            if !bvh.ray_traverse_miss(bray, |r, id| {
+                self.prims.movers[bvh.primitive_indices[id] as usize].hit_t(
+                    r.origin,
+                    r.direction,
+                    r.tmax,
+                    time,
+                )
+            }) {
+                return false;
+            }
+        }
         true
     }
 
@@ -425,6 +480,11 @@ impl Geometry {
         for s in &self.prims.spheres {
             lo = lo.min(s.center - Vec3A::splat(s.radius));
             hi = hi.max(s.center + Vec3A::splat(s.radius));
+        }
+        for m in &self.prims.movers {
+            let (a, b) = m.bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
         }
         for c in &self.prims.curve_pieces {
             let (a, b) = c.bounds();
@@ -493,7 +553,7 @@ mod tests {
             .intersect(&ray, f32::INFINITY)
             .expect("the quad is right below");
         assert!((hit.t - 2.0).abs() < 1e-5);
-        assert!(!g.unoccluded(ray.origin, ray.dir, 10.0));
+        assert!(!g.unoccluded(ray.origin, ray.dir, 10.0, 0.0));
     }
 
     #[test]
@@ -506,6 +566,6 @@ mod tests {
         let inside = Ray::new(Vec3A::new(0.0, 0.0, 5.0), Vec3A::new(0.0, 0.0, -1.0));
         let hit = g.intersect(&inside, f32::INFINITY).unwrap();
         assert!((hit.t - 1.0).abs() < 1e-4);
-        assert!(g.unoccluded(Vec3A::new(3.0, 3.0, 3.0), Vec3A::X, 100.0));
+        assert!(g.unoccluded(Vec3A::new(3.0, 3.0, 3.0), Vec3A::X, 100.0, 0.0));
     }
 }

@@ -95,6 +95,8 @@ struct Parser {
     stack: Vec<(GraphicsState, Loc, bool)>,
     /// The TransformBegin deprecation has been warned about (once per scene, as pbrt-v4).
     warned_transform_begin: bool,
+    /// TransformTimes.
+    transform_times: [f64; 2],
     /// pbrt-v4's `Option "seed"`: the sampler's seed where the Sampler gives none.
     option_seed: Option<u32>,
     /// The Sampler directive gave a "seed".
@@ -155,6 +157,7 @@ impl Parser {
             },
             stack: Vec::new(),
             warned_transform_begin: false,
+            transform_times: [0.0, 1.0],
             option_seed: None,
             sampler_seed_given: false,
             named_coordinate_systems: HashMap::new(),
@@ -495,6 +498,7 @@ impl Parser {
         let camera = self.camera.unwrap_or_else(|| CameraDesc {
             projection: Projection::Perspective { fov_degrees: 90.0 },
             camera_to_world: DMat4::IDENTITY,
+            camera_to_world_end: None,
             lens_radius: 0.0,
             focal_distance: 1e6,
             screen_window: None,
@@ -549,6 +553,7 @@ impl Parser {
             lights: self.lights,
             objects: self.objects,
             instances: self.instances,
+            transform_times: self.transform_times,
             files: self.files,
             warnings: self.warnings,
         })

@@ -138,18 +138,24 @@ impl Parser {
 
     pub(super) fn camera(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_options(loc, "Camera")?;
-        self.require_still(loc, "Camera")?;
         self.camera_medium = self.medium_id(&self.gs.media.1);
         let camera_from_world = self.gs.ctm;
         let camera_to_world = camera_from_world.inverse();
-        if !camera_to_world.is_finite() {
+        // A moving camera (its transform differs at the end of the transform times).
+        let camera_to_world_end = self.moving_end().map(|m| m.inverse());
+        if !camera_to_world.is_finite() || camera_to_world_end.is_some_and(|m| !m.is_finite()) {
             return Err(SceneError::at(
                 loc,
                 "Camera: the current transform cannot be inverted",
             ));
         }
-        self.named_coordinate_systems
-            .insert("camera".into(), (camera_to_world, camera_to_world));
+        self.named_coordinate_systems.insert(
+            "camera".into(),
+            (
+                camera_to_world,
+                camera_to_world_end.unwrap_or(camera_to_world),
+            ),
+        );
         let projection = match ty {
             "perspective" => Projection::Perspective {
                 fov_degrees: params.float("fov", 90.0)?,
@@ -226,6 +232,7 @@ impl Parser {
         self.camera = Some(CameraDesc {
             projection,
             camera_to_world,
+            camera_to_world_end,
             lens_radius,
             focal_distance,
             screen_window,

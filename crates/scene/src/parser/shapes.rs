@@ -12,7 +12,6 @@ use std::sync::Arc;
 impl Parser {
     pub(super) fn shape(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_world(loc, "Shape")?;
-        self.require_still(loc, &format!("Shape '{ty}'"))?;
         let mut displacement = None;
         let kind = match ty {
             "sphere" => {
@@ -108,6 +107,7 @@ impl Parser {
         let shape = ShapeDesc {
             kind,
             object_to_world: self.gs.ctm,
+            object_to_world_end: self.moving_end(),
             reverse_orientation: self.gs.reverse_orientation,
             material: self.gs.material,
             area_light: self.gs.area_light.clone(),
@@ -122,6 +122,12 @@ impl Parser {
                     return Err(SceneError::at(
                         loc,
                         "area lights inside ObjectBegin/ObjectEnd are not supported (as in pbrt-v4)",
+                    ));
+                }
+                if shape.object_to_world_end.is_some() {
+                    return Err(SceneError::at(
+                        loc,
+                        "a shape that moves inside ObjectBegin/ObjectEnd is not supported yet; move the ObjectInstance instead",
                     ));
                 }
                 object.shapes.push(shape);

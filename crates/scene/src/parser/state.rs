@@ -58,6 +58,18 @@ impl Parser {
         }
     }
 
+    /// The end transform, where it differs from the start one (the current transform moves).
+    pub(super) fn moving_end(&self) -> Option<DMat4> {
+        let (a, b) = (self.gs.ctm, self.gs.ctm_end);
+        let scale = a.to_cols_array().iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        let moves = a
+            .to_cols_array()
+            .iter()
+            .zip(b.to_cols_array())
+            .any(|(x, y)| (x - y).abs() > 1e-9 * scale);
+        moves.then_some(b)
+    }
+
     /// An error if the current transform moves during the shutter interval: pbrt-v4 would
     /// blur `what`'s motion, and Kiln cannot yet (it would render only the start).
     pub(super) fn require_still(&self, loc: &Loc, what: &str) -> Result<()> {
@@ -192,11 +204,17 @@ impl Parser {
     }
 
     pub(super) fn transform_times(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
-        c.numbers("TransformTimes", 2)?;
-        self.warn(
-            loc,
-            "TransformTimes: Kiln renders no motion blur; the start transform is used",
-        );
+        let t = c.numbers("TransformTimes", 2)?;
+        if !(t[0].is_finite() && t[1].is_finite() && t[1] >= t[0]) {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "TransformTimes: the end time {} must not come before the start time {}",
+                    t[1], t[0]
+                ),
+            ));
+        }
+        self.transform_times = [t[0], t[1]];
         Ok(())
     }
 
@@ -347,10 +365,10 @@ impl Parser {
                 "ObjectInstance inside ObjectBegin is not supported",
             ));
         }
-        self.require_still(loc, &format!("ObjectInstance '{name}'"))?;
         self.instances.push(InstanceDesc {
             object,
             instance_to_world: self.gs.ctm,
+            instance_to_world_end: self.moving_end(),
             loc: loc.clone(),
         });
         Ok(())

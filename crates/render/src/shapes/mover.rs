@@ -1,0 +1,95 @@
+//! Moving geometry (motion blur): shapes whose transform changes over the shutter, each
+//! group built once in its own object space (with its own BVHs) and placed in the world at
+//! each ray's time by an [`AnimatedTransform`]. A ray is carried into the group's object
+//! space at its time, traced there, and the hit carried back (positions as points, dp/du
+//! and dp/dv as vectors, normals through the normal matrix). The group's world bounds cover
+//! its whole motion, so the BVH over groups is built once.
+
+use super::{Geometry, SurfaceHit};
+use crate::math::Ray;
+use crate::motion::{AnimatedTransform, normal_matrix};
+use glam::{Affine3A, Vec3A};
+use obvhs::Boundable;
+use obvhs::aabb::Aabb;
+
+#[derive(Clone)]
+pub struct Mover {
+    pub geometry: std::sync::Arc<Geometry>,
+    pub motion: AnimatedTransform,
+    lo: Vec3A,
+    hi: Vec3A,
+}
+
+impl std::fmt::Debug for Mover {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Mover")
+            .field("triangles", &self.geometry.triangle_count())
+            .field("bounds", &(self.lo, self.hi))
+            .finish()
+    }
+}
+
+impl Mover {
+    pub fn new(geometry: Geometry, motion: AnimatedTransform) -> Mover {
+        let (lo, hi) = geometry.bounds();
+        let (lo, hi) = motion.motion_bounds(lo, hi);
+        Mover {
+            geometry: std::sync::Arc::new(geometry),
+            motion,
+            lo,
+            hi,
+        }
+    }
+
+    pub fn bounds(&self) -> (Vec3A, Vec3A) {
+        (self.lo, self.hi)
+    }
+
+    /// The ray in object space at its time (unit direction), the world transform then,
+    /// and object length per world length along the ray.
+    fn local(&self, origin: Vec3A, dir: Vec3A, time: f32) -> Option<(Ray, Affine3A, f32)> {
+        let (to_world, to_object) = self.motion.affine_at(time);
+        let d = to_object.transform_vector3a(dir);
+        let len = d.length();
+        (len > 0.0 && len.is_finite()).then(|| {
+            (
+                Ray::at_time(to_object.transform_point3a(origin), d / len, time),
+                to_world,
+                len,
+            )
+        })
+    }
+
+    /// The world distance to the nearest hit within `tmax`, or infinity.
+    pub fn hit_t(&self, origin: Vec3A, dir: Vec3A, tmax: f32, time: f32) -> f32 {
+        let Some((ray, _, len)) = self.local(origin, dir, time) else {
+            return f32::INFINITY;
+        };
+        self.geometry
+            .hit_distance(&ray, tmax * len)
+            .map_or(f32::INFINITY, |t| t / len)
+    }
+
+    /// The nearest hit within `tmax`, in world space.
+    pub fn intersect(&self, world: &Ray, tmax: f32) -> Option<SurfaceHit> {
+        let (ray, to_world, len) = self.local(world.origin, world.dir, world.time)?;
+        let hit = self.geometry.intersect(&ray, tmax * len)?;
+        let nm = normal_matrix(&to_world);
+        let normal = |n: Vec3A| (nm * n).normalize_or(n);
+        Some(SurfaceHit {
+            p: to_world.transform_point3a(hit.p),
+            t: hit.t / len,
+            ng: normal(hit.ng),
+            ns: normal(hit.ns),
+            dpdu: to_world.transform_vector3a(hit.dpdu),
+            dpdv: to_world.transform_vector3a(hit.dpdv),
+            ..hit
+        })
+    }
+}
+
+impl Boundable for Mover {
+    fn aabb(&self) -> Aabb {
+        Aabb::new(self.lo, self.hi)
+    }
+}
