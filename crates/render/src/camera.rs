@@ -1,5 +1,5 @@
 //! Cameras: pbrt's perspective and orthographic projections, with a thin lens for depth of
-//! field. A camera turns a film position and a lens sample into a ray, and estimates a
+//! field, and its spherical camera (every direction, equal-area or equirectangular). A camera turns a film position and a lens sample into a ray, and estimates a
 //! pixel's footprint on a surface (for texture filtering).
 
 use crate::math::{Frame, Ray};
@@ -12,6 +12,8 @@ use kiln_scene::{CameraDesc, Projection};
 pub struct Camera {
     camera_to_world: Affine3A,
     orthographic: bool,
+    /// pbrt-v4's spherical camera: Some(equal area) (it has no lens and no screen window).
+    spherical: Option<bool>,
     /// tan(fov / 2) for perspective, 1 for orthographic.
     scale: f32,
     screen: [f32; 4],
@@ -64,11 +66,17 @@ impl Camera {
                 (false, (fov_degrees.to_radians() / 2.0).tan() as f32)
             }
             Projection::Orthographic => (true, 1.0),
+            Projection::Spherical { .. } => (false, 1.0),
+        };
+        let spherical = match desc.projection {
+            Projection::Spherical { equal_area } => Some(equal_area),
+            _ => None,
         };
         let camera_to_world = Affine3A::from_mat4(desc.camera_to_world.as_mat4());
         let mut camera = Camera {
             camera_to_world,
             orthographic,
+            spherical,
             scale,
             screen: screen.map(|v| v as f32),
             resolution: Vec2::new(xres as f32, yres as f32),
@@ -153,6 +161,12 @@ impl Camera {
 
     /// The camera-space ray through raster position `film`, lens sample `lens`.
     fn camera_space_ray(&self, film: Vec2, lens: Vec2) -> (Vec3A, Vec3A) {
+        if let Some(equal_area) = self.spherical {
+            return (
+                Vec3A::ZERO,
+                spherical_direction(film / self.resolution, equal_area),
+            );
+        }
         let [x0, x1, y0, y1] = self.screen;
         let sx = x0 + film.x / self.resolution.x * (x1 - x0);
         let sy = y1 - film.y / self.resolution.y * (y1 - y0);
@@ -173,6 +187,36 @@ impl Camera {
         }
         (origin, dir)
     }
+}
+
+/// pbrt-v4's spherical camera's direction (camera space) through film position `uv` in
+/// [0, 1]²: on the equal-area square (folded back across its edges, where the octahedral
+/// layout continues) or the equirectangular map (θ = π v from the pole, φ = 2π u), both
+/// on the z-up sphere and then y and z swapped, as pbrt-v4 builds them.
+fn spherical_direction(uv: Vec2, equal_area: bool) -> Vec3A {
+    let d = if equal_area {
+        let mut p = uv;
+        if p.x < 0.0 {
+            p = Vec2::new(-p.x, 1.0 - p.y);
+        } else if p.x > 1.0 {
+            p = Vec2::new(2.0 - p.x, 1.0 - p.y);
+        }
+        if p.y < 0.0 {
+            p = Vec2::new(1.0 - p.x, -p.y);
+        } else if p.y > 1.0 {
+            p = Vec2::new(1.0 - p.x, 2.0 - p.y);
+        }
+        crate::lights::equal_area_square_to_sphere(p)
+    } else {
+        let theta = std::f32::consts::PI * uv.y;
+        let phi = 2.0 * std::f32::consts::PI * uv.x;
+        Vec3A::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
+    };
+    Vec3A::new(d.x, d.z, d.y)
 }
 
 /// The rotation taking unit vector `from` to unit vector `to`: two reflections (Hughes and

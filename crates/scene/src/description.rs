@@ -48,6 +48,11 @@ pub enum Projection {
         fov_degrees: f64,
     },
     Orthographic,
+    /// pbrt-v4's spherical camera: the whole sphere of directions on the film, in the
+    /// equal-area square layout or as an equirectangular (latitude-longitude) map.
+    Spherical {
+        equal_area: bool,
+    },
 }
 
 #[derive(Debug, Clone)]

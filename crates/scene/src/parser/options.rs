@@ -161,11 +161,25 @@ impl Parser {
                 fov_degrees: params.float("fov", 90.0)?,
             },
             "orthographic" => Projection::Orthographic,
+            "spherical" => Projection::Spherical {
+                equal_area: match params.string("mapping")?.as_deref().unwrap_or("equalarea") {
+                    "equalarea" => true,
+                    "equirectangular" => false,
+                    other => {
+                        return Err(SceneError::at(
+                            &params.loc_of("mapping").unwrap_or_else(|| loc.clone()),
+                            format!(
+                                "Camera 'spherical': \"mapping\" must be \"equalarea\" or \"equirectangular\", got \"{other}\""
+                            ),
+                        ));
+                    }
+                },
+            },
             other => {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "Camera '{other}' is not supported (Kiln has perspective and orthographic)"
+                        "Camera '{other}' is not supported (Kiln has perspective, orthographic and spherical)"
                     ),
                 ));
             }
