@@ -22,6 +22,7 @@
 //! assert!(bad.unwrap_err().to_string().starts_with("bad.pbrt:2:"));
 //! ```
 
+pub mod colorspace;
 pub mod description;
 pub mod error;
 pub mod files;

@@ -51,6 +51,8 @@ impl Param {
 #[derive(Debug, Clone, Default)]
 pub struct ParamSet {
     params: Vec<Param>,
+    /// The colour space its `rgb` values are in (pbrt-v4's ColorSpace); None is sRGB.
+    color_space: Option<crate::colorspace::ColorSpace>,
 }
 
 /// The parameter types pbrt-v4 knows.
@@ -298,7 +300,11 @@ impl ParamSet {
                 if usage == SpectrumUse::Albedo && v.iter().any(|&x| x < 0.0) {
                     return Err(at(format!("'rgb {name}' has a negative value")));
                 }
-                Ok(Some([v[0] as f32, v[1] as f32, v[2] as f32]))
+                let rgb = [v[0] as f32, v[1] as f32, v[2] as f32];
+                Ok(Some(match &self.color_space {
+                    Some(cs) => cs.to_srgb(rgb, usage),
+                    None => rgb,
+                }))
             }
             // A single float where a spectrum is expected is a constant spectrum.
             "float" => {
@@ -373,6 +379,12 @@ impl ParamSet {
                 format!("'texture {name}' needs one texture name"),
             )),
         }
+    }
+
+    /// These parameters, with their `rgb` values in colour space `cs`.
+    pub fn in_color_space(mut self, cs: crate::colorspace::ColorSpace) -> ParamSet {
+        self.color_space = (!cs.is_srgb()).then_some(cs);
+        self
     }
 
     /// A `spectrum` parameter given as (wavelength, value) pairs (inline, or read from a

@@ -183,11 +183,11 @@ const LMS_FROM_XYZ: [[f64; 3]; 3] = [
     [0.0389, -0.0685, 1.0296],
 ];
 
-fn mul3(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+pub(crate) fn mul3(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
     std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
 }
 
-fn inverse3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+pub(crate) fn inverse3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
     let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
         - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
@@ -227,19 +227,22 @@ pub fn daylight_xy(kelvin: f64) -> [f64; 2] {
 /// matrix on linear sRGB.
 pub fn white_balance_srgb(kelvin: f64) -> [[f64; 3]; 3] {
     let xyz_of = |xy: [f64; 2]| [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]];
+    let xyz_wb = bradford_between(xyz_of(daylight_xy(kelvin)), xyz_of([0.3127, 0.3290]));
+    mul3(&XYZ_TO_SRGB, &mul3(&xyz_wb, &SRGB_TO_XYZ))
+}
+
+/// The von Kries adaptation in Bradford's cone space taking white `src` to white `dst`
+/// (both XYZ), as a matrix on XYZ.
+pub(crate) fn bradford_between(src: [f64; 3], dst: [f64; 3]) -> [[f64; 3]; 3] {
     let lms = |xyz: [f64; 3]| -> [f64; 3] {
         std::array::from_fn(|r| (0..3).map(|k| LMS_FROM_XYZ[r][k] * xyz[k]).sum())
     };
-    let (src, dst) = (
-        lms(xyz_of(daylight_xy(kelvin))),
-        lms(xyz_of([0.3127, 0.3290])),
-    );
+    let (src, dst) = (lms(src), lms(dst));
     let mut diag = [[0.0; 3]; 3];
     for c in 0..3 {
         diag[c][c] = dst[c] / src[c];
     }
-    let xyz_wb = mul3(&inverse3(&LMS_FROM_XYZ), &mul3(&diag, &LMS_FROM_XYZ));
-    mul3(&XYZ_TO_SRGB, &mul3(&xyz_wb, &SRGB_TO_XYZ))
+    mul3(&inverse3(&LMS_FROM_XYZ), &mul3(&diag, &LMS_FROM_XYZ))
 }
 
 fn xyz_to_srgb(xyz: [f64; 3]) -> [f64; 3] {

@@ -154,6 +154,7 @@ impl Parser {
                 area_light: None,
                 media: (String::new(), String::new()),
                 attributes: Default::default(),
+                color_space: crate::colorspace::ColorSpace::srgb(),
             },
             stack: Vec::new(),
             warned_transform_begin: false,

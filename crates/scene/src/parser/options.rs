@@ -98,13 +98,19 @@ impl Parser {
 
     pub(super) fn color_space(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
         let name = c.string("ColorSpace", "colour space name")?;
-        if name != "srgb" {
-            return Err(SceneError::at(
+        match crate::colorspace::ColorSpace::by_name(&name) {
+            Some(cs) => {
+                self.gs.color_space = cs;
+                Ok(())
+            }
+            None => Err(SceneError::at(
                 loc,
-                format!("ColorSpace '{name}': Kiln renders in linear sRGB only"),
-            ));
+                format!(
+                    "ColorSpace '{name}' is unknown (pbrt-v4 knows {})",
+                    crate::colorspace::ColorSpace::names().join(", ")
+                ),
+            )),
         }
-        Ok(())
     }
 
     pub(super) fn accelerator(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
@@ -260,6 +266,17 @@ impl Parser {
         self.require_options(loc, "Film")?;
         if ty != "rgb" {
             self.warn(loc, format!("Film '{ty}': Kiln writes an RGB film"));
+        }
+        // The output's colour space: Kiln writes linear sRGB only.
+        if let Some(space) = params.string("colorspace")?
+            && space != "srgb"
+        {
+            return Err(SceneError::at(
+                &params.loc_of("colorspace").unwrap_or_else(|| loc.clone()),
+                format!(
+                    "Film: \"colorspace\" \"{space}\": Kiln writes linear sRGB only (a ColorSpace directive converts scene values; the output stays sRGB)"
+                ),
+            ));
         }
         let x = params.int("xresolution", 1280)?;
         let y = params.int("yresolution", 720)?;
@@ -575,6 +592,38 @@ impl Parser {
 mod tests {
     use crate::description::*;
     use crate::parser::tests::{load, load_err};
+
+    /// ColorSpace converts later rgb values into sRGB until its attribute scope ends; an
+    /// unknown space is an error that lists the known ones.
+    #[test]
+    fn color_space_scopes_rgb_values() {
+        let s = load(
+            "WorldBegin
+             AttributeBegin
+               ColorSpace \"rec2020\"
+               Material \"diffuse\" \"rgb reflectance\" [ 0 1 0 ]
+             AttributeEnd
+             Material \"diffuse\" \"rgb reflectance\" [ 0 1 0 ]",
+        );
+        let green = |i: usize| match &s.materials[i].kind {
+            MaterialKind::Diffuse {
+                reflectance: crate::textures::RgbValue::Constant(c),
+            } => *c,
+            other => panic!("{other:?}"),
+        };
+        let n = s.materials.len();
+        assert_eq!(green(n - 1), [0.0, 1.0, 0.0]);
+        assert!(
+            green(n - 2)[1] > 1.0,
+            "Rec. 2020 green is beyond sRGB's: {:?}",
+            green(n - 2)
+        );
+        let err = load_err("ColorSpace \"prophoto\"\nWorldBegin");
+        assert!(
+            err.contains("prophoto") && err.contains("aces2065-1"),
+            "{err}"
+        );
+    }
 
     /// pbrt-v4 takes the screen window from "frameaspectratio" when none is given.
     #[test]

@@ -33,6 +33,8 @@ pub(super) struct GraphicsState {
     /// pbrt-v4's `Attribute` defaults, per target (shape, light, material, medium,
     /// texture), in the order of [`ATTRIBUTE_TARGETS`].
     pub(super) attributes: [Vec<crate::params::Param>; 5],
+    /// pbrt-v4's ColorSpace: the space later `rgb` values are in.
+    pub(super) color_space: crate::colorspace::ColorSpace,
 }
 
 /// What an `Attribute` directive may give defaults to.
@@ -243,12 +245,13 @@ impl Parser {
     /// A directive's parameters with the `Attribute` defaults of `target` added (moved
     /// through unchanged when there are none: a mesh's arrays are not copied).
     pub(super) fn with_attributes(&self, target: &str, params: ParamSet) -> ParamSet {
-        match ATTRIBUTE_TARGETS.iter().position(|t| *t == target) {
+        let params = match ATTRIBUTE_TARGETS.iter().position(|t| *t == target) {
             Some(i) if !self.gs.attributes[i].is_empty() => {
                 params.with_defaults(&self.gs.attributes[i])
             }
             _ => params,
-        }
+        };
+        params.in_color_space(self.gs.color_space)
     }
 
     pub(super) fn reverse_orientation(&mut self) {
