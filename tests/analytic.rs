@@ -368,3 +368,112 @@ AttributeEnd"#,
         assert_matches_pbrt(light, kiln, pbrt, 0.01, 3);
     }
 }
+
+/// Writes a PFM image (rows given top to bottom; PFM stores them bottom up).
+fn write_pfm(path: &std::path::Path, width: usize, height: usize, rgb: &[[f32; 3]]) {
+    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    for y in (0..height).rev() {
+        for p in &rgb[y * width..(y + 1) * width] {
+            for c in p {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// pbrt-v4's goniometric and projection lights, against its renders of the same files (a
+/// floor seen from above, 64x64, 16 spp): a goniometric light with a gradient image, tilted,
+/// and with "power"; a projection light casting a 4x2 image of eight colours, turned, and
+/// with "power". Each quadrant's mean within 1% (measured within 0.4%): the images land
+/// the same way round, at the same brightness.
+#[test]
+fn goniometric_and_projection_lights_match_pbrt_v4() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 32;
+    let gradient: Vec<[f32; 3]> = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32, (i / n) as f32);
+            [(x + 0.5) / n as f32 * 2.0, (y + 0.5) / n as f32 * 2.0, 0.5]
+        })
+        .collect();
+    write_pfm(&dir.path().join("gonio.pfm"), n, n, &gradient);
+    let slide = [
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [0.5, 0.2, 0.1],
+    ];
+    write_pfm(&dir.path().join("proj.pfm"), 4, 2, &slide);
+    let cases: [(&str, [[f64; 3]; 4]); 4] = [
+        (
+            "Translate 0.3 0.2 2\nRotate 30 1 0 0\nLightSource \"goniometric\" \"string filename\" \"gonio.pfm\" \"rgb I\" [ 2 1.5 1 ]",
+            [
+                [0.0126, 0.0095, 0.0063],
+                [0.0071, 0.0053, 0.0035],
+                [0.0128, 0.0096, 0.0064],
+                [0.0046, 0.0035, 0.0023],
+            ],
+        ),
+        (
+            "Translate 0.3 0.2 2\nLightSource \"goniometric\" \"string filename\" \"gonio.pfm\" \"float power\" [ 30 ]",
+            [
+                [0.0191, 0.0191, 0.0191],
+                [0.0117, 0.0117, 0.0117],
+                [0.0159, 0.0159, 0.0159],
+                [0.007, 0.007, 0.007],
+            ],
+        ),
+        (
+            "Translate 0 0 3\nRotate 180 1 0 0\nRotate 15 0 1 0\nLightSource \"projection\" \"string filename\" \"proj.pfm\" \"float fov\" [ 60 ] \"float scale\" [ 5 ]",
+            [
+                [0.0159, 0.0101, 0.0146],
+                [0.0046, 0.005, 0.0096],
+                [0.0033, 0.0081, 0.0094],
+                [0.005, 0.0046, 0.0],
+            ],
+        ),
+        (
+            "Translate 0 0 3\nRotate 180 1 0 0\nLightSource \"projection\" \"string filename\" \"proj.pfm\" \"float fov\" [ 45 ] \"float power\" [ 20 ]",
+            [
+                [0.055, 0.0466, 0.0437],
+                [0.0411, 0.0278, 0.069],
+                [0.0278, 0.0278, 0.0411],
+                [0.0277, 0.0412, 0.0],
+            ],
+        ),
+    ];
+    for (light, pbrt) in cases {
+        let text = format!(
+            r#"Integrator "path" "integer maxdepth" [ 1 ]
+Sampler "halton" "integer pixelsamples" [ 16 ]
+PixelFilter "box"
+Film "rgb" "integer xresolution" [ 64 ] "integer yresolution" [ 64 ]
+LookAt 0 0 8  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 60 ]
+WorldBegin
+AttributeBegin
+{light}
+AttributeEnd
+Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
+Shape "trianglemesh" "point3 P" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "integer indices" [ 0 1 2 0 2 3 ]
+"#
+        );
+        let path = write_scene(dir.path(), "light.pbrt", &text);
+        let img = render(&path, dir.path(), "light", &[]).image;
+        for (q, want) in pbrt.iter().enumerate() {
+            let (x0, y0) = (32 * (q as u32 % 2), 32 * (q as u32 / 2));
+            let got = [0, 1, 2].map(|c| crate::util::block_stats(&img, x0, y0, 32, 32, c).0);
+            for c in 0..3 {
+                assert!(
+                    (got[c] - want[c]).abs() <= 0.01 * want[c] + 1.5e-4,
+                    "{light}\nquadrant {q}, channel {c}: Kiln {got:?} vs pbrt-v4 {want:?}"
+                );
+            }
+        }
+    }
+}

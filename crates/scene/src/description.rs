@@ -587,6 +587,22 @@ pub enum LightKind {
         scale: f32,
         light_to_world: DMat4,
     },
+    /// pbrt-v4's "goniometric": a point light whose intensity over directions is an
+    /// equal-area square image's (the mean of its RGB), times `intensity`. The light looks
+    /// along its space's y axis (pbrt-v4 swaps y and z).
+    Goniometric {
+        light_to_world: DMat4,
+        intensity: Rgb,
+        image: Arc<ImageRgb>,
+    },
+    /// pbrt-v4's "projection": a point light casting an image through a frustum of `fov`
+    /// degrees along its space's +z, `scale` times the image's RGB as intensity.
+    Projection {
+        light_to_world: DMat4,
+        scale: f32,
+        fov: f64,
+        image: Arc<ImageRgb>,
+    },
     /// Constant radiance from the hemisphere around `up` only (seed 003's dome light).
     Dome {
         radiance: Rgb,

@@ -11,27 +11,31 @@
 
 mod area;
 mod distant;
+mod goniometric;
 mod infinite;
 mod medium;
 mod point;
+mod projection;
 mod spot;
 pub mod volume;
 
 pub use area::{EmissionImage, EmissionPoint, QuadricLight, SphereLight, TriangleLight};
 pub use distant::DistantLight;
+pub use goniometric::GoniometricLight;
 pub use infinite::{
     DomeLight, ImageInfiniteLight, UniformInfiniteLight, equal_area_sphere_to_square,
     equal_area_square_to_sphere,
 };
 pub use medium::MediumLight;
 pub use point::PointLight;
+pub use projection::ProjectionLight;
 pub use spot::SpotLight;
 pub use volume::{VolumeInterior, VolumeSphereLight, VolumeTriangleLight};
 
 use crate::math::{Color, Frame, rgb};
 use crate::media::Medium;
 use crate::shapes::{Geometry, ShapeSample};
-use glam::{Affine3A, Vec2, Vec3A};
+use glam::{Affine3A, Mat3A, Vec2, Vec3A};
 use kiln_scene::{EnvironmentLayout, LightKind};
 
 /// The parts of a scene that sampling and evaluating some lights needs.
@@ -47,6 +51,8 @@ pub struct LightContext<'a> {
 pub enum Light {
     Point(PointLight),
     Spot(SpotLight),
+    Goniometric(GoniometricLight),
+    Projection(ProjectionLight),
     Distant(DistantLight),
     Triangle(TriangleLight),
     Sphere(SphereLight),
@@ -175,6 +181,39 @@ impl Light {
                     Affine3A::from_mat4(light_to_world.as_mat4()),
                 )))
             }
+            LightKind::Goniometric {
+                light_to_world,
+                intensity,
+                image,
+            } => Light::Goniometric(GoniometricLight {
+                position: light_to_world
+                    .transform_point3(glam::DVec3::ZERO)
+                    .as_vec3()
+                    .into(),
+                to_light: Mat3A::from_mat4(light_to_world.inverse().as_mat4()),
+                intensity: rgb(*intensity),
+                values: image
+                    .pixels
+                    .iter()
+                    .map(|p| (p[0] + p[1] + p[2]) / 3.0)
+                    .collect(),
+                resolution: image.width,
+            }),
+            LightKind::Projection {
+                light_to_world,
+                scale,
+                fov,
+                image,
+            } => Light::Projection(ProjectionLight::new(
+                light_to_world
+                    .transform_point3(glam::DVec3::ZERO)
+                    .as_vec3()
+                    .into(),
+                Mat3A::from_mat4(light_to_world.inverse().as_mat4()),
+                *scale,
+                *fov,
+                image.clone(),
+            )),
             LightKind::Dome { radiance, up } => Light::Dome(DomeLight {
                 frame: Frame::from_z(Vec3A::from(up.as_vec3()).normalize()),
                 radiance: rgb(*radiance),
@@ -188,6 +227,8 @@ impl Light {
             Light::UniformInfinite(_) | Light::ImageInfinite(_) | Light::Dome(_) => true,
             Light::Point(_)
             | Light::Spot(_)
+            | Light::Goniometric(_)
+            | Light::Projection(_)
             | Light::Distant(_)
             | Light::Triangle(_)
             | Light::Sphere(_)
@@ -203,6 +244,8 @@ impl Light {
         match self {
             Light::Point(l) => l.power(),
             Light::Spot(l) => l.power(),
+            Light::Goniometric(l) => l.power(),
+            Light::Projection(l) => l.power(),
             Light::Distant(l) => l.power(scene_radius),
             Light::Triangle(l) => l.power(),
             Light::Sphere(l) => l.power(),
@@ -227,6 +270,8 @@ impl Light {
             Light::VolumeSphere(l) => l.le(ctx, p, ng, ns, w),
             Light::Point(_)
             | Light::Spot(_)
+            | Light::Goniometric(_)
+            | Light::Projection(_)
             | Light::Distant(_)
             | Light::Medium(_)
             | Light::UniformInfinite(_)
@@ -243,6 +288,8 @@ impl Light {
             Light::Dome(l) => l.le(w),
             Light::Point(_)
             | Light::Spot(_)
+            | Light::Goniometric(_)
+            | Light::Projection(_)
             | Light::Distant(_)
             | Light::Triangle(_)
             | Light::Sphere(_)
@@ -259,6 +306,8 @@ impl Light {
         match self {
             Light::Point(l) => (l.sample(p), 0),
             Light::Spot(l) => (l.sample(p), 0),
+            Light::Goniometric(l) => (l.sample(p), 0),
+            Light::Projection(l) => (l.sample(p), 0),
             Light::Distant(l) => (l.sample(), 0),
             Light::Triangle(l) => (l.sample(ctx.geometry, p, u), 0),
             Light::Sphere(l) => (l.sample(ctx.geometry, p, u), 0),
@@ -286,7 +335,11 @@ impl Light {
         n: Vec3A,
     ) -> f32 {
         match self {
-            Light::Point(_) | Light::Spot(_) | Light::Distant(_) => 0.0,
+            Light::Point(_)
+            | Light::Spot(_)
+            | Light::Goniometric(_)
+            | Light::Projection(_)
+            | Light::Distant(_) => 0.0,
             Light::Triangle(l) => pmf * l.pdf(p, wi, q, n),
             Light::Sphere(l) => pmf * l.pdf(p, wi, q, n),
             Light::Quadric(l) => pmf * l.pdf(ctx.geometry, p, wi, q),
@@ -306,6 +359,8 @@ impl Light {
             Light::Triangle(_) | Light::Sphere(_) | Light::Quadric(_) => true,
             Light::Point(_)
             | Light::Spot(_)
+            | Light::Goniometric(_)
+            | Light::Projection(_)
             | Light::Distant(_)
             | Light::VolumeTriangle(_)
             | Light::VolumeSphere(_)
@@ -325,6 +380,8 @@ impl Light {
             Light::Quadric(l) => Some(l.emission_point(ctx.geometry, u)),
             Light::Point(_)
             | Light::Spot(_)
+            | Light::Goniometric(_)
+            | Light::Projection(_)
             | Light::Distant(_)
             | Light::VolumeTriangle(_)
             | Light::VolumeSphere(_)

@@ -233,6 +233,8 @@ pub fn power_estimates(lights: &[super::Light], ctx: &LightContext, seed: u32) -
             }
             super::Light::Point(_)
             | super::Light::Spot(_)
+            | super::Light::Goniometric(_)
+            | super::Light::Projection(_)
             | super::Light::Distant(_)
             | super::Light::Triangle(_)
             | super::Light::Sphere(_)

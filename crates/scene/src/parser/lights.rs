@@ -1,4 +1,5 @@
-//! Lights: `LightSource` (point, spot, distant, infinite, dome) and `AreaLightSource`
+//! Lights: `LightSource` (point, spot, goniometric, projection, distant, infinite, dome)
+//! and `AreaLightSource`
 //! (pbrt's "diffuse" and Kiln's "volume", the VolumeLight).
 
 use super::Parser;
@@ -36,7 +37,10 @@ impl Parser {
             // As pbrt-v4: a value that is not positive leaves the light as given.
             Ok((v > 0.0 && v.is_finite()).then_some(v as f32))
         };
-        let power = target("power", matches!(ty, "point" | "spot"))?;
+        let power = target(
+            "power",
+            matches!(ty, "point" | "spot" | "goniometric" | "projection"),
+        )?;
         let illuminance = target("illuminance", ty == "distant" || ty == "infinite")?;
         let kind = match ty {
             "point" => {
@@ -141,6 +145,118 @@ impl Parser {
                     .map(|c| c * illuminance.map_or(1.0, |e| e / std::f32::consts::PI)),
                 },
             },
+            "goniometric" | "projection" => {
+                let Some(name) = params.string("filename")? else {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("LightSource '{ty}': \"string filename\" (an image) is required"),
+                    ));
+                };
+                let path = self.resolve_file(&name, loc)?;
+                let image = files::images::read_environment(&path, loc)?;
+                if image.pixels.iter().flatten().any(|c| !c.is_finite()) {
+                    return Err(SceneError::at(
+                        loc,
+                        format!(
+                            "LightSource '{ty}': '{name}' has pixels that are not finite numbers"
+                        ),
+                    ));
+                }
+                let n = image.pixels.len() as f64;
+                if ty == "goniometric" {
+                    if image.width != image.height {
+                        return Err(SceneError::at(
+                            loc,
+                            format!(
+                                "LightSource 'goniometric': '{name}' is {}x{}; pbrt-v4 takes a square equal-area image",
+                                image.width, image.height
+                            ),
+                        ));
+                    }
+                    // Φ = 4π · the image's mean (of the mean of RGB), as pbrt-v4's k_e.
+                    let mean: f64 = image
+                        .pixels
+                        .iter()
+                        .map(|p| f64::from(p[0] + p[1] + p[2]) / 3.0)
+                        .sum::<f64>()
+                        / n;
+                    let k = power.map_or(1.0, |phi| {
+                        let k_e = 4.0 * std::f64::consts::PI * mean;
+                        if k_e > 0.0 {
+                            (f64::from(phi) / k_e) as f32
+                        } else {
+                            0.0
+                        }
+                    });
+                    // pbrt-v4 turns the light's y axis into z.
+                    let swap_yz = glam::DMat4::from_cols(
+                        glam::DVec4::X,
+                        glam::DVec4::Z,
+                        glam::DVec4::Y,
+                        glam::DVec4::W,
+                    );
+                    LightKind::Goniometric {
+                        light_to_world: ctm * swap_yz,
+                        intensity: scaled(
+                            params
+                                .rgb("I", SpectrumUse::Illuminant)?
+                                .unwrap_or([1.0; 3]),
+                        )
+                        .map(|c| c * k),
+                        image: Arc::new(image),
+                    }
+                } else {
+                    let fov = params.float("fov", 90.0)?;
+                    if !(fov > 0.0 && fov < 180.0) {
+                        return Err(SceneError::at(
+                            loc,
+                            format!(
+                                "LightSource 'projection': fov {fov} is not between 0 and 180 degrees"
+                            ),
+                        ));
+                    }
+                    // Φ = A · mean(luminance · cos³θ) over the image's pixels, A the area
+                    // of the image on the plane at distance 1, as pbrt-v4's k_e.
+                    let aspect = f64::from(image.width) / f64::from(image.height);
+                    let tan = (fov.to_radians() / 2.0).tan();
+                    let (sx, sy) = if aspect > 1.0 {
+                        (aspect, 1.0)
+                    } else {
+                        (1.0, 1.0 / aspect)
+                    };
+                    let k = power.map_or(1.0, |phi| {
+                        let mut sum = 0.0;
+                        for y in 0..image.height {
+                            for x in 0..image.width {
+                                let px =
+                                    -sx + 2.0 * sx * (f64::from(x) + 0.5) / f64::from(image.width);
+                                let py =
+                                    -sy + 2.0 * sy * (f64::from(y) + 0.5) / f64::from(image.height);
+                                let w = DVec3::new(px * tan, py * tan, 1.0).normalize();
+                                let p = image.pixels[(y * image.width + x) as usize];
+                                let lum = 0.2126 * f64::from(p[0].max(0.0))
+                                    + 0.7152 * f64::from(p[1].max(0.0))
+                                    + 0.0722 * f64::from(p[2].max(0.0));
+                                sum += lum * w.z.powi(3);
+                            }
+                        }
+                        let k_e = 4.0 * tan * tan * aspect.max(1.0 / aspect) * sum / n;
+                        if k_e > 0.0 {
+                            (f64::from(phi) / k_e) as f32
+                        } else {
+                            0.0
+                        }
+                    });
+                    // pbrt-v4 flips the light's y, so the image's top row is its +y.
+                    let flip_y = glam::DMat4::from_scale(DVec3::new(1.0, -1.0, 1.0));
+                    LightKind::Projection {
+                        light_to_world: ctm * flip_y,
+                        scale: scale * k,
+                        fov,
+                        image: Arc::new(image),
+                    }
+                }
+            }
             "dome" => {
                 let up = DVec3::from(params.point3("up", [0.0, 0.0, 1.0])?);
                 LightKind::Dome {
@@ -156,7 +272,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "LightSource '{other}' is not supported (Kiln has point, spot, distant, infinite, dome)"
+                        "LightSource '{other}' is not supported (Kiln has point, spot, goniometric, projection, distant, infinite, dome)"
                     ),
                 ));
             }
