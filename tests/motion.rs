@@ -1,31 +1,33 @@
 //! Motion blur: moving shapes and instances against stills, against pbrt-v4, and bad motion
 //! as errors.
 
-use crate::util::{assert_matches_pbrt, mean_and_error, render, scene, write_scene};
+use crate::util::{assert_matches_pbrt, max_z_score_to_rounding, render, scene, write_scene};
 use kiln_image::RgbBuffer;
 
 /// The largest |z| over a `bx` by `by` grid of blocks of the pixel-by-pixel difference of
 /// two independent renders; noise-free blocks (sky alone) must agree to rounding, as an
 /// average of stills sums sixteen sixteenths.
 fn max_z(a: &RgbBuffer, b: &RgbBuffer, bx: u32, by: u32) -> f64 {
-    let (bw, bh) = (a.width / bx, a.height / by);
-    let mut worst: f64 = 0.0;
-    for j in 0..by {
-        for i in 0..bx {
+    max_z_score_to_rounding(a, b, bx, by, 1e-5)
+}
+
+/// The pixel-by-pixel mean of `n` renders, the k-th made by `still(k)`.
+fn average_of(n: usize, mut still: impl FnMut(usize) -> RgbBuffer) -> RgbBuffer {
+    let mut average: Option<RgbBuffer> = None;
+    for k in 0..n {
+        let image = still(k);
+        let sum = average.get_or_insert_with(|| {
+            let mut zero = image.clone();
+            zero.pixels.iter_mut().for_each(|p| *p = [0.0; 3]);
+            zero
+        });
+        for (a, s) in sum.pixels.iter_mut().zip(&image.pixels) {
             for c in 0..3 {
-                let diffs = (j * bh..(j + 1) * bh)
-                    .flat_map(|y| (i * bw..(i + 1) * bw).map(move |x| (x, y)))
-                    .map(|(x, y)| a.get(x, y)[c] as f64 - b.get(x, y)[c] as f64);
-                let (mean, se) = mean_and_error(diffs);
-                if se > 1e-6 {
-                    worst = worst.max(mean.abs() / se);
-                } else {
-                    assert!(mean.abs() < 1e-5, "noise-free blocks agree: {mean}");
-                }
+                a[c] += s[c] / n as f32;
             }
         }
     }
-    worst
+    average.expect("at least one still")
 }
 
 /// The scene with every motion frozen at time `t`: the sphere slid by 2t, the box turned
@@ -57,27 +59,18 @@ fn motion_blur_is_the_average_of_stills() {
     )
     .image;
     let n = 16;
-    let mut average = blurred.clone();
-    for p in average.pixels.iter_mut() {
-        *p = [0.0; 3];
-    }
-    for k in 0..n {
+    let average = average_of(n, |k| {
         let t = (k as f64 + 0.5) / n as f64;
         let path = write_scene(dir.path(), "still.pbrt", &still_at(&text, t));
         let seed = (k + 1).to_string();
-        let still = render(
+        render(
             &path,
             dir.path(),
             "still",
             &[&args[..], &["--spp", "32", "--seed", &seed]].concat(),
         )
-        .image;
-        for (a, s) in average.pixels.iter_mut().zip(&still.pixels) {
-            for c in 0..3 {
-                a[c] += s[c] / n as f32;
-            }
-        }
-    }
+        .image
+    });
     let z = max_z(&blurred, &average, 4, 3);
     eprintln!(
         "blur vs stills: max z {z:.2}, means {:?} vs {:?}",
@@ -138,27 +131,18 @@ Shape "sphere" "float radius" [ 0.6 ]
     )
     .image;
     let n = 16;
-    let mut average = blurred.clone();
-    for p in average.pixels.iter_mut() {
-        *p = [0.0; 3];
-    }
-    for k in 0..n {
+    let average = average_of(n, |k| {
         let t = (k as f64 + 0.5) / n as f64;
         let path = write_scene(dir.path(), "still.pbrt", &scene_at(&look(-1.0 + 2.0 * t)));
         let seed = (k + 1).to_string();
-        let still = render(
+        render(
             &path,
             dir.path(),
             "still",
             &["--spp", "32", "--seed", &seed],
         )
-        .image;
-        for (a, s) in average.pixels.iter_mut().zip(&still.pixels) {
-            for c in 0..3 {
-                a[c] += s[c] / n as f32;
-            }
-        }
-    }
+        .image
+    });
     let z = max_z(&blurred, &average, 4, 3);
     assert!(z < 4.5, "worst block differs by {z:.2} standard errors");
 }

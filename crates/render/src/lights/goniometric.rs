@@ -39,14 +39,8 @@ impl GoniometricLight {
     }
 
     pub fn sample(&self, p: Vec3A) -> Option<LightSample> {
-        let d = self.position - p;
-        let dist2 = d.length_squared();
-        let dist = dist2.sqrt();
-        if dist == 0.0 {
-            return None;
-        }
-        let wi = d / dist;
-        let i = self.intensity * self.value(self.to_light * -wi);
-        (i != Color::ZERO).then(|| LightSample::delta(i / dist2, wi, dist))
+        super::shaped_point_sample(self.position, p, |w| {
+            self.intensity * self.value(self.to_light * w)
+        })
     }
 }

@@ -86,6 +86,25 @@ pub struct LightSample {
     pub scatter_rate: f32,
 }
 
+/// A sample of a point light at `position` whose intensity depends on direction: towards
+/// `p`, the intensity `towards` gives for the direction light leaves in, over the squared
+/// distance; None where it sends nothing.
+fn shaped_point_sample(
+    position: Vec3A,
+    p: Vec3A,
+    towards: impl Fn(Vec3A) -> Color,
+) -> Option<LightSample> {
+    let d = position - p;
+    let dist2 = d.length_squared();
+    let dist = dist2.sqrt();
+    if dist == 0.0 {
+        return None;
+    }
+    let wi = d / dist;
+    let i = towards(-wi);
+    (i != Color::ZERO).then(|| LightSample::delta(i / dist2, wi, dist))
+}
+
 impl LightSample {
     /// A sample of a delta light: one direction, no density.
     pub fn delta(radiance: Color, wi: Vec3A, distance: f32) -> LightSample {

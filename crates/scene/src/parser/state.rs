@@ -75,14 +75,7 @@ impl Parser {
     /// An error if the current transform moves during the shutter interval: pbrt-v4 would
     /// blur `what`'s motion, and Kiln cannot yet (it would render only the start).
     pub(super) fn require_still(&self, loc: &Loc, what: &str) -> Result<()> {
-        let (a, b) = (self.gs.ctm, self.gs.ctm_end);
-        let scale = a.to_cols_array().iter().fold(1.0f64, |m, v| m.max(v.abs()));
-        let moves = a
-            .to_cols_array()
-            .iter()
-            .zip(b.to_cols_array())
-            .any(|(x, y)| (x - y).abs() > 1e-9 * scale);
-        if moves {
+        if self.moving_end().is_some() {
             return Err(SceneError::at(
                 loc,
                 format!(
