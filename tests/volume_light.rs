@@ -256,6 +256,11 @@ fn volume_light_errors_name_their_place() {
     std::fs::write(dir.path().join("bad.csv"), "2,2,1\n1,1\n1\n").unwrap();
     let cases = [
         (
+            "WorldBegin\nMaterial \"dielectric\"\nAreaLightSource \"volume\"\nScale 1 2 1\nShape \"sphere\"\n",
+            "scene.pbrt:5:",
+            "non-uniform scale",
+        ),
+        (
             "WorldBegin\nAreaLightSource \"volume\" \"string grid\" \"bad.csv\"\nShape \"sphere\"\n",
             "scene.pbrt:2:",
             "bad.csv', line 3",

@@ -76,7 +76,7 @@ impl Filter {
     fn tabulated(radius: Vec2, lobe: Lobe) -> FilterSampling {
         // 64 bins per unit of radius at least: the lobes of a windowed sinc are one unit wide.
         let table = |r: f32| {
-            let n = (64.0 * r.max(1.0)).ceil() as usize;
+            let n = (64.0 * r.max(1.0)).ceil().min(4096.0) as usize;
             // Each bin's largest |f| (over 8 points across it), so that no bin where the
             // filter is non-zero is sampled with a vanishing density.
             let f: Vec<f32> = (0..n)

@@ -76,11 +76,19 @@ impl AnimatedTransform {
     /// The transform at `time`.
     pub fn at(&self, time: f32) -> DMat4 {
         let span = self.times[1] - self.times[0];
+        // With equal times the end holds from then on, as in pbrt-v4.
         let f = if span > 0.0 {
             f64::from(((time - self.times[0]) / span).clamp(0.0, 1.0))
+        } else if time > self.times[0] {
+            1.0
         } else {
             0.0
         };
+        self.at_fraction(f)
+    }
+
+    /// The transform a fraction `f` of the way from start to end.
+    fn at_fraction(&self, f: f64) -> DMat4 {
         let parts = Parts {
             translation: self.start.translation.lerp(self.end.translation, f),
             rotation: self.start.rotation.slerp(self.end.rotation, f),
@@ -117,8 +125,7 @@ impl AnimatedTransform {
         let mut step = 0.0f32;
         let mut previous: Option<Vec<Vec3A>> = None;
         for k in 0..=n {
-            let t = self.times[0] + (self.times[1] - self.times[0]) * k as f32 / n as f32;
-            let m = Affine3A::from_mat4(self.at(t).as_mat4());
+            let m = Affine3A::from_mat4(self.at_fraction(f64::from(k) / f64::from(n)).as_mat4());
             let now: Vec<Vec3A> = corners.iter().map(|c| m.transform_point3a(*c)).collect();
             for p in &now {
                 blo = blo.min(*p);
@@ -162,6 +169,17 @@ mod tests {
         let m = AnimatedTransform::new(a, b, [0.0, 2.0]);
         assert!(close(m.at(0.0), a) && close(m.at(-1.0), a));
         assert!(close(m.at(2.0), b) && close(m.at(5.0), b));
+    }
+
+    /// With equal transform times the end holds from then on (pbrt-v4), and the bounds
+    /// cover both ends.
+    #[test]
+    fn equal_times_jump_to_the_end() {
+        let end = DMat4::from_translation(DVec3::new(5.0, 0.0, 0.0));
+        let m = AnimatedTransform::new(DMat4::IDENTITY, end, [0.0, 0.0]);
+        assert!(close(m.at(0.0), DMat4::IDENTITY) && close(m.at(0.5), end));
+        let (lo, hi) = m.motion_bounds(Vec3A::splat(-1.0), Vec3A::splat(1.0));
+        assert!(lo.x <= -1.0 && hi.x >= 6.0, "{lo} {hi}");
     }
 
     /// A quarter turn halfway is an eighth of a turn, not the chord's shrunken matrix; a

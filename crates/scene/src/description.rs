@@ -586,6 +586,9 @@ pub enum LightKind {
         layout: EnvironmentLayout,
         scale: f32,
         light_to_world: DMat4,
+        /// pbrt-v4's "portal": a world-space rectangle (a window); light arrives only from
+        /// the side its normal (p3 − p0) × (p1 − p0) faces.
+        portal: Option<[[f64; 3]; 4]>,
     },
     /// pbrt-v4's "goniometric": a point light whose intensity over directions is an
     /// equal-area square image's (the mean of its RGB), times `intensity`. The light looks

@@ -260,7 +260,7 @@ fn interior_segment(scene: &Scene, state: &mut PathState, ray: &Ray, found: Opti
 fn escape(ctx: &PathContext, state: &mut PathState, ray: &Ray) {
     let scene = ctx.scene;
     for &i in &scene.infinite_lights {
-        let le = scene.lights[i as usize].infinite_le(ray.dir);
+        let le = scene.lights[i as usize].infinite_le(ray.origin, ray.dir);
         if le != Color::ZERO {
             let w = emission_weight(
                 ctx.settings,

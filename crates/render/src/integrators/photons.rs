@@ -242,7 +242,11 @@ fn trace_photon(
             (m != NO_MEDIUM).then_some(m)
         });
     // A photon flies at one instant of the shutter, as a camera path does.
-    let time = scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32();
+    let time = if scene.has_motion {
+        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32()
+    } else {
+        0.0
+    };
     let mut ray = Ray::at_time(offset_origin(p, n, dir), dir, time);
     let mut specular_bounces = 0u32;
     for _ in 0..64 {

@@ -84,6 +84,67 @@ pub struct ImageInfiniteLight {
     pub light_to_world: Affine3A,
     pub world_to_light: Affine3A,
     pub distribution: Distribution2D,
+    /// pbrt-v4's portal: light arrives only through this window.
+    pub portal: Option<Portal>,
+}
+
+/// A window onto an environment map (pbrt-v4's "portal"): a world-space rectangle with
+/// corner `p0` and edges `e1` (to p1) and `e3` (to p3); light from the map reaches a point
+/// only along rays through it heading out along its normal `n` = ê3 × ê1.
+#[derive(Debug, Clone, Copy)]
+pub struct Portal {
+    p0: Vec3A,
+    e1: Vec3A,
+    e3: Vec3A,
+    n: Vec3A,
+    area: f32,
+}
+
+impl Portal {
+    /// From its four corners, in pbrt-v4's order.
+    pub fn new(corners: [Vec3A; 4]) -> Portal {
+        let (e1, e3) = (corners[1] - corners[0], corners[3] - corners[0]);
+        Portal {
+            p0: corners[0],
+            e1,
+            e3,
+            n: e3
+                .normalize_or_zero()
+                .cross(e1.normalize_or_zero())
+                .normalize_or_zero(),
+            area: e1.cross(e3).length(),
+        }
+    }
+
+    /// The distance along the ray from `o` in unit direction `w` to the window, if the ray
+    /// goes out through it.
+    fn crossing(&self, o: Vec3A, w: Vec3A) -> Option<f32> {
+        let wn = w.dot(self.n);
+        if wn <= 0.0 {
+            return None;
+        }
+        let t = (self.p0 - o).dot(self.n) / wn;
+        if t <= 0.0 || !t.is_finite() {
+            return None;
+        }
+        let d = o + w * t - self.p0;
+        let (a, b) = (
+            d.dot(self.e1) / self.e1.length_squared(),
+            d.dot(self.e3) / self.e3.length_squared(),
+        );
+        ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
+    }
+
+    /// The solid-angle density of sampling the window uniformly by area from `o`, towards
+    /// unit `w` crossing it at distance `t`.
+    fn pdf(&self, w: Vec3A, t: f32) -> f32 {
+        let cos = w.dot(self.n).abs();
+        if cos == 0.0 || self.area == 0.0 {
+            0.0
+        } else {
+            t * t / (self.area * cos)
+        }
+    }
 }
 
 impl ImageInfiniteLight {
@@ -93,7 +154,18 @@ impl ImageInfiniteLight {
         pixels: Vec<Color>,
         equal_area: bool,
         light_to_world: Affine3A,
+        portal: Option<Portal>,
     ) -> ImageInfiniteLight {
+        let mut light = ImageInfiniteLight {
+            width,
+            height,
+            distribution: Distribution2D::new(&[1.0], 1, 1),
+            pixels,
+            equal_area,
+            light_to_world,
+            world_to_light: light_to_world.inverse(),
+            portal,
+        };
         let mut func = Vec::with_capacity(width * height);
         for y in 0..height {
             // Lat-long rows near the poles cover less solid angle.
@@ -103,18 +175,11 @@ impl ImageInfiniteLight {
                 (PI * (y as f32 + 0.5) / height as f32).sin()
             };
             for x in 0..width {
-                func.push(luminance(pixels[y * width + x]).max(0.0) * row_weight);
+                func.push(luminance(light.pixels[y * width + x]).max(0.0) * row_weight);
             }
         }
-        ImageInfiniteLight {
-            width,
-            height,
-            distribution: Distribution2D::new(&func, width, height),
-            pixels,
-            equal_area,
-            light_to_world,
-            world_to_light: light_to_world.inverse(),
-        }
+        light.distribution = Distribution2D::new(&func, width, height);
+        light
     }
 
     fn lookup(&self, uv: Vec2) -> Color {
@@ -158,7 +223,25 @@ impl ImageInfiniteLight {
         4.0 * PI * disk(scene_radius) * mean
     }
 
-    pub fn sample(&self, u: Vec2) -> Option<LightSample> {
+    /// A direction from `p` towards the map: by the map's own distribution, or through a
+    /// portal uniformly by its area.
+    pub fn sample(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
+        if let Some(portal) = &self.portal {
+            let q = portal.p0 + portal.e1 * u.x + portal.e3 * u.y;
+            let d = q - p;
+            let t = d.length();
+            if t == 0.0 {
+                return None;
+            }
+            let wi = d / t;
+            if wi.dot(portal.n) <= 0.0 {
+                return None;
+            }
+            let pdf = portal.pdf(wi, t);
+            let radiance = self.lookup(self.dir_to_uv(wi));
+            return (pdf > 0.0 && radiance != Color::ZERO)
+                .then(|| LightSample::at_infinity(radiance, wi, pdf));
+        }
         let (uv, pdf_uv) = self.distribution.sample(u);
         if pdf_uv == 0.0 {
             return None;
@@ -174,11 +257,21 @@ impl ImageInfiniteLight {
         ))
     }
 
-    pub fn le(&self, w: Vec3A) -> Color {
+    /// The radiance along the ray from `origin` in direction `w` that left the scene.
+    pub fn le(&self, origin: Vec3A, w: Vec3A) -> Color {
+        if let Some(portal) = &self.portal
+            && portal.crossing(origin, w).is_none()
+        {
+            return Color::ZERO;
+        }
         self.lookup(self.dir_to_uv(w))
     }
 
-    pub fn pdf(&self, w: Vec3A) -> f32 {
+    /// The density with which [`ImageInfiniteLight::sample`] from `p` gives `w`.
+    pub fn pdf(&self, p: Vec3A, w: Vec3A) -> f32 {
+        if let Some(portal) = &self.portal {
+            return portal.crossing(p, w).map_or(0.0, |t| portal.pdf(w, t));
+        }
         let uv = self.dir_to_uv(w);
         let jacobian = if self.equal_area {
             4.0 * PI

@@ -23,7 +23,7 @@ pub use area::{EmissionImage, EmissionPoint, QuadricLight, SphereLight, Triangle
 pub use distant::DistantLight;
 pub use goniometric::GoniometricLight;
 pub use infinite::{
-    DomeLight, ImageInfiniteLight, UniformInfiniteLight, equal_area_sphere_to_square,
+    DomeLight, ImageInfiniteLight, Portal, UniformInfiniteLight, equal_area_sphere_to_square,
     equal_area_square_to_sphere,
 };
 pub use medium::MediumLight;
@@ -190,14 +190,18 @@ impl Light {
                 layout,
                 scale,
                 light_to_world,
+                portal,
             } => {
                 let pixels = image.pixels.iter().map(|p| rgb(*p) * *scale).collect();
+                let portal = portal
+                    .map(|p| Portal::new(p.map(|c| Vec3A::from(glam::DVec3::from(c).as_vec3()))));
                 Light::ImageInfinite(Box::new(ImageInfiniteLight::new(
                     image.width as usize,
                     image.height as usize,
                     pixels,
                     *layout == EnvironmentLayout::EqualArea,
                     Affine3A::from_mat4(light_to_world.as_mat4()),
+                    portal,
                 )))
             }
             LightKind::Goniometric {
@@ -300,10 +304,10 @@ impl Light {
     }
 
     /// Radiance arriving along a ray that escaped the scene in direction `w`.
-    pub fn infinite_le(&self, w: Vec3A) -> Color {
+    pub fn infinite_le(&self, origin: Vec3A, w: Vec3A) -> Color {
         match self {
             Light::UniformInfinite(l) => l.radiance,
-            Light::ImageInfinite(l) => l.le(w),
+            Light::ImageInfinite(l) => l.le(origin, w),
             Light::Dome(l) => l.le(w),
             Light::Point(_)
             | Light::Spot(_)
@@ -335,7 +339,7 @@ impl Light {
             Light::VolumeSphere(l) => l.sample(ctx, p, u),
             Light::Medium(l) => (l.sample(ctx, p, u), 0),
             Light::UniformInfinite(l) => (l.sample(u), 0),
-            Light::ImageInfinite(l) => (l.sample(u), 0),
+            Light::ImageInfinite(l) => (l.sample(p, u), 0),
             Light::Dome(l) => (l.sample(u), 0),
         }
     }
@@ -366,7 +370,7 @@ impl Light {
             Light::VolumeSphere(l) => pmf * l.pdf(p, wi, q, n),
             Light::Medium(l) => l.pdf(ctx, pmf, p, q),
             Light::UniformInfinite(l) => pmf * l.pdf(),
-            Light::ImageInfinite(l) => pmf * l.pdf(wi),
+            Light::ImageInfinite(l) => pmf * l.pdf(p, wi),
             Light::Dome(l) => pmf * l.pdf(wi),
         }
     }

@@ -443,7 +443,8 @@ impl Builder {
         let center = to_world.transform_point3(glam::DVec3::ZERO);
         // pbrt-v4 orients quadrics by the object-space normal carried to the world and then
         // flips them for ReverseOrientation xor a handedness-swapping transform.
-        let flip = shape.reverse_orientation ^ (to_world.determinant() < 0.0);
+        // (A VolumeLight's sphere always faces out: its inside is its inside.)
+        let flip = volume.is_none() && (shape.reverse_orientation ^ (to_world.determinant() < 0.0));
         let world_radius = (radius * scale) as f32;
         let center_f32 = Vec3A::from(center.as_vec3());
         if !within_world_limit(center_f32 + world_radius)
@@ -639,12 +640,20 @@ impl Builder {
         surface: SurfaceInfo,
     ) -> Result<(), BuildError> {
         let object_area = kind.area();
+        if surface.volume.is_some() {
+            return Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: "a VolumeLight (AreaLightSource \"volume\") on a partial sphere, or on a sphere under a non-uniform scale, is not supported yet".into(),
+            });
+        }
         if object_area.is_nan() || object_area <= 0.0 {
             // pbrt-v4 accepts an empty quadric (zero radius, zmin = zmax, phimax 0) and draws
             // nothing; so does Kiln.
             return Ok(());
         }
-        let light = shape.area_light.as_ref().map(|_| self.lights.len() as u32);
+        // The light this quadric will be: only a diffuse area light makes one.
+        let light = matches!(shape.area_light, Some(AreaLightDesc::Diffuse { .. }))
+            .then_some(self.lights.len() as u32);
         let quadric = Quadric::new(
             kind,
             to_world,

@@ -12,10 +12,11 @@
 //! (exact for Bézier curves under affine maps) and their widths scaled by the transform's
 //! mean scale.
 //!
-//! A ray that starts on a curve (a scattered or shadow ray) ignores hits closer than the
-//! curve's width there: a flat ribbon turns to face every ray, so the ribbon it leaves
-//! would otherwise stand across its path. (pbrt-v4 offsets such rays by the width, to the
-//! same end.)
+//! A ray ignores curve hits closer to its origin than the curve's width there: a flat
+//! ribbon turns to face every ray, so the ribbon a scattered or shadow ray leaves would
+//! otherwise stand across its path. (pbrt-v4 offsets rays leaving a curve by the width, to
+//! the same end.) Rays from elsewhere lose only what lies within a width of their origin:
+//! a strand resting on a surface shades it up to a width from the contact.
 
 use super::{Geometry, SurfaceHit, SurfaceInfo};
 use crate::math::Ray;

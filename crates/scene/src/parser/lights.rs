@@ -105,46 +105,80 @@ impl Parser {
                     "LightSource 'infinite': \"illuminance\" with an image is not supported yet",
                 ));
             }
-            "infinite" => match params.string("filename")? {
-                Some(name) => {
-                    if params.loc_of("L").is_some() {
-                        return Err(SceneError::at(
-                            loc,
-                            "LightSource 'infinite': give either \"L\" or \"filename\", not both",
-                        ));
+            "infinite" => {
+                let portal = match params.point3s("portal")? {
+                    None => None,
+                    Some(p) if p.len() == 4 => {
+                        let p: [[f64; 3]; 4] = std::array::from_fn(|i| p[i].map(f64::from));
+                        Some(self.check_portal(p, params, loc))
                     }
-                    let path = self.resolve_file(&name, loc)?;
-                    let image = files::images::read_environment(&path, loc)?;
-                    let layout = if image.width == image.height {
-                        EnvironmentLayout::EqualArea
-                    } else if image.width == 2 * image.height {
-                        EnvironmentLayout::LatLong
-                    } else {
+                    Some(p) => {
                         return Err(SceneError::at(
-                            loc,
+                            &params.loc_of("portal").unwrap_or_else(|| loc.clone()),
                             format!(
-                                "LightSource 'infinite': '{name}' is {}x{}; Kiln reads square equal-area maps (pbrt-v4) or 2:1 lat-long maps",
-                                image.width, image.height
+                                "LightSource 'infinite': a \"portal\" has 4 corners, got {}",
+                                p.len()
                             ),
                         ));
-                    };
-                    LightKind::ImageInfinite {
-                        image: Arc::new(image),
-                        layout,
-                        scale,
-                        light_to_world: ctm,
+                    }
+                };
+                match params.string("filename")? {
+                    Some(name) => {
+                        if params.loc_of("L").is_some() {
+                            return Err(SceneError::at(
+                                loc,
+                                "LightSource 'infinite': give either \"L\" or \"filename\", not both",
+                            ));
+                        }
+                        let path = self.resolve_file(&name, loc)?;
+                        let image = files::images::read_environment(&path, loc)?;
+                        let layout = if image.width == image.height {
+                            EnvironmentLayout::EqualArea
+                        } else if image.width == 2 * image.height {
+                            EnvironmentLayout::LatLong
+                        } else {
+                            return Err(SceneError::at(
+                                loc,
+                                format!(
+                                    "LightSource 'infinite': '{name}' is {}x{}; Kiln reads square equal-area maps (pbrt-v4) or 2:1 lat-long maps",
+                                    image.width, image.height
+                                ),
+                            ));
+                        };
+                        LightKind::ImageInfinite {
+                            image: Arc::new(image),
+                            layout,
+                            scale,
+                            light_to_world: ctm,
+                            portal,
+                        }
+                    }
+                    // E = π L on an upward-facing patch.
+                    None => {
+                        let radiance = scaled(
+                            params
+                                .rgb("L", SpectrumUse::Illuminant)?
+                                .unwrap_or([1.0; 3]),
+                        )
+                        .map(|c| c * illuminance.map_or(1.0, |e| e / std::f32::consts::PI));
+                        match portal {
+                            None => LightKind::UniformInfinite { radiance },
+                            // As pbrt-v4: a constant image behind the portal.
+                            Some(_) => LightKind::ImageInfinite {
+                                image: Arc::new(kiln_image::ImageRgb {
+                                    width: 1,
+                                    height: 1,
+                                    pixels: vec![radiance],
+                                }),
+                                layout: EnvironmentLayout::EqualArea,
+                                scale: 1.0,
+                                light_to_world: ctm,
+                                portal,
+                            },
+                        }
                     }
                 }
-                // E = π L on an upward-facing patch.
-                None => LightKind::UniformInfinite {
-                    radiance: scaled(
-                        params
-                            .rgb("L", SpectrumUse::Illuminant)?
-                            .unwrap_or([1.0; 3]),
-                    )
-                    .map(|c| c * illuminance.map_or(1.0, |e| e / std::f32::consts::PI)),
-                },
-            },
+            }
             "goniometric" | "projection" => {
                 let Some(name) = params.string("filename")? else {
                     return Err(SceneError::at(
@@ -283,6 +317,32 @@ impl Parser {
             loc: loc.clone(),
         });
         Ok(())
+    }
+
+    /// A portal's corners, warned about as pbrt-v4 does if they are not a rectangle (the
+    /// side they face is still defined, and is all Kiln uses).
+    fn check_portal(&mut self, p: [[f64; 3]; 4], params: &ParamSet, loc: &Loc) -> [[f64; 3]; 4] {
+        let v = p.map(DVec3::from);
+        let n = |a: DVec3| a.normalize_or_zero();
+        let (p01, p12, p32, p03) = (
+            n(v[1] - v[0]),
+            n(v[2] - v[1]),
+            n(v[2] - v[3]),
+            n(v[3] - v[0]),
+        );
+        let rectangle = (p01.dot(p32) - 1.0).abs() <= 1e-3
+            && (p12.dot(p03) - 1.0).abs() <= 1e-3
+            && p01.dot(p12).abs() <= 1e-3
+            && p12.dot(p32).abs() <= 1e-3
+            && p32.dot(p03).abs() <= 1e-3
+            && p03.dot(p01).abs() <= 1e-3;
+        if !rectangle {
+            self.warn(
+                &params.loc_of("portal").unwrap_or_else(|| loc.clone()),
+                "LightSource 'infinite': the \"portal\" is not a planar rectangle (pbrt-v4 says so too); light comes through the side it faces",
+            );
+        }
+        p
     }
 
     pub(super) fn area_light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {

@@ -470,8 +470,23 @@ impl Parser {
             params.float("xradius", default_radius)?,
             params.float("yradius", default_radius)?,
         ];
-        if radius.iter().any(|&r| r <= 0.0) {
+        if radius.iter().any(|&r| !(r > 0.0 && r.is_finite())) {
             return Err(SceneError::at(loc, "PixelFilter: radii must be positive"));
+        }
+        match kind {
+            FilterKind::Sinc { tau } if !(tau > 0.0 && tau.is_finite()) => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("PixelFilter 'sinc': \"tau\" must be positive, got {tau}"),
+                ));
+            }
+            FilterKind::Gaussian { sigma } if !(sigma > 0.0 && sigma.is_finite()) => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("PixelFilter 'gaussian': \"sigma\" must be positive, got {sigma}"),
+                ));
+            }
+            _ => {}
         }
         self.check_unused(params, "PixelFilter", &[])?;
         self.filter = Some(FilterDesc {
