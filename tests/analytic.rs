@@ -369,6 +369,37 @@ AttributeEnd"#,
     }
 }
 
+/// An n x n image whose red and green rise across and down it from 0 to 2, blue 0.5.
+fn gradient_image(n: usize) -> Vec<[f32; 3]> {
+    (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32, (i / n) as f32);
+            [(x + 0.5) / n as f32 * 2.0, (y + 0.5) / n as f32 * 2.0, 0.5]
+        })
+        .collect()
+}
+
+/// Asserts each quadrant's mean RGB (left to right, top to bottom) within 1% of pbrt-v4's,
+/// plus `rounding` (its recorded figures' last digit).
+fn assert_quadrants_match(
+    what: &str,
+    img: &kiln_image::RgbBuffer,
+    pbrt: &[[f64; 3]; 4],
+    rounding: f64,
+) {
+    let (w, h) = (img.width / 2, img.height / 2);
+    for (q, want) in pbrt.iter().enumerate() {
+        let (x0, y0) = (w * (q as u32 % 2), h * (q as u32 / 2));
+        let got = [0, 1, 2].map(|c| crate::util::block_stats(img, x0, y0, w, h, c).0);
+        for c in 0..3 {
+            assert!(
+                (got[c] - want[c]).abs() <= 0.01 * want[c] + rounding,
+                "{what}\nquadrant {q}, channel {c}: Kiln {got:?} vs pbrt-v4 {want:?}"
+            );
+        }
+    }
+}
+
 /// Writes a PFM image (rows given top to bottom; PFM stores them bottom up).
 fn write_pfm(path: &std::path::Path, width: usize, height: usize, rgb: &[[f32; 3]]) {
     let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
@@ -391,12 +422,7 @@ fn write_pfm(path: &std::path::Path, width: usize, height: usize, rgb: &[[f32; 3
 fn goniometric_and_projection_lights_match_pbrt_v4() {
     let dir = tempfile::tempdir().unwrap();
     let n = 32;
-    let gradient: Vec<[f32; 3]> = (0..n * n)
-        .map(|i| {
-            let (x, y) = ((i % n) as f32, (i / n) as f32);
-            [(x + 0.5) / n as f32 * 2.0, (y + 0.5) / n as f32 * 2.0, 0.5]
-        })
-        .collect();
+    let gradient = gradient_image(n);
     write_pfm(&dir.path().join("gonio.pfm"), n, n, &gradient);
     let slide = [
         [1.0, 0.0, 0.0],
@@ -465,16 +491,7 @@ Shape "trianglemesh" "point3 P" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "integer indi
         );
         let path = write_scene(dir.path(), "light.pbrt", &text);
         let img = render(&path, dir.path(), "light", &[]).image;
-        for (q, want) in pbrt.iter().enumerate() {
-            let (x0, y0) = (32 * (q as u32 % 2), 32 * (q as u32 / 2));
-            let got = [0, 1, 2].map(|c| crate::util::block_stats(&img, x0, y0, 32, 32, c).0);
-            for c in 0..3 {
-                assert!(
-                    (got[c] - want[c]).abs() <= 0.01 * want[c] + 1.5e-4,
-                    "{light}\nquadrant {q}, channel {c}: Kiln {got:?} vs pbrt-v4 {want:?}"
-                );
-            }
-        }
+        assert_quadrants_match(light, &img, &pbrt, 1.5e-4);
     }
 }
 
@@ -486,12 +503,7 @@ Shape "trianglemesh" "point3 P" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "integer indi
 fn an_infinite_light_shines_only_through_its_portal() {
     let dir = tempfile::tempdir().unwrap();
     let n = 32;
-    let gradient: Vec<[f32; 3]> = (0..n * n)
-        .map(|i| {
-            let (x, y) = ((i % n) as f32, (i / n) as f32);
-            [(x + 0.5) / n as f32 * 2.0, (y + 0.5) / n as f32 * 2.0, 0.5]
-        })
-        .collect();
+    let gradient = gradient_image(n);
     write_pfm(&dir.path().join("sky.pfm"), n, n, &gradient);
     let cases: [(&str, [[f64; 3]; 4]); 2] = [
         (
@@ -529,15 +541,6 @@ Shape "sphere" "float radius" [ 0.5 ]
         );
         let path = write_scene(dir.path(), "portal.pbrt", &text);
         let img = render(&path, dir.path(), "portal", &[]).image;
-        for (q, want) in pbrt.iter().enumerate() {
-            let (x0, y0) = (32 * (q as u32 % 2), 24 * (q as u32 / 2));
-            let got = [0, 1, 2].map(|c| crate::util::block_stats(&img, x0, y0, 32, 24, c).0);
-            for c in 0..3 {
-                assert!(
-                    (got[c] - want[c]).abs() <= 0.01 * want[c] + 1e-5,
-                    "{light}, quadrant {q}, channel {c}: Kiln {got:?} vs pbrt-v4 {want:?}"
-                );
-            }
-        }
+        assert_quadrants_match(light, &img, &pbrt, 1e-5);
     }
 }

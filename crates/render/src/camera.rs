@@ -49,11 +49,6 @@ impl Camera {
         camera
     }
 
-    /// Whether the camera moves over the shutter.
-    pub fn moves(&self) -> bool {
-        self.motion.is_some()
-    }
-
     pub fn new(desc: &CameraDesc, xres: u32, yres: u32) -> Camera {
         let aspect = xres as f64 / yres as f64;
         let screen = desc.screen_window.unwrap_or(if aspect > 1.0 {

@@ -30,6 +30,7 @@ mod lexer;
 pub mod loop_subdiv;
 mod params;
 mod parser;
+pub mod photometry;
 pub mod spectrum;
 pub mod textures;
 

@@ -143,13 +143,26 @@ fn sides(two_sided: bool) -> f32 {
     if two_sided { 2.0 } else { 1.0 }
 }
 
+/// The power (luminance) of a diffuse emitter of `area` emitting `radiance`, or that times
+/// an emission image's mean.
+fn diffuse_power(
+    radiance: Color,
+    image: Option<&EmissionImage>,
+    area: f32,
+    two_sided: bool,
+) -> f32 {
+    let radiance = image.map_or(radiance, |i| radiance * i.mean);
+    PI * area * luminance(radiance) * sides(two_sided)
+}
+
 impl TriangleLight {
     pub fn power(&self) -> f32 {
-        let radiance = match &self.image {
-            Some(image) => self.radiance * image.mean,
-            None => self.radiance,
-        };
-        PI * self.area * luminance(radiance) * sides(self.two_sided)
+        diffuse_power(
+            self.radiance,
+            self.image.as_deref(),
+            self.area,
+            self.two_sided,
+        )
     }
 
     /// Radiance leaving the triangle's point `q` (normal `n`) in direction `w`.
@@ -274,11 +287,12 @@ pub struct QuadricLight {
 
 impl QuadricLight {
     pub fn power(&self) -> f32 {
-        let radiance = match &self.image {
-            Some(image) => self.radiance * image.mean,
-            None => self.radiance,
-        };
-        PI * self.area * luminance(radiance) * sides(self.two_sided)
+        diffuse_power(
+            self.radiance,
+            self.image.as_deref(),
+            self.area,
+            self.two_sided,
+        )
     }
 
     /// Radiance leaving the quadric's point `q` (normal `n`, oriented as hits are) in

@@ -17,6 +17,8 @@ pub struct GoniometricLight {
     /// The image's per-pixel mean of RGB, row by row.
     pub values: Vec<f32>,
     pub resolution: u32,
+    /// The image's mean value (its power per unit intensity, over 4π).
+    pub mean: f32,
 }
 
 impl GoniometricLight {
@@ -33,9 +35,7 @@ impl GoniometricLight {
     }
 
     pub fn power(&self) -> f32 {
-        let mean =
-            self.values.iter().map(|&v| f64::from(v)).sum::<f64>() / self.values.len() as f64;
-        4.0 * PI * luminance(self.intensity) * mean as f32
+        4.0 * PI * luminance(self.intensity) * self.mean
     }
 
     pub fn sample(&self, p: Vec3A) -> Option<LightSample> {

@@ -221,6 +221,7 @@ impl Light {
                     .map(|p| (p[0] + p[1] + p[2]) / 3.0)
                     .collect(),
                 resolution: image.width,
+                mean: kiln_scene::photometry::goniometric_mean(image) as f32,
             }),
             LightKind::Projection {
                 light_to_world,

@@ -4,7 +4,7 @@
 //! light's scale, and nothing outside the frame or behind.
 
 use super::LightSample;
-use crate::math::{Color, luminance};
+use crate::math::Color;
 use glam::{Mat3A, Vec3A};
 use kiln_scene::ImageRgb;
 use std::sync::Arc;
@@ -39,30 +39,16 @@ impl ProjectionLight {
             [-1.0, 1.0, -1.0 / aspect, 1.0 / aspect]
         };
         let tan = (fov_degrees.to_radians() / 2.0).tan() as f32;
-        let mut light = ProjectionLight {
+        let phi = scale * kiln_scene::photometry::projection_power(&image, fov_degrees) as f32;
+        ProjectionLight {
             position,
             to_light,
             scale,
             inv_tan: 1.0 / tan,
             screen,
             image,
-            phi: 0.0,
-        };
-        // Φ = A · mean over pixels of luminance · cos³θ (the solid angle a pixel subtends).
-        let (w, h) = (light.image.width, light.image.height);
-        let mut sum = 0.0f64;
-        for y in 0..h {
-            for x in 0..w {
-                let px = screen[0] + (screen[1] - screen[0]) * (x as f32 + 0.5) / w as f32;
-                let py = screen[2] + (screen[3] - screen[2]) * (y as f32 + 0.5) / h as f32;
-                let d = Vec3A::new(px * tan, py * tan, 1.0).normalize();
-                let c = light.image.pixels[(y * w + x) as usize];
-                sum += f64::from(luminance(Color::from_array(c).max(Color::ZERO)) * d.z.powi(3));
-            }
+            phi,
         }
-        let area = 4.0 * tan * tan * aspect.max(1.0 / aspect);
-        light.phi = scale * area * (sum / f64::from(w * h)) as f32;
-        light
     }
 
     /// The intensity towards light-space direction `w`.

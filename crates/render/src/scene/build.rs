@@ -41,6 +41,10 @@ pub enum BuildError {
     },
 }
 
+/// The most curve pieces (BVH primitives, about 48 bytes each with their segment's share)
+/// a scene may hold: 2^26, some 3 GB.
+const CURVE_PIECE_LIMIT: u64 = 1 << 26;
+
 /// The largest world-space coordinate a shape may reach. The BVH builder and intersection
 /// tests multiply coordinates (areas, determinants), so a coordinate near f32's range, or
 /// beyond it once transformed, would overflow inside them; 10^15 is far beyond any scene.
@@ -594,6 +598,17 @@ impl Builder {
             return refuse("this curve's transform cannot be inverted (a zero scale?)");
         }
         let pieces = 1u32 << curve.split_depth;
+        let total =
+            self.prims.curve_pieces.len() as u64 + curve.segments.len() as u64 * u64::from(pieces);
+        if total > CURVE_PIECE_LIMIT {
+            return Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: format!(
+                    "the scene's curves would make {total} BVH pieces ({} segments here, {pieces} pieces each by \"splitdepth\"); Kiln's limit is {CURVE_PIECE_LIMIT} (a lower splitdepth makes fewer)",
+                    curve.segments.len()
+                ),
+            });
+        }
         for (i, (cp, width)) in curve.segments.iter().zip(&curve.widths).enumerate() {
             let cp = cp.map(|p| Vec3A::from(m.transform_point3(glam::Vec3::from(p))));
             if let Some(p) = cp.iter().find(|p| !within_world_limit(**p)) {

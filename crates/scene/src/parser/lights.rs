@@ -196,7 +196,6 @@ impl Parser {
                         ),
                     ));
                 }
-                let n = image.pixels.len() as f64;
                 if ty == "goniometric" {
                     if image.width != image.height {
                         return Err(SceneError::at(
@@ -208,20 +207,9 @@ impl Parser {
                         ));
                     }
                     // Φ = 4π · the image's mean (of the mean of RGB), as pbrt-v4's k_e.
-                    let mean: f64 = image
-                        .pixels
-                        .iter()
-                        .map(|p| f64::from(p[0] + p[1] + p[2]) / 3.0)
-                        .sum::<f64>()
-                        / n;
-                    let k = power.map_or(1.0, |phi| {
-                        let k_e = 4.0 * std::f64::consts::PI * mean;
-                        if k_e > 0.0 {
-                            (f64::from(phi) / k_e) as f32
-                        } else {
-                            0.0
-                        }
-                    });
+                    let k_e =
+                        4.0 * std::f64::consts::PI * crate::photometry::goniometric_mean(&image);
+                    let k = power.map_or(1.0, |phi| per_unit(phi, k_e));
                     // pbrt-v4 turns the light's y axis into z.
                     let swap_yz = glam::DMat4::from_cols(
                         glam::DVec4::X,
@@ -249,37 +237,8 @@ impl Parser {
                             ),
                         ));
                     }
-                    // Φ = A · mean(luminance · cos³θ) over the image's pixels, A the area
-                    // of the image on the plane at distance 1, as pbrt-v4's k_e.
-                    let aspect = f64::from(image.width) / f64::from(image.height);
-                    let tan = (fov.to_radians() / 2.0).tan();
-                    let (sx, sy) = if aspect > 1.0 {
-                        (aspect, 1.0)
-                    } else {
-                        (1.0, 1.0 / aspect)
-                    };
                     let k = power.map_or(1.0, |phi| {
-                        let mut sum = 0.0;
-                        for y in 0..image.height {
-                            for x in 0..image.width {
-                                let px =
-                                    -sx + 2.0 * sx * (f64::from(x) + 0.5) / f64::from(image.width);
-                                let py =
-                                    -sy + 2.0 * sy * (f64::from(y) + 0.5) / f64::from(image.height);
-                                let w = DVec3::new(px * tan, py * tan, 1.0).normalize();
-                                let p = image.pixels[(y * image.width + x) as usize];
-                                let lum = 0.2126 * f64::from(p[0].max(0.0))
-                                    + 0.7152 * f64::from(p[1].max(0.0))
-                                    + 0.0722 * f64::from(p[2].max(0.0));
-                                sum += lum * w.z.powi(3);
-                            }
-                        }
-                        let k_e = 4.0 * tan * tan * aspect.max(1.0 / aspect) * sum / n;
-                        if k_e > 0.0 {
-                            (f64::from(phi) / k_e) as f32
-                        } else {
-                            0.0
-                        }
+                        per_unit(phi, crate::photometry::projection_power(&image, fov))
                     });
                     // pbrt-v4 flips the light's y, so the image's top row is its +y.
                     let flip_y = glam::DMat4::from_scale(DVec3::new(1.0, -1.0, 1.0));
@@ -458,6 +417,16 @@ impl Parser {
             loc: loc.clone(),
         }));
         Ok(())
+    }
+}
+
+/// The scale that makes a light of power `k_e` per unit scale emit `phi` (none where it
+/// emits nothing).
+fn per_unit(phi: f32, k_e: f64) -> f32 {
+    if k_e > 0.0 {
+        (f64::from(phi) / k_e) as f32
+    } else {
+        0.0
     }
 }
 
