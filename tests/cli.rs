@@ -164,3 +164,25 @@ fn every_scene_in_the_repository_renders_without_warnings() {
         assert!(!stderr.contains("warning"), "{}: {stderr}", path.display());
     }
 }
+
+/// An output named other than .exr is refused before rendering, with the way to a PNG.
+#[test]
+fn an_output_not_named_exr_is_refused_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("frame.png");
+    let out = kiln()
+        .arg("render")
+        .arg(crate::util::scene("furnace/scene.pbrt"))
+        .arg("-q")
+        .arg("-o")
+        .arg(&png)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("name it .exr") && stderr.contains("--preview"),
+        "{stderr}"
+    );
+    assert!(!png.exists());
+}

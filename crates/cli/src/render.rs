@@ -66,6 +66,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.tile == 0 {
         bail!("--tile must be at least 1");
     }
+    // An image named otherwise would still be an EXR: refuse it before any work is done.
+    if let Some(out) = &args.output
+        && !out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
+        bail!(
+            "--output {}: Kiln writes OpenEXR; name it .exr (add --preview FILE.png for an sRGB PNG)",
+            out.display()
+        );
+    }
     let start = Instant::now();
     let mut desc = kiln_scene::load_file(&args.scene)?;
     for w in &desc.warnings {

@@ -148,6 +148,24 @@ pub enum LightStrategy {
     BsdfOnly,
 }
 
+/// How the path tracer chooses the light to sample at each vertex (pbrt-v4's
+/// "lightsampler").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LightSamplerKind {
+    /// A bounding volume hierarchy over the lights, chosen by an importance that accounts
+    /// for each cluster's power, distance and orientation from the shading point (pbrt-v4's
+    /// default).
+    #[default]
+    Bvh,
+    /// In proportion to each light's power, wherever the shading point is.
+    Power,
+    /// Every light equally.
+    Uniform,
+    /// In proportion to every light's importance from the shading point (the hierarchy's
+    /// measure, without the hierarchy: exact, and linear in the number of lights).
+    Exhaustive,
+}
+
 /// The integrators Kiln has: pbrt-v4's "path" ignores participating media, "volpath"
 /// renders them. Integrators Kiln lacks are rendered with "volpath".
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -166,6 +184,7 @@ pub struct IntegratorDesc {
     /// Russian roulette may end paths from this bounce on (Kiln's "integer rrdepth").
     pub rr_depth: u32,
     pub strategy: LightStrategy,
+    pub light_sampler: LightSamplerKind,
     /// Clamp the radiance of each path sample to this value (0 disables it).
     pub max_radiance: f32,
     /// Photons traced for the caustic photon maps (Kiln's "integer causticphotons"; 0:

@@ -60,6 +60,11 @@ pub(super) struct Vertex<'a> {
 }
 
 impl Vertex<'_> {
+    /// The shading normal light sampling sees (zero in a medium).
+    pub fn normal(&self) -> Vec3A {
+        self.surface.map_or(Vec3A::ZERO, |h| h.ns)
+    }
+
     fn medium_towards(&self, dir: Vec3A) -> Option<u32> {
         match self.surface {
             Some(h) => h.surface.medium_towards(dir, h.ng).unwrap_or(self.medium),
@@ -81,7 +86,7 @@ pub(super) fn sample_direct(
 ) -> Color {
     let u_light = sampler.get_1d();
     let u = sampler.get_2d();
-    let Some((index, pmf)) = scene.light_sampler.sample(u_light) else {
+    let Some((index, pmf)) = scene.light_sampler.sample(v.p, v.normal(), u_light) else {
         return Color::ZERO;
     };
     let (sample, traced) = scene.lights[index].sample(&scene.light_context(), v.p, u);

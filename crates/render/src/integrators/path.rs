@@ -41,6 +41,9 @@ struct PathState {
     /// density it sampled the current direction with.
     first_or_specular: bool,
     prev_p: Vec3A,
+    /// The previous vertex's shading normal (zero in a medium), which the light sampler's
+    /// choice depends on.
+    prev_n: Vec3A,
     prev_pdf: f32,
     /// Interface surfaces crossed without scattering.
     pass_throughs: u32,
@@ -98,6 +101,7 @@ pub(super) fn path_li(
         depth: 0,
         first_or_specular: true,
         prev_p: ray.origin,
+        prev_n: Vec3A::ZERO,
         prev_pdf: 0.0,
         pass_throughs: 0,
         inside: None,
@@ -154,8 +158,12 @@ fn medium_step(
     // Emission met at a tentative collision could also have been found by sampling the
     // medium as a light from the previous vertex.
     let light = scene.medium_lights[m as usize];
-    let (first_or_specular, prev_p, prev_pdf) =
-        (state.first_or_specular, state.prev_p, state.prev_pdf);
+    let (first_or_specular, prev_p, prev_n, prev_pdf) = (
+        state.first_or_specular,
+        state.prev_p,
+        state.prev_n,
+        state.prev_pdf,
+    );
     let l = &mut state.l;
     let event = med.sample_interaction(ray, t_max, &mut rng, &mut state.beta, |e| match e {
         Emitted::Segment(c) => *l += c,
@@ -169,7 +177,7 @@ fn medium_step(
                 None => 1.0,
                 Some(light) => {
                     emission_weight(settings, first_or_specular, prev_pdf * sigma_maj, || {
-                        scene.light_pdf(light, prev_p, ray.dir, x, Vec3A::ZERO)
+                        scene.light_pdf(light, prev_p, prev_n, ray.dir, x, Vec3A::ZERO)
                     })
                 }
             };
@@ -231,6 +239,7 @@ fn medium_step(
     state.first_or_specular = false;
     state.prev_pdf = pdf;
     state.prev_p = p;
+    state.prev_n = Vec3A::ZERO;
     *ray = ray.spawn(p, wi);
     if let Some((volume, _)) = state.inside {
         state.inside = Some((volume, true));
@@ -266,7 +275,16 @@ fn escape(ctx: &PathContext, state: &mut PathState, ray: &Ray) {
                 ctx.settings,
                 state.first_or_specular,
                 state.prev_pdf,
-                || scene.light_pdf(i, state.prev_p, ray.dir, Vec3A::ZERO, Vec3A::ZERO),
+                || {
+                    scene.light_pdf(
+                        i,
+                        state.prev_p,
+                        state.prev_n,
+                        ray.dir,
+                        Vec3A::ZERO,
+                        Vec3A::ZERO,
+                    )
+                },
             );
             state.l += state.beta * le * w;
         }
@@ -298,7 +316,7 @@ fn surface_emission(
             ctx.settings,
             state.first_or_specular,
             state.prev_pdf,
-            || scene.light_pdf(light_id, state.prev_p, ray.dir, hit.p, hit.ng),
+            || scene.light_pdf(light_id, state.prev_p, state.prev_n, ray.dir, hit.p, hit.ng),
         );
         state.l += state.beta * le * w;
     }
@@ -380,6 +398,7 @@ fn surface_step(
     state.first_or_specular = bs.specular;
     state.prev_pdf = bs.pdf;
     state.prev_p = hit.p;
+    state.prev_n = hit.ns;
     if bs.eta != 1.0 {
         state.eta_scale *= bs.eta * bs.eta;
     }

@@ -156,6 +156,19 @@ fn diffuse_power(
 }
 
 impl TriangleLight {
+    /// A one-sided (or two-sided) emitter facing `n`, for the light hierarchy.
+    pub fn bounds(&self, power: f32) -> super::LightBounds {
+        let [a, b, c] = self.p;
+        super::LightBounds::diffuse(
+            a.min(b).min(c),
+            a.max(b).max(c),
+            self.n,
+            1.0,
+            power,
+            self.two_sided,
+        )
+    }
+
     pub fn power(&self) -> f32 {
         diffuse_power(
             self.radiance,

@@ -16,6 +16,7 @@ mod infinite;
 mod medium;
 mod point;
 mod projection;
+mod sampler;
 mod spot;
 pub mod volume;
 
@@ -29,6 +30,7 @@ pub use infinite::{
 pub use medium::MediumLight;
 pub use point::PointLight;
 pub use projection::ProjectionLight;
+pub use sampler::{LightBounds, LightBvh, LightSampler};
 pub use spot::SpotLight;
 pub use volume::{VolumeInterior, VolumeSphereLight, VolumeTriangleLight};
 
@@ -280,6 +282,35 @@ impl Light {
             Light::UniformInfinite(l) => l.power(scene_radius),
             Light::ImageInfinite(l) => l.power(scene_radius),
             Light::Dome(l) => l.power(scene_radius),
+        }
+    }
+
+    /// Where the light is and which way it shines, for the light hierarchy, with its
+    /// `power` as [`Light::power`] gave it; None for lights at infinity and distant lights.
+    /// Where a kind's emission has no simple cone, the bounds say every direction: they
+    /// may be loose, never too tight.
+    pub fn bounds(&self, ctx: &LightContext, power: f32) -> Option<LightBounds> {
+        let at_point = |p: Vec3A| Some(LightBounds::everywhere(p, p, power));
+        let in_box = |(lo, hi): (Vec3A, Vec3A)| Some(LightBounds::everywhere(lo, hi, power));
+        match self {
+            Light::Point(l) => at_point(l.position),
+            Light::Goniometric(l) => at_point(l.position),
+            Light::Projection(l) => at_point(l.position),
+            Light::Spot(l) => Some(l.bounds()),
+            Light::Triangle(l) => Some(l.bounds(power)),
+            Light::Sphere(l) => in_box((l.center - l.radius, l.center + l.radius)),
+            Light::Quadric(l) => in_box(ctx.geometry.prims.quadrics[l.quadric as usize].bounds()),
+            Light::VolumeTriangle(l) => in_box((
+                l.p[0].min(l.p[1]).min(l.p[2]),
+                l.p[0].max(l.p[1]).max(l.p[2]),
+            )),
+            Light::VolumeSphere(l) => in_box((l.center - l.radius, l.center + l.radius)),
+            // An unbounded medium is chosen as lights at infinity are.
+            Light::Medium(l) => ctx.media[l.medium as usize].bounds().and_then(in_box),
+            Light::Distant(_)
+            | Light::UniformInfinite(_)
+            | Light::ImageInfinite(_)
+            | Light::Dome(_) => None,
         }
     }
 

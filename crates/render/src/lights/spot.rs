@@ -16,6 +16,26 @@ pub struct SpotLight {
 }
 
 impl SpotLight {
+    /// The cone it shines in, for the light hierarchy; its power is that of a point light
+    /// of the same intensity, as pbrt-v4 bounds it (the cone says where it reaches).
+    pub fn bounds(&self) -> super::LightBounds {
+        let mut cos_e =
+            (self.cos_end.clamp(-1.0, 1.0).acos() - self.cos_start.clamp(-1.0, 1.0).acos()).cos();
+        // Rounding in the importance's angles must not shut out the falloff's rim.
+        if cos_e == 1.0 && self.cos_end != self.cos_start {
+            cos_e = 0.999;
+        }
+        super::LightBounds {
+            lo: self.position,
+            hi: self.position,
+            w: self.frame.z,
+            phi: 4.0 * PI * luminance(self.intensity),
+            cos_o: self.cos_start,
+            cos_e,
+            two_sided: false,
+        }
+    }
+
     pub fn power(&self) -> f32 {
         2.0 * PI * luminance(self.intensity) * (1.0 - 0.5 * (self.cos_start + self.cos_end))
     }

@@ -59,6 +59,14 @@ pub enum Emitted {
 }
 
 impl Medium {
+    /// The box in world space outside which the medium has no density (None: unbounded).
+    pub fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        match self {
+            Medium::Homogeneous(_) => None,
+            Medium::Grid(g) => Some(g.world_bounds()),
+        }
+    }
+
     pub fn phase(&self) -> Phase {
         match self {
             Medium::Homogeneous(h) => h.phase,

@@ -7,14 +7,13 @@ use crate::camera::Camera;
 use crate::filter::Filter;
 use crate::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use crate::lights::{
-    EmissionImage, Light, MediumLight, QuadricLight, SphereLight, TriangleLight, VolumeInterior,
-    VolumeSphereLight, VolumeTriangleLight,
+    EmissionImage, Light, LightSampler, MediumLight, QuadricLight, SphereLight, TriangleLight,
+    VolumeInterior, VolumeSphereLight, VolumeTriangleLight,
 };
 use crate::materials::{DielectricMaterial, Material, Model, Perturbation, RoughnessTexture};
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::motion::AnimatedTransform;
-use crate::sampling::AliasTable;
 use crate::shapes::curve::{CurvePiece, CurveSegment};
 use crate::shapes::cylinder::Cylinder;
 use crate::shapes::disk::Disk;
@@ -819,7 +818,7 @@ impl Scene {
         let mut scene = Scene {
             geometry,
             materials: b.materials,
-            light_sampler: AliasTable::default(),
+            light_sampler: LightSampler::default(),
             lights,
             infinite_lights,
             camera: Camera::new_moving(
@@ -886,7 +885,12 @@ impl Scene {
             .iter()
             .map(|l| l.power(radius).max(0.0) as f64)
             .collect();
-        scene.light_sampler = AliasTable::new(&powers);
+        scene.light_sampler = LightSampler::new(
+            desc.integrator.light_sampler,
+            &scene.lights,
+            &powers,
+            &scene.light_context(),
+        );
         Ok(scene)
     }
 }

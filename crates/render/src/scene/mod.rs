@@ -12,11 +12,11 @@ pub use build::{BuildError, MediaPolicy};
 use crate::bsdfs::Bsdf;
 use crate::camera::Camera;
 use crate::filter::Filter;
-use crate::lights::{Light, LightContext, VolumeInterior};
+use crate::lights::{Light, LightContext, LightSampler, VolumeInterior};
 use crate::materials::{Material, Model};
 use crate::math::{Color, Ray};
 use crate::media::Medium;
-use crate::sampling::{AliasTable, TrackingRng};
+use crate::sampling::TrackingRng;
 use crate::shapes::{Geometry, SurfaceHit};
 use crate::textures::TextureEvalContext;
 use crate::work::Work;
@@ -27,8 +27,8 @@ pub struct Scene {
     pub geometry: Geometry,
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,
-    /// Chooses lights in proportion to their power.
-    pub light_sampler: AliasTable,
+    /// Chooses the light to sample from a shading point.
+    pub light_sampler: LightSampler,
     /// Lights at infinity, whose radiance escaped rays collect.
     pub infinite_lights: Vec<u32>,
     pub camera: Camera,
@@ -86,11 +86,12 @@ impl Scene {
         }
     }
 
-    /// The density with which the light sampler chooses light `light` and samples direction
-    /// `wi` from `p` towards its point `q` (normal `n`): what multiple importance sampling
-    /// weighs emission found by BSDF or phase sampling against.
-    pub fn light_pdf(&self, light: u32, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
-        let pmf = self.light_sampler.pmf(light as usize);
+    /// The density with which the light sampler chooses light `light` from `p` (shading
+    /// normal `ns`, zero in a medium) and samples direction `wi` towards its point `q`
+    /// (normal `n`): what multiple importance sampling weighs emission found by BSDF or
+    /// phase sampling against.
+    pub fn light_pdf(&self, light: u32, p: Vec3A, ns: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
+        let pmf = self.light_sampler.pmf(p, ns, light as usize);
         self.lights[light as usize].pdf(&self.light_context(), pmf, p, wi, q, n)
     }
 

@@ -540,6 +540,7 @@ impl Parser {
                 max_depth: 5,
                 rr_depth: 5,
                 strategy: LightStrategy::Mis,
+                light_sampler: LightSamplerKind::Bvh,
                 max_radiance: 0.0,
                 caustic_photons: 0,
                 caustic_radius: 0.0,

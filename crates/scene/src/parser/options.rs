@@ -557,14 +557,20 @@ impl Parser {
                 format!("Integrator: rrdepth {rr_depth} is out of range"),
             ));
         }
-        if let Some(ls) = params.string("lightsampler")? {
-            if ls != "power" {
-                self.warn(
-                    loc,
-                    format!("Integrator: lightsampler '{ls}': Kiln samples lights by power"),
-                );
+        let light_sampler = match params.string("lightsampler")?.as_deref() {
+            None | Some("bvh") => LightSamplerKind::Bvh,
+            Some("power") => LightSamplerKind::Power,
+            Some("uniform") => LightSamplerKind::Uniform,
+            Some("exhaustive") => LightSamplerKind::Exhaustive,
+            Some(other) => {
+                return Err(SceneError::at(
+                    &params.loc_of("lightsampler").unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "Integrator: lightsampler '{other}' is unknown (bvh, exhaustive, power or uniform)"
+                    ),
+                ));
             }
-        }
+        };
         // Kiln's caustic photon maps (seeds 003 and 004), off unless asked for.
         let caustic_photons = params.int("causticphotons", 0)?;
         let caustic_radius = params.float("causticradius", 0.0)? as f32;
@@ -594,6 +600,7 @@ impl Parser {
             max_depth: max_depth as u32,
             rr_depth: rr_depth as u32,
             strategy,
+            light_sampler,
             max_radiance,
             caustic_photons: caustic_photons as u64,
             caustic_radius,
@@ -687,5 +694,32 @@ mod tests {
         assert_eq!(s.filter.kind, FilterKind::Gaussian { sigma: 0.3 });
         assert_eq!(s.filter.radius, [1.5, 1.5]);
         assert_eq!(s.integrator.max_depth, 9);
+    }
+
+    /// pbrt-v4's light samplers: "bvh" by default, "power" and "uniform" when named.
+    #[test]
+    fn light_samplers_by_name() {
+        assert_eq!(
+            load("WorldBegin").integrator.light_sampler,
+            LightSamplerKind::Bvh
+        );
+        for (name, kind) in [
+            ("bvh", LightSamplerKind::Bvh),
+            ("power", LightSamplerKind::Power),
+            ("uniform", LightSamplerKind::Uniform),
+            ("exhaustive", LightSamplerKind::Exhaustive),
+        ] {
+            let s = load(&format!(
+                "Integrator \"path\" \"string lightsampler\" \"{name}\"\nWorldBegin"
+            ));
+            assert_eq!(s.integrator.light_sampler, kind);
+            assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        }
+        let err =
+            load_err("\nIntegrator \"path\" \"string lightsampler\" \"exhaustive\"\nWorldBegin");
+        assert!(
+            err.contains("t.pbrt:2") && err.contains("exhaustive"),
+            "{err}"
+        );
     }
 }

@@ -1,0 +1,736 @@
+//! Choosing which light to sample from a shading point: by power, uniformly, or through a
+//! bounding volume hierarchy over the lights whose choice at each node weighs the two
+//! clusters' power by their distance and orientation from the point (pbrt-v4's default
+//! "bvh" light sampler, after Conty Estevez and Kulla's "Importance Sampling of Many
+//! Lights with Adaptive Tree Splitting").
+//!
+//! Whatever the kind, [`LightSampler::pmf`] gives exactly the probability
+//! [`LightSampler::sample`] chose a light with from the same point: multiple importance
+//! sampling weighs emission found by BSDF sampling against it. Lights at infinity (and
+//! distant lights) are outside the hierarchy and chosen uniformly with one share beside
+//! it.
+
+use super::Light;
+use crate::sampling::AliasTable;
+use glam::Vec3A;
+use kiln_scene::LightSamplerKind;
+use std::f32::consts::PI;
+
+/// The largest f32 below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// What a light, or a cluster of lights, can send where: a box holding the emitters, the
+/// cone of their surface normals (axis `w`, half-angle theta_o) and the spread of emission
+/// about each normal (theta_e), and their power.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightBounds {
+    pub lo: Vec3A,
+    pub hi: Vec3A,
+    pub w: Vec3A,
+    /// Power, in the units the lights share (what [`Light::power`] gives or, for lights
+    /// with a narrower cone, the power of an isotropic emitter of the same intensity).
+    pub phi: f32,
+    pub cos_o: f32,
+    pub cos_e: f32,
+    /// Emits on both sides of the normals.
+    pub two_sided: bool,
+}
+
+impl LightBounds {
+    /// An emitter that may send light in every direction from anywhere in the box.
+    pub fn everywhere(lo: Vec3A, hi: Vec3A, phi: f32) -> LightBounds {
+        LightBounds {
+            lo,
+            hi,
+            w: Vec3A::Z,
+            phi,
+            cos_o: -1.0,
+            cos_e: 0.0,
+            two_sided: false,
+        }
+    }
+
+    /// A one-sided (or two-sided) diffuse emitter whose normals all lie in the cone about
+    /// `n` of half-angle acos(cos_o).
+    pub fn diffuse(
+        lo: Vec3A,
+        hi: Vec3A,
+        n: Vec3A,
+        cos_o: f32,
+        phi: f32,
+        two_sided: bool,
+    ) -> LightBounds {
+        LightBounds {
+            lo,
+            hi,
+            w: n,
+            phi,
+            cos_o,
+            cos_e: 0.0,
+            two_sided,
+        }
+    }
+
+    fn union(&self, b: &LightBounds) -> LightBounds {
+        if self.phi == 0.0 {
+            return *b;
+        }
+        if b.phi == 0.0 {
+            return *self;
+        }
+        let (w, cos_o) = cone_union((self.w, self.cos_o), (b.w, b.cos_o));
+        LightBounds {
+            lo: self.lo.min(b.lo),
+            hi: self.hi.max(b.hi),
+            w,
+            phi: self.phi + b.phi,
+            cos_o,
+            cos_e: self.cos_e.min(b.cos_e),
+            two_sided: self.two_sided || b.two_sided,
+        }
+    }
+
+    fn centroid(&self) -> Vec3A {
+        0.5 * (self.lo + self.hi)
+    }
+
+    /// How much light the emitters could send to a point `p` with normal `n` (zero for a
+    /// point in a medium): their power over the squared distance, times the cosine of the
+    /// smallest angle any emitter's direction can make with the way to `p` and, at a
+    /// surface, the largest cosine its normal can make with the box. Zero only where no
+    /// emitter in the bounds can light `p`.
+    pub fn importance(&self, p: Vec3A, n: Vec3A) -> f32 {
+        Cluster::new(self).importance(p, n)
+    }
+
+    /// The surface-area and orientation cost pbrt-v4 splits clusters by: power times the
+    /// solid measure of the emission cone times the box's area, times how elongated the
+    /// parent box is across the split axis.
+    fn cost(&self, parent_diag: Vec3A, axis: usize) -> f32 {
+        let theta_o = self.cos_o.clamp(-1.0, 1.0).acos();
+        let theta_e = self.cos_e.clamp(-1.0, 1.0).acos();
+        let theta_w = (theta_o + theta_e).min(PI);
+        let sin_o = safe_sqrt(1.0 - self.cos_o * self.cos_o);
+        let m_omega = 2.0 * PI * (1.0 - self.cos_o)
+            + PI / 2.0
+                * (2.0 * theta_w * sin_o - (theta_o - 2.0 * theta_w).cos() - 2.0 * theta_o * sin_o
+                    + self.cos_o);
+        let kr = if parent_diag[axis] > 0.0 {
+            parent_diag.max_element() / parent_diag[axis]
+        } else {
+            1.0
+        };
+        let d = self.hi - self.lo;
+        let area = 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+        self.phi * m_omega * kr * area
+    }
+}
+
+/// A [`LightBounds`] with what its importance needs computed once: the centre and squared
+/// radius of the box's bounding sphere, the distance clamp, and the sine of the cone.
+#[derive(Debug, Clone, Copy)]
+struct Cluster {
+    center: Vec3A,
+    radius2: f32,
+    /// pbrt-v4 clamps the squared distance by half the diagonal's length (not squared);
+    /// Kiln keeps its choice so that scenes shared with it sample alike.
+    min_d2: f32,
+    w: Vec3A,
+    phi: f32,
+    cos_o: f32,
+    sin_o: f32,
+    cos_e: f32,
+    two_sided: bool,
+}
+
+impl Cluster {
+    fn new(b: &LightBounds) -> Cluster {
+        let half_diag = (b.hi - b.lo).length() / 2.0;
+        Cluster {
+            center: b.centroid(),
+            radius2: half_diag * half_diag,
+            min_d2: half_diag,
+            w: b.w,
+            phi: b.phi,
+            cos_o: b.cos_o,
+            sin_o: safe_sqrt(1.0 - b.cos_o * b.cos_o),
+            cos_e: b.cos_e,
+            two_sided: b.two_sided,
+        }
+    }
+
+    /// See [`LightBounds::importance`].
+    fn importance(&self, p: Vec3A, n: Vec3A) -> f32 {
+        let d = p - self.center;
+        let dist2 = d.length_squared();
+        let wi = if dist2 > 0.0 { d / dist2.sqrt() } else { Vec3A::ZERO };
+        let mut cos_w = self.w.dot(wi);
+        if self.two_sided {
+            cos_w = cos_w.abs();
+        }
+        let sin_w = safe_sqrt(1.0 - cos_w * cos_w);
+        // The cone of directions the box's bounding sphere subtends from p.
+        let (cos_b, sin_b) = if dist2 < self.radius2 {
+            (-1.0, 0.0)
+        } else {
+            let sin2 = self.radius2 / dist2;
+            (safe_sqrt(1.0 - sin2), sin2.sqrt())
+        };
+        // theta' = max(0, theta_w - theta_o - theta_b), by its sine and cosine.
+        let cos_x = cos_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
+        let sin_x = sin_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
+        let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+        if cos_p <= self.cos_e {
+            return 0.0;
+        }
+        let mut importance = self.phi * cos_p / dist2.max(self.min_d2);
+        if n != Vec3A::ZERO {
+            let cos_i = n.dot(wi).abs();
+            let sin_i = safe_sqrt(1.0 - cos_i * cos_i);
+            importance *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+        }
+        if importance > 0.0 && importance.is_finite() {
+            importance
+        } else {
+            0.0
+        }
+    }
+}
+
+fn safe_sqrt(x: f32) -> f32 {
+    x.max(0.0).sqrt()
+}
+
+/// cos(max(0, a - b)) from the sines and cosines of a and b.
+fn cos_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
+    if cos_a > cos_b {
+        1.0
+    } else {
+        cos_a * cos_b + sin_a * sin_b
+    }
+}
+
+/// sin(max(0, a - b)) from the sines and cosines of a and b.
+fn sin_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
+    if cos_a > cos_b {
+        0.0
+    } else {
+        sin_a * cos_b - cos_a * sin_b
+    }
+}
+
+/// The smallest cone holding both cones (axis, cosine of the half-angle).
+fn cone_union(a: (Vec3A, f32), b: (Vec3A, f32)) -> (Vec3A, f32) {
+    let theta_a = a.1.clamp(-1.0, 1.0).acos();
+    let theta_b = b.1.clamp(-1.0, 1.0).acos();
+    let theta_d = a.0.dot(b.0).clamp(-1.0, 1.0).acos();
+    if (theta_d + theta_b).min(PI) <= theta_a {
+        return a;
+    }
+    if (theta_d + theta_a).min(PI) <= theta_b {
+        return b;
+    }
+    let theta_o = (theta_a + theta_d + theta_b) / 2.0;
+    if theta_o >= PI {
+        return (Vec3A::Z, -1.0);
+    }
+    let theta_r = theta_o - theta_a;
+    let axis = a.0.cross(b.0);
+    if axis.length_squared() == 0.0 {
+        return (Vec3A::Z, -1.0);
+    }
+    let w = glam::Quat::from_axis_angle(axis.normalize().into(), theta_r) * glam::Vec3::from(a.0);
+    (Vec3A::from(w).normalize(), theta_o.cos())
+}
+
+/// A node of the light hierarchy: its bounds and either its second child (the first
+/// follows it) or, in a leaf, its light.
+#[derive(Debug, Clone)]
+struct Node {
+    cluster: Cluster,
+    /// The second child's index, or the light's index in a leaf.
+    index: u32,
+    leaf: bool,
+}
+
+/// The hierarchy over the lights with finite bounds, and the lights at infinity beside it.
+#[derive(Debug, Clone, Default)]
+pub struct LightBvh {
+    nodes: Vec<Node>,
+    infinite: Vec<u32>,
+    /// Per light: the branches (bit k set: the second child at depth k) from the root to
+    /// its leaf, or None for lights at infinity and lights that emit nothing.
+    trails: Vec<Option<u64>>,
+}
+
+/// Deeper than this, clusters are split in the middle of their lights: the path to every
+/// leaf fits in a 64-bit trail.
+const SAH_DEPTH: u32 = 40;
+
+impl LightBvh {
+    /// Builds the hierarchy over `bounds` (None: a light at infinity).
+    pub fn new(bounds: &[Option<LightBounds>]) -> LightBvh {
+        let mut bvh = LightBvh {
+            nodes: Vec::new(),
+            infinite: Vec::new(),
+            trails: vec![None; bounds.len()],
+        };
+        let mut finite: Vec<(u32, LightBounds)> = Vec::new();
+        for (i, b) in bounds.iter().enumerate() {
+            match b {
+                None => bvh.infinite.push(i as u32),
+                Some(b) if b.phi > 0.0 && b.phi.is_finite() => finite.push((i as u32, *b)),
+                Some(_) => {}
+            }
+        }
+        if !finite.is_empty() {
+            bvh.build(&mut finite, 0, 0);
+        }
+        bvh
+    }
+
+    fn build(&mut self, lights: &mut [(u32, LightBounds)], depth: u32, trail: u64) -> LightBounds {
+        if lights.len() == 1 {
+            let (light, b) = lights[0];
+            self.nodes.push(Node {
+                cluster: Cluster::new(&b),
+                index: light,
+                leaf: true,
+            });
+            self.trails[light as usize] = Some(trail);
+            return b;
+        }
+        let split = if depth < SAH_DEPTH {
+            best_split(lights)
+        } else {
+            None
+        }
+        .unwrap_or(lights.len() / 2);
+        let me = self.nodes.len();
+        self.nodes.push(Node {
+            cluster: Cluster::new(&lights[0].1),
+            index: 0,
+            leaf: false,
+        });
+        let (first, second) = lights.split_at_mut(split);
+        let b0 = self.build(first, depth + 1, trail);
+        self.nodes[me].index = self.nodes.len() as u32;
+        let b1 = self.build(second, depth + 1, trail | (1 << depth));
+        let b = b0.union(&b1);
+        self.nodes[me].cluster = Cluster::new(&b);
+        b
+    }
+
+    fn p_infinite(&self) -> f32 {
+        let n = self.infinite.len() as f32;
+        let finite = if self.nodes.is_empty() { 0.0 } else { 1.0 };
+        if n == 0.0 { 0.0 } else { n / (n + finite) }
+    }
+
+    fn sample(&self, p: Vec3A, n: Vec3A, u: f32) -> Option<(usize, f32)> {
+        let p_inf = self.p_infinite();
+        if u < p_inf {
+            let k = self.infinite.len();
+            let i = ((u / p_inf * k as f32) as usize).min(k - 1);
+            return Some((self.infinite[i] as usize, p_inf / k as f32));
+        }
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let mut u = ((u - p_inf) / (1.0 - p_inf)).min(ONE_MINUS_EPSILON);
+        let mut pmf = 1.0 - p_inf;
+        let mut i = 0;
+        loop {
+            let node = &self.nodes[i];
+            if node.leaf {
+                return (i > 0 || node.cluster.importance(p, n) > 0.0)
+                    .then_some((node.index as usize, pmf));
+            }
+            let c0 = self.nodes[i + 1].cluster.importance(p, n);
+            let c1 = self.nodes[node.index as usize].cluster.importance(p, n);
+            let total = c0 + c1;
+            if total == 0.0 {
+                return None;
+            }
+            let p0 = c0 / total;
+            if u < p0 {
+                u = (u / p0).min(ONE_MINUS_EPSILON);
+                pmf *= c0 / total;
+                i += 1;
+            } else {
+                u = ((u - p0) / (1.0 - p0)).min(ONE_MINUS_EPSILON);
+                pmf *= c1 / total;
+                i = node.index as usize;
+            }
+        }
+    }
+
+    fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
+        let Some(mut trail) = self.trails[light] else {
+            return if self.infinite.contains(&(light as u32)) {
+                self.p_infinite() / self.infinite.len() as f32
+            } else {
+                0.0
+            };
+        };
+        let mut pmf = 1.0 - self.p_infinite();
+        let mut i = 0;
+        loop {
+            let node = &self.nodes[i];
+            if node.leaf {
+                if i == 0 && node.cluster.importance(p, n) == 0.0 {
+                    return 0.0;
+                }
+                return pmf;
+            }
+            let c0 = self.nodes[i + 1].cluster.importance(p, n);
+            let c1 = self.nodes[node.index as usize].cluster.importance(p, n);
+            let total = c0 + c1;
+            if total == 0.0 {
+                return 0.0;
+            }
+            if trail & 1 == 0 {
+                pmf *= c0 / total;
+                i += 1;
+            } else {
+                pmf *= c1 / total;
+                i = node.index as usize;
+            }
+            trail >>= 1;
+        }
+    }
+}
+
+/// Where to split a cluster: pbrt-v4's 12 buckets per axis by centroid, at the boundary
+/// of least cost; None where the centroids coincide (split by count).
+fn best_split(lights: &mut [(u32, LightBounds)]) -> Option<usize> {
+    const BUCKETS: usize = 12;
+    let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    let (mut blo, mut bhi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    for (_, b) in lights.iter() {
+        lo = lo.min(b.centroid());
+        hi = hi.max(b.centroid());
+        blo = blo.min(b.lo);
+        bhi = bhi.max(b.hi);
+    }
+    let parent_diag = bhi - blo;
+    let extent = hi - lo;
+    let mut best: Option<(f32, usize, usize)> = None;
+    for axis in 0..3 {
+        if extent[axis] <= 0.0 {
+            continue;
+        }
+        let bucket_of = |b: &LightBounds| {
+            let t = (b.centroid()[axis] - lo[axis]) / extent[axis];
+            ((t * BUCKETS as f32) as usize).min(BUCKETS - 1)
+        };
+        let mut buckets: [Option<LightBounds>; BUCKETS] = [None; BUCKETS];
+        for (_, b) in lights.iter() {
+            let k = bucket_of(b);
+            buckets[k] = Some(buckets[k].map_or(*b, |x| x.union(b)));
+        }
+        for split in 1..BUCKETS {
+            let union = |range: &[Option<LightBounds>]| {
+                range.iter().flatten().fold(None::<LightBounds>, |acc, b| {
+                    Some(acc.map_or(*b, |a| a.union(b)))
+                })
+            };
+            let (Some(a), Some(b)) = (union(&buckets[..split]), union(&buckets[split..])) else {
+                continue;
+            };
+            let cost = a.cost(parent_diag, axis) + b.cost(parent_diag, axis);
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, split));
+            }
+        }
+    }
+    let (_, axis, split) = best?;
+    let t = |b: &LightBounds| (b.centroid()[axis] - lo[axis]) / extent[axis];
+    // Stable, so that the order of lights (and the bytes rendered) never depends on the
+    // sort's internals.
+    lights.sort_by(|a, b| t(&a.1).total_cmp(&t(&b.1)));
+    let mid = lights
+        .partition_point(|(_, b)| ((t(b) * BUCKETS as f32) as usize).min(BUCKETS - 1) < split);
+    (mid > 0 && mid < lights.len()).then_some(mid)
+}
+
+/// How the path tracer chooses the light to sample.
+#[derive(Debug, Clone)]
+pub enum LightSampler {
+    Power(AliasTable),
+    Uniform(usize),
+    Bvh(Box<LightBvh>),
+    Exhaustive(Box<Exhaustive>),
+}
+
+/// Every bounded light weighed by its importance from the shading point, and the lights at
+/// infinity beside them (pbrt-v4's "exhaustive").
+#[derive(Debug, Clone)]
+pub struct Exhaustive {
+    bounded: Vec<(u32, Cluster)>,
+    infinite: Vec<u32>,
+    /// Per light, its place in `bounded` (None: at infinity, or emits nothing).
+    place: Vec<Option<u32>>,
+}
+
+impl Exhaustive {
+    fn new(bounds: &[Option<LightBounds>]) -> Exhaustive {
+        let mut e = Exhaustive {
+            bounded: Vec::new(),
+            infinite: Vec::new(),
+            place: vec![None; bounds.len()],
+        };
+        for (i, b) in bounds.iter().enumerate() {
+            match b {
+                None => e.infinite.push(i as u32),
+                Some(b) if b.phi > 0.0 && b.phi.is_finite() => {
+                    e.place[i] = Some(e.bounded.len() as u32);
+                    e.bounded.push((i as u32, Cluster::new(b)));
+                }
+                Some(_) => {}
+            }
+        }
+        e
+    }
+
+    fn p_infinite(&self) -> f32 {
+        let n = self.infinite.len() as f32;
+        let finite = if self.bounded.is_empty() { 0.0 } else { 1.0 };
+        if n == 0.0 { 0.0 } else { n / (n + finite) }
+    }
+
+    fn sample(&self, p: Vec3A, n: Vec3A, u: f32) -> Option<(usize, f32)> {
+        let p_inf = self.p_infinite();
+        if u < p_inf {
+            let k = self.infinite.len();
+            let i = ((u / p_inf * k as f32) as usize).min(k - 1);
+            return Some((self.infinite[i] as usize, p_inf / k as f32));
+        }
+        let u = (u - p_inf) / (1.0 - p_inf);
+        let weights: Vec<f32> = self
+            .bounded
+            .iter()
+            .map(|(_, b)| b.importance(p, n))
+            .collect();
+        let total: f32 = weights.iter().sum();
+        if total <= 0.0 {
+            return None;
+        }
+        let target = u * total;
+        let mut acc = 0.0;
+        let mut chosen = None;
+        for (k, &w) in weights.iter().enumerate() {
+            if w > 0.0 {
+                chosen = Some(k);
+                acc += w;
+                if target < acc {
+                    break;
+                }
+            }
+        }
+        let k = chosen?;
+        Some((
+            self.bounded[k].0 as usize,
+            (1.0 - p_inf) * weights[k] / total,
+        ))
+    }
+
+    fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
+        let Some(k) = self.place[light] else {
+            return if self.infinite.contains(&(light as u32)) {
+                self.p_infinite() / self.infinite.len() as f32
+            } else {
+                0.0
+            };
+        };
+        let total: f32 = self.bounded.iter().map(|(_, b)| b.importance(p, n)).sum();
+        if total <= 0.0 {
+            return 0.0;
+        }
+        (1.0 - self.p_infinite()) * self.bounded[k as usize].1.importance(p, n) / total
+    }
+}
+
+impl Default for LightSampler {
+    fn default() -> LightSampler {
+        LightSampler::Uniform(0)
+    }
+}
+
+impl LightSampler {
+    /// The sampler of `kind` over `lights`, whose powers are `powers`.
+    pub fn new(
+        kind: LightSamplerKind,
+        lights: &[Light],
+        powers: &[f64],
+        ctx: &super::LightContext,
+    ) -> LightSampler {
+        match kind {
+            LightSamplerKind::Power => LightSampler::Power(AliasTable::new(powers)),
+            LightSamplerKind::Uniform => LightSampler::Uniform(lights.len()),
+            LightSamplerKind::Bvh | LightSamplerKind::Exhaustive => {
+                let bounds: Vec<Option<LightBounds>> = lights
+                    .iter()
+                    .zip(powers)
+                    .map(|(l, &power)| l.bounds(ctx, power as f32))
+                    .collect();
+                if kind == LightSamplerKind::Bvh {
+                    LightSampler::Bvh(Box::new(LightBvh::new(&bounds)))
+                } else {
+                    LightSampler::Exhaustive(Box::new(Exhaustive::new(&bounds)))
+                }
+            }
+        }
+    }
+
+    /// No light can be chosen from anywhere.
+    pub fn is_empty(&self) -> bool {
+        match self {
+            LightSampler::Power(t) => t.is_empty(),
+            LightSampler::Uniform(n) => *n == 0,
+            LightSampler::Bvh(b) => b.nodes.is_empty() && b.infinite.is_empty(),
+            LightSampler::Exhaustive(e) => e.bounded.is_empty() && e.infinite.is_empty(),
+        }
+    }
+
+    /// Chooses a light to sample from the point `p` with shading normal `n` (zero in a
+    /// medium): its index and the probability it was chosen with; None where no light
+    /// could light `p`.
+    pub fn sample(&self, p: Vec3A, n: Vec3A, u: f32) -> Option<(usize, f32)> {
+        match self {
+            LightSampler::Power(t) => t.sample(u),
+            LightSampler::Uniform(0) => None,
+            LightSampler::Uniform(k) => {
+                Some((((u * *k as f32) as usize).min(k - 1), 1.0 / *k as f32))
+            }
+            LightSampler::Bvh(b) => b.sample(p, n, u),
+            LightSampler::Exhaustive(e) => e.sample(p, n, u),
+        }
+    }
+
+    /// The probability [`LightSampler::sample`] chooses `light` from `p` with normal `n`.
+    pub fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
+        match self {
+            LightSampler::Power(t) => t.pmf(light),
+            LightSampler::Uniform(k) => 1.0 / *k as f32,
+            LightSampler::Bvh(b) => b.pmf(p, n, light),
+            LightSampler::Exhaustive(e) => e.pmf(p, n, light),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(p: Vec3A, phi: f32) -> Option<LightBounds> {
+        Some(LightBounds::everywhere(p, p, phi))
+    }
+
+    /// The lights' pmfs from any point sum to at most 1, and sampling picks each as often
+    /// as its pmf says, with the probability its pmf gives, for the hierarchy and the
+    /// exhaustive sampler.
+    #[test]
+    fn pmf_matches_sampling() {
+        let mut bounds = vec![None]; // a light at infinity
+        for i in 0..37 {
+            let x = (i as f32 * 0.37).sin() * 4.0;
+            let y = (i as f32 * 1.3).cos() * 3.0;
+            let p = Vec3A::new(x, y, (i % 5) as f32);
+            if i % 3 == 0 {
+                let n = Vec3A::new(x, 1.0, -y).normalize();
+                bounds.push(Some(LightBounds::diffuse(
+                    p - 0.1,
+                    p + 0.1,
+                    n,
+                    1.0,
+                    1.0 + i as f32,
+                    i % 2 == 0,
+                )));
+            } else {
+                bounds.push(point(p, 0.5 + (i % 7) as f32));
+            }
+        }
+        bounds.push(point(Vec3A::ONE, 0.0)); // emits nothing: never chosen
+        for sampler in [
+            LightSampler::Bvh(Box::new(LightBvh::new(&bounds))),
+            LightSampler::Exhaustive(Box::new(Exhaustive::new(&bounds))),
+        ] {
+            check_pmf_against_sampling(&sampler, bounds.len());
+        }
+    }
+
+    fn check_pmf_against_sampling(sampler: &LightSampler, lights: usize) {
+        for (p, n) in [
+            (Vec3A::new(0.3, -0.2, 1.0), Vec3A::Z),
+            (Vec3A::new(10.0, 2.0, -3.0), Vec3A::ZERO),
+            (Vec3A::new(-1.0, 0.5, 2.5), Vec3A::new(0.6, 0.0, 0.8)),
+        ] {
+            let pmfs: Vec<f32> = (0..lights).map(|i| sampler.pmf(p, n, i)).collect();
+            let total: f32 = pmfs.iter().sum();
+            // A cluster may be worth choosing while neither of its halves is: that share
+            // of the choices finds no light.
+            assert!(total > 0.5 && total <= 1.0 + 1e-4, "pmfs sum to {total}");
+            assert_eq!(pmfs[lights - 1], 0.0);
+            let trials = 200_000;
+            let mut counts = vec![0u32; lights];
+            let mut none = 0;
+            for k in 0..trials {
+                let u = (k as f32 + 0.5) / trials as f32;
+                let Some((i, pmf)) = sampler.sample(p, n, u) else {
+                    none += 1;
+                    continue;
+                };
+                assert!(
+                    (pmf - pmfs[i]).abs() <= 1e-5 * pmfs[i],
+                    "pmf {pmf} vs {}",
+                    pmfs[i]
+                );
+                counts[i] += 1;
+            }
+            let expected_none = (1.0 - total) * trials as f32;
+            assert!((none as f32 - expected_none).abs() <= 2.0 + 1e-3 * trials as f32);
+            for (i, &c) in counts.iter().enumerate() {
+                let expected = pmfs[i] * trials as f32;
+                assert!(
+                    (c as f32 - expected).abs() <= 2.0 + 1e-3 * trials as f32,
+                    "light {i}: chosen {c} times, pmf says {expected}"
+                );
+            }
+        }
+    }
+
+    /// A one-sided emitter facing away from the point is never chosen, and importance
+    /// prefers the near of two equal lights.
+    #[test]
+    fn importance_sees_orientation_and_distance() {
+        let facing_up = LightBounds::diffuse(Vec3A::ZERO, Vec3A::ZERO, Vec3A::Z, 1.0, 1.0, false);
+        assert!(facing_up.importance(Vec3A::new(0.0, 0.0, 1.0), Vec3A::ZERO) > 0.0);
+        assert_eq!(
+            facing_up.importance(Vec3A::new(0.0, 0.0, -1.0), Vec3A::ZERO),
+            0.0
+        );
+        let two_sided = LightBounds {
+            two_sided: true,
+            ..facing_up
+        };
+        assert!(two_sided.importance(Vec3A::new(0.0, 0.0, -1.0), Vec3A::ZERO) > 0.0);
+        let near = LightBounds::everywhere(Vec3A::X, Vec3A::X, 1.0);
+        let far = LightBounds::everywhere(Vec3A::X * 10.0, Vec3A::X * 10.0, 1.0);
+        let (a, b) = (
+            near.importance(Vec3A::ZERO, Vec3A::ZERO),
+            far.importance(Vec3A::ZERO, Vec3A::ZERO),
+        );
+        assert!((a / b - 100.0).abs() < 1e-3, "{a} {b}");
+        // The cone of a cluster holds both of its members' cones.
+        let u = facing_up.union(&LightBounds::diffuse(
+            Vec3A::X,
+            Vec3A::X,
+            Vec3A::X,
+            1.0,
+            1.0,
+            false,
+        ));
+        assert!(u.w.dot(Vec3A::Z) >= u.cos_o - 1e-5 && u.w.dot(Vec3A::X) >= u.cos_o - 1e-5);
+    }
+}
