@@ -206,7 +206,7 @@ fn main() {
                 let d = (target - o).normalize();
                 let mut sum = 0.0f32;
                 grid.walk(o, d, 10.0, &mut rng, |_, p, _| {
-                    sum += grid.density(p);
+                    sum += grid.coefficients(p).1.x;
                     lookups += 1;
                     true
                 });

@@ -508,8 +508,8 @@ pub enum MediumKind {
         le: Rgb,
         phase: PhaseDesc,
     },
-    /// pbrt-v4's "uniformgrid": coefficients scaled by a density grid over the box `p0`..`p1`
-    /// of the medium's own space.
+    /// pbrt-v4's "uniformgrid", "rgbgrid" and "cloud": coefficients varying over the box
+    /// `p0`..`p1` of the medium's own space (see [`GridDensity`]).
     Grid(Arc<GridMediumDesc>),
 }
 
@@ -531,12 +531,33 @@ pub struct GridMediumDesc {
     pub sigma_a: Rgb,
     pub sigma_s: Rgb,
     pub phase: PhaseDesc,
-    pub density: VoxelGrid,
+    pub density: GridDensity,
     pub emission: GridEmission,
     pub p0: [f32; 3],
     pub p1: [f32; 3],
     /// The CTM when the medium was defined (pbrt's renderFromMedium).
     pub medium_to_world: DMat4,
+}
+
+/// What multiplies a grid medium's `sigma_a` and `sigma_s` at each point of its box.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GridDensity {
+    /// pbrt-v4's "uniformgrid": one density per voxel, for both coefficients.
+    Scalar(VoxelGrid),
+    /// pbrt-v4's "rgbgrid": an RGB value per voxel for each coefficient (the three grids
+    /// are the channels); a coefficient without a grid is 1 everywhere, as in pbrt-v4.
+    Rgb {
+        sigma_a: Option<Box<[VoxelGrid; 3]>>,
+        sigma_s: Option<Box<[VoxelGrid; 3]>>,
+    },
+    /// pbrt-v4's "cloud": a procedural density in [0, 1] from fractal noise, thinning with
+    /// height (`density` scales the noise, `wispiness` perturbs its lookup, `frequency` is
+    /// its scale).
+    Cloud {
+        density: f32,
+        wispiness: f32,
+        frequency: f32,
+    },
 }
 
 /// Where a grid medium's emitted radiance Le comes from; the source term is sigma_a · Le.
@@ -556,6 +577,12 @@ pub enum GridEmission {
         offset: f32,
         t_scale: f32,
         scale: VoxelGrid,
+    },
+    /// An RGB value per voxel (pbrt-v4's "rgbgrid" `Le`, the three grids its channels),
+    /// times `scale`.
+    Rgb {
+        le: [VoxelGrid; 3],
+        scale: f32,
     },
 }
 

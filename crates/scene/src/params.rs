@@ -361,6 +361,33 @@ impl ParamSet {
         }
     }
 
+    /// Every RGB triple of an `rgb` parameter (pbrt-v4's RGB arrays, such as an "rgbgrid"
+    /// medium's), converted from the colour space in effect; None when it is absent.
+    pub fn rgbs(&self, name: &str, usage: SpectrumUse) -> Result<Option<Vec<[f32; 3]>>> {
+        let Some(v) = self.numbers(name, &["rgb", "color"], 3)? else {
+            return Ok(None);
+        };
+        let loc = self.loc_of(name);
+        let mut out = Vec::with_capacity(v.len() / 3);
+        for c in v.chunks_exact(3) {
+            let rgb = [c[0] as f32, c[1] as f32, c[2] as f32];
+            if rgb
+                .iter()
+                .any(|x| !x.is_finite() || (usage != SpectrumUse::Illuminant && *x < 0.0))
+            {
+                return Err(SceneError::at(
+                    loc.as_ref().expect("the parameter was found"),
+                    format!("'rgb {name}' has a negative or non-finite value {rgb:?}"),
+                ));
+            }
+            out.push(match &self.color_space {
+                Some(cs) => cs.to_srgb(rgb, usage),
+                None => rgb,
+            });
+        }
+        Ok(Some(out))
+    }
+
     /// The texture a parameter names, with its location, if it is given as
     /// `"texture NAME" "texture-name"`; None if it is absent or given as a value.
     pub fn texture_name(&self, name: &str) -> Result<Option<(String, Loc)>> {

@@ -163,7 +163,11 @@ impl Cluster {
     fn importance(&self, p: Vec3A, n: Vec3A) -> f32 {
         let d = p - self.center;
         let dist2 = d.length_squared();
-        let wi = if dist2 > 0.0 { d / dist2.sqrt() } else { Vec3A::ZERO };
+        let wi = if dist2 > 0.0 {
+            d / dist2.sqrt()
+        } else {
+            Vec3A::ZERO
+        };
         let mut cos_w = self.w.dot(wi);
         if self.two_sided {
             cos_w = cos_w.abs();

@@ -1,7 +1,9 @@
-//! A heterogeneous medium: pbrt-v4's "uniformgrid", with density, emission and
-//! temperature grids, tracked against a coarse majorant grid walked with a 3D DDA, and its
+//! A heterogeneous medium: pbrt-v4's "uniformgrid" (density, emission and temperature
+//! grids), "rgbgrid" (RGB coefficient and emission grids) and "cloud" (a procedural
+//! density), tracked against a coarse majorant grid walked with a 3D DDA, and its
 //! emission distribution for sampling it as a light (seed 001).
 
+use super::cloud::Cloud;
 use super::{MediumEvent, Phase, SampledGrid};
 use crate::math::{Color, Ray};
 use crate::sampling::{Distribution3D, TrackingRng};
@@ -12,6 +14,8 @@ use glam::{Affine3A, Vec3A};
 #[derive(Debug, Clone)]
 enum Emission {
     Constant(Color),
+    /// An RGB grid (the channels), times a scale.
+    Rgb([SampledGrid; 3], f32),
     /// Temperature, then (T - offset) * t_scale through a table of the peak-normalised
     /// blackbody.
     Temperature {
@@ -70,6 +74,36 @@ pub enum Walk {
     CutOff,
 }
 
+/// What multiplies `sigma_a` and `sigma_s` at a point of the unit box.
+#[derive(Debug, Clone)]
+enum Field {
+    /// One density for both ("uniformgrid").
+    Scalar(SampledGrid),
+    /// RGB grids per coefficient, 1 where absent ("rgbgrid").
+    Rgb {
+        a: Option<Box<[SampledGrid; 3]>>,
+        s: Option<Box<[SampledGrid; 3]>>,
+    },
+    /// The procedural cloud, evaluated in the medium's space `p0 + p (p1 - p0)`.
+    Cloud {
+        cloud: Cloud,
+        p0: Vec3A,
+        size: Vec3A,
+    },
+}
+
+fn rgb_lookup(g: &Option<Box<[SampledGrid; 3]>>, p: Vec3A) -> Color {
+    g.as_deref().map_or(Color::ONE, |[r, gr, b]| {
+        Color::new(r.lookup(p), gr.lookup(p), b.lookup(p))
+    })
+}
+
+fn rgb_max_over(g: &Option<Box<[SampledGrid; 3]>>, lo: Vec3A, hi: Vec3A) -> Color {
+    g.as_deref().map_or(Color::ONE, |[r, gr, b]| {
+        Color::new(r.max_over(lo, hi), gr.max_over(lo, hi), b.max_over(lo, hi))
+    })
+}
+
 /// Cells of the majorant grid along each axis (pbrt-v4 uses 16 too).
 const MAJORANT_RES: usize = 16;
 
@@ -81,14 +115,14 @@ pub struct GridMedium {
     pub sigma_a: Color,
     pub sigma_s: Color,
     pub phase: Phase,
-    density: SampledGrid,
-    emission: Option<(Emission, SampledGrid)>,
+    field: Field,
+    /// The emission and the grid that scales it (None: 1).
+    emission: Option<(Emission, Option<SampledGrid>)>,
     /// World space to the unit box, and to majorant cells ([0, MAJORANT_RES]^3).
     world_to_box: Affine3A,
     box_to_world: Affine3A,
+    /// Per cell, the largest sigma_t channel anywhere in it.
     majorant: Vec<f32>,
-    /// The largest channel of sigma_a + sigma_s.
-    sigma_t_max: f32,
     /// World-space volume of the box.
     box_volume: f32,
     /// The distribution of emitted luminance over voxels, for sampling it as a light.
@@ -116,12 +150,37 @@ impl GridMedium {
             Affine3A::from_translation((p0).into()) * Affine3A::from_scale((p1 - p0).into());
         let box_to_world = medium_to_world * box_to_medium;
         let world_to_box = box_to_world.inverse();
-        let density = SampledGrid::new(&desc.density);
+        let field = match &desc.density {
+            kiln_scene::GridDensity::Scalar(g) => Field::Scalar(SampledGrid::new(g)),
+            kiln_scene::GridDensity::Rgb { sigma_a, sigma_s } => {
+                let grids = |g: &Option<Box<[kiln_scene::VoxelGrid; 3]>>| {
+                    g.as_deref()
+                        .map(|g| Box::new(g.each_ref().map(SampledGrid::new)))
+                };
+                Field::Rgb {
+                    a: grids(sigma_a),
+                    s: grids(sigma_s),
+                }
+            }
+            kiln_scene::GridDensity::Cloud {
+                density,
+                wispiness,
+                frequency,
+            } => Field::Cloud {
+                cloud: Cloud {
+                    density: *density,
+                    wispiness: *wispiness,
+                    frequency: *frequency,
+                },
+                p0,
+                size: p1 - p0,
+            },
+        };
         let emission = match &desc.emission {
             kiln_scene::GridEmission::None => None,
             kiln_scene::GridEmission::Constant { le, scale } => Some((
                 Emission::Constant(crate::math::rgb(*le)),
-                SampledGrid::new(scale),
+                Some(SampledGrid::new(scale)),
             )),
             kiln_scene::GridEmission::Temperature {
                 temperature,
@@ -138,10 +197,16 @@ impl GridMedium {
                         t_scale: *t_scale,
                         table: BlackbodyTable::new(t_max.max(0.0)),
                     },
-                    SampledGrid::new(scale),
+                    Some(SampledGrid::new(scale)),
                 ))
             }
+            kiln_scene::GridEmission::Rgb { le, scale } => Some((
+                Emission::Rgb(le.each_ref().map(SampledGrid::new), *scale),
+                None,
+            )),
         };
+        let sigma_a = crate::math::rgb(desc.sigma_a);
+        let sigma_s = crate::math::rgb(desc.sigma_s);
         let r = MAJORANT_RES;
         let mut majorant = vec![0.0; r * r * r];
         for z in 0..r {
@@ -149,21 +214,27 @@ impl GridMedium {
                 for x in 0..r {
                     let lo = Vec3A::new(x as f32, y as f32, z as f32) / r as f32;
                     let hi = lo + Vec3A::splat(1.0 / r as f32);
-                    majorant[(z * r + y) * r + x] = density.max_over(lo, hi);
+                    let max_t = match &field {
+                        Field::Scalar(g) => (sigma_a + sigma_s) * g.max_over(lo, hi),
+                        Field::Rgb { a, s } => {
+                            sigma_a * rgb_max_over(a, lo, hi) + sigma_s * rgb_max_over(s, lo, hi)
+                        }
+                        // The cloud's density is at most 1.
+                        Field::Cloud { .. } => sigma_a + sigma_s,
+                    };
+                    majorant[(z * r + y) * r + x] = max_t.max_element();
                 }
             }
         }
-        let sigma_t = crate::math::rgb(desc.sigma_a) + crate::math::rgb(desc.sigma_s);
         let mut m = GridMedium {
-            sigma_a: crate::math::rgb(desc.sigma_a),
-            sigma_s: crate::math::rgb(desc.sigma_s),
+            sigma_a,
+            sigma_s,
             phase: Phase::new(desc.phase),
-            density,
+            field,
             emission,
             world_to_box,
             box_to_world,
             majorant,
-            sigma_t_max: sigma_t.max_element(),
             box_volume: box_to_world.matrix3.determinant().abs(),
             emission_distribution: None,
         };
@@ -171,9 +242,32 @@ impl GridMedium {
         m
     }
 
-    /// Density at `p` in the unit box.
-    pub fn density(&self, p: Vec3A) -> f32 {
-        self.density.lookup(p)
+    /// sigma_a and sigma_s at `p` in the unit box.
+    pub fn coefficients(&self, p: Vec3A) -> (Color, Color) {
+        match &self.field {
+            Field::Scalar(g) => {
+                let d = g.lookup(p);
+                (self.sigma_a * d, self.sigma_s * d)
+            }
+            Field::Rgb { a, s } => (
+                self.sigma_a * rgb_lookup(a, p),
+                self.sigma_s * rgb_lookup(s, p),
+            ),
+            Field::Cloud { cloud, p0, size } => {
+                let d = cloud.density_at(*p0 + p * *size);
+                (self.sigma_a * d, self.sigma_s * d)
+            }
+        }
+    }
+
+    /// The resolution the emission is given at (its distribution's voxels).
+    fn resolution(&self) -> [usize; 3] {
+        match (&self.field, &self.emission) {
+            (_, Some((Emission::Rgb(g, _), _))) => g[0].n,
+            (Field::Scalar(g), _) => g.n,
+            (Field::Rgb { a: Some(g), .. }, _) | (Field::Rgb { s: Some(g), .. }, _) => g[0].n,
+            _ => [16, 16, 16],
+        }
     }
 
     pub fn is_emissive(&self) -> bool {
@@ -185,12 +279,15 @@ impl GridMedium {
         let Some((emission, scale)) = &self.emission else {
             return Color::ZERO;
         };
-        let s = scale.lookup(p);
+        let s = scale.as_ref().map_or(1.0, |g| g.lookup(p));
         if s <= 0.0 {
             return Color::ZERO;
         }
         match emission {
             Emission::Constant(le) => *le * s,
+            Emission::Rgb([r, g, b], scale) => {
+                Color::new(r.lookup(p), g.lookup(p), b.lookup(p)) * (*scale * s)
+            }
             Emission::Temperature {
                 grid,
                 offset,
@@ -205,11 +302,11 @@ impl GridMedium {
         if self.emission.is_none() {
             return Color::ZERO;
         }
-        let d = self.density(p);
-        if d <= 0.0 {
+        let (sigma_a, _) = self.coefficients(p);
+        if sigma_a == Color::ZERO {
             return Color::ZERO;
         }
-        self.sigma_a * d * self.le(p)
+        sigma_a * self.le(p)
     }
 
     pub fn to_box(&self, world: Vec3A) -> Vec3A {
@@ -225,7 +322,7 @@ impl GridMedium {
         let c = (p * r as f32)
             .as_uvec3()
             .min(glam::UVec3::splat(r as u32 - 1));
-        self.sigma_t_max * self.majorant[(c.z as usize * r + c.y as usize) * r + c.x as usize]
+        self.majorant[(c.z as usize * r + c.y as usize) * r + c.x as usize]
     }
 
     /// Visits the tentative collisions along the ray from `o` in unit direction `d` over
@@ -294,7 +391,7 @@ impl GridMedium {
             };
             let t_exit = next[axis].min(t_end);
             let idx = ((cell[2] * n + cell[1]) * n + cell[0]) as usize;
-            let sigma_maj = self.sigma_t_max * self.majorant[idx];
+            let sigma_maj = self.majorant[idx];
             if sigma_maj > 0.0 {
                 loop {
                     let dt = tau / sigma_maj;
@@ -335,10 +432,10 @@ impl GridMedium {
         rng: &mut TrackingRng,
     ) -> Option<Color> {
         let mut tr = Color::ONE;
-        let sigma_t = self.sigma_a + self.sigma_s;
         let mut u = rng.split(0x5851_f42d_4c95_7f2d);
         let walk = self.walk(o, d, t_max, rng, |_, p, sigma_maj| {
-            let st = sigma_t * self.density(p);
+            let (a, s) = self.coefficients(p);
+            let st = a + s;
             tr *= (Color::ONE - st / sigma_maj).max(Color::ZERO);
             if tr.max_element() < 0.05 {
                 if u.next_f32() < 0.75 {
@@ -369,12 +466,10 @@ impl GridMedium {
         let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x6a09_e667_f3bc_c909);
         let emissive = self.is_emissive();
         let walk = self.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
-            let d = self.density(p);
-            if d <= 0.0 {
+            let (sigma_a, sigma_s) = self.coefficients(p);
+            if sigma_a == Color::ZERO && sigma_s == Color::ZERO {
                 return true;
             }
-            let sigma_a = self.sigma_a * d;
-            let sigma_s = self.sigma_s * d;
             if emissive {
                 let le = self.le(p);
                 if le != Color::ZERO {
@@ -419,7 +514,7 @@ impl GridMedium {
         if !self.is_emissive() {
             return None;
         }
-        let [nx, ny, nz] = self.density.n;
+        let [nx, ny, nz] = self.resolution();
         let size = Vec3A::new(nx as f32, ny as f32, nz as f32);
         let lum = |p: Vec3A| crate::math::luminance(self.source(p)).max(0.0);
         let corner_index = |x: usize, y: usize, z: usize| (z * (ny + 1) + y) * (nx + 1) + x;
@@ -496,7 +591,7 @@ mod tests {
             sigma_a: [0.5, 0.5, 0.5],
             sigma_s: [1.5, 1.0, 0.5],
             phase: kiln_scene::PhaseDesc::HenyeyGreenstein { g: 0.0 },
-            density,
+            density: kiln_scene::GridDensity::Scalar(density),
             emission,
             p0: [-1.0, -1.0, -1.0],
             p1: [1.0, 1.0, 3.0],
@@ -542,7 +637,8 @@ mod tests {
             m.walk(o - d * 5.0, d, 100.0, &mut rng, |t, p, sigma_maj| {
                 assert!(t > 5.0 - 0.25 - 1e-3 && t < 5.0 + 1.75 + 1e-3, "t {t}");
                 assert!(p.min_element() >= -1e-4 && p.max_element() <= 1.0 + 1e-4);
-                assert!(sigma_maj >= 2.0 * m.density(p) - 1e-5);
+                let (a, s) = m.coefficients(p);
+                assert!(sigma_maj >= (a + s).max_element() - 1e-5);
                 count += 1;
                 true
             });

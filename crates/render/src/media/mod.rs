@@ -8,6 +8,7 @@
 //!
 //! Media know nothing of the scene, its lights or the integrators.
 
+pub mod cloud;
 pub mod grid;
 pub mod homogeneous;
 
@@ -78,7 +79,7 @@ impl Medium {
     pub fn sigma_s_at(&self, p: Vec3A) -> Color {
         match self {
             Medium::Homogeneous(h) => h.sigma_s,
-            Medium::Grid(g) => g.sigma_s * g.density(g.to_box(p)),
+            Medium::Grid(g) => g.coefficients(g.to_box(p)).1,
         }
     }
 

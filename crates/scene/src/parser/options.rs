@@ -264,8 +264,26 @@ impl Parser {
 
     pub(super) fn film(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_options(loc, "Film")?;
-        if ty != "rgb" {
-            self.warn(loc, format!("Film '{ty}': Kiln writes an RGB film"));
+        match ty {
+            "rgb" => {}
+            "gbuffer" => self.warn(
+                loc,
+                "Film 'gbuffer': Kiln writes the RGB film without the geometric channels",
+            ),
+            // pbrt-v4's spectral film writes radiance in wavelength buckets: an RGB renderer
+            // cannot make them, and an RGB film in their place would be a different file.
+            "spectral" => {
+                return Err(SceneError::at(
+                    loc,
+                    "Film 'spectral' (radiance in wavelength buckets) needs spectral rendering, which Kiln does not do: it renders RGB; use Film \"rgb\"",
+                ));
+            }
+            other => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("Film '{other}' is unknown (pbrt-v4 has rgb, gbuffer and spectral)"),
+                ));
+            }
         }
         // The output's colour space: Kiln writes linear sRGB only.
         if let Some(space) = params.string("colorspace")?
@@ -696,6 +714,21 @@ mod tests {
         assert_eq!(s.integrator.max_depth, 9);
     }
 
+    /// A spectral film cannot be made by an RGB renderer: an error, as is an unknown film;
+    /// a gbuffer film is its RGB image, with a warning.
+    #[test]
+    fn spectral_and_unknown_films_are_errors() {
+        let err = load_err("\nFilm \"spectral\"\nWorldBegin");
+        assert!(
+            err.contains("t.pbrt:2") && err.contains("spectral rendering"),
+            "{err}"
+        );
+        let err = load_err("Film \"hdr\"\nWorldBegin");
+        assert!(err.contains("'hdr' is unknown"), "{err}");
+        let s = load("Film \"gbuffer\"\nWorldBegin");
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    }
+
     /// pbrt-v4's light samplers: "bvh" by default, "power" and "uniform" when named.
     #[test]
     fn light_samplers_by_name() {
@@ -715,11 +748,7 @@ mod tests {
             assert_eq!(s.integrator.light_sampler, kind);
             assert!(s.warnings.is_empty(), "{:?}", s.warnings);
         }
-        let err =
-            load_err("\nIntegrator \"path\" \"string lightsampler\" \"exhaustive\"\nWorldBegin");
-        assert!(
-            err.contains("t.pbrt:2") && err.contains("exhaustive"),
-            "{err}"
-        );
+        let err = load_err("\nIntegrator \"path\" \"string lightsampler\" \"nearest\"\nWorldBegin");
+        assert!(err.contains("t.pbrt:2") && err.contains("nearest"), "{err}");
     }
 }
