@@ -441,3 +441,73 @@ fn spherical_cameras_see_as_pbrt_v4_does() {
         }
     }
 }
+
+/// pbrt-v4's bilinear patches, non-planar: a textured saddle, a one-sided glowing saddle
+/// (ReverseOrientation) and a mirror-like saddle with shading normals, against pbrt-v4's
+/// render of the same file (512 spp; the numbers are pbrt-v4's). The image mean within 1%
+/// and, where the patches' curvature shows, four 8x8 blocks within 4% (measured within 2%;
+/// the same saddles split into two triangles each, as Kiln drew them before, are 10% to 23%
+/// off there). Light, BSDF and MIS sampling of the glowing saddle agree (it is sampled by
+/// pbrt-v4's bilinear warp of its corners' area densities, which must match its pdf).
+#[test]
+fn bilinear_patches_match_pbrt_v4() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"Integrator "volpath" "integer maxdepth" [ 5 ]
+Sampler "independent" "integer pixelsamples" [ 512 ]
+Film "rgb" "integer xresolution" [ 96 ] "integer yresolution" [ 64 ]
+LookAt 0 3 6  0 0.5 0  0 1 0
+Camera "perspective" "float fov" [ 45 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 0.2 0.2 0.25 ]
+Texture "checks" "spectrum" "checkerboard" "float uscale" [ 6 ] "float vscale" [ 6 ] "rgb tex1" [ 0.9 0.2 0.1 ] "rgb tex2" [ 0.1 0.3 0.9 ]
+Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
+Shape "bilinearmesh" "point3 P" [ -6 0 -6  6 0 -6  -6 0 6  6 0 6 ]
+AttributeBegin
+Translate -1.6 0.2 0
+Material "diffuse" "texture reflectance" "checks"
+Shape "bilinearmesh" "point3 P" [ -1 0 -1  1 1.5 -1  -1 1.5 1  1 0 1 ]
+  "point2 uv" [ 0 0  1 0  0 1  1 1 ]
+AttributeEnd
+AttributeBegin
+Translate 1.6 1.8 0
+ReverseOrientation
+AreaLightSource "diffuse" "rgb L" [ 4 3 2 ]
+Shape "bilinearmesh" "point3 P" [ -0.6 0 -0.6  0.6 0.6 -0.6  -0.6 0.6 0.6  0.6 0 0.6 ]
+AttributeEnd
+AttributeBegin
+Translate 0.2 0.4 1.5
+Material "conductor" "float roughness" [ 0.05 ]
+Shape "bilinearmesh" "point3 P" [ -0.7 0 -0.5  0.7 0.5 -0.5  -0.7 0.5 0.5  0.7 0 0.5 ]
+  "normal N" [ -0.3 1 0.3  0.3 1 -0.3  -0.3 1 -0.3  0.3 1 0.3 ]
+AttributeEnd
+"#;
+    let path = write_scene(dir.path(), "saddles.pbrt", text);
+    let img = render(&path, dir.path(), "saddles", &[]).image;
+    assert_matches_pbrt(
+        "saddles",
+        img.mean(),
+        [0.160458, 0.148080, 0.172994],
+        0.01,
+        3,
+    );
+    let blocks: [((u32, u32), [f64; 3]); 4] = [
+        ((7, 4), [0.08384, 0.04613, 0.10685]),
+        ((8, 3), [0.09954, 0.05705, 0.12071]),
+        ((7, 3), [0.10378, 0.04602, 0.11214]),
+        ((8, 4), [0.06730, 0.04901, 0.07523]),
+    ];
+    for ((bx, by), pbrt) in blocks {
+        let kiln: [f64; 3] = std::array::from_fn(|c| block_stats(&img, bx * 8, by * 8, 8, 8, c).0);
+        eprintln!("block ({bx}, {by}): Kiln {kiln:?}, pbrt-v4 {pbrt:?}");
+        assert_matches_pbrt(&format!("block ({bx}, {by})"), kiln, pbrt, 0.04, 3);
+    }
+    let images = render_strategies(
+        &path,
+        "path",
+        1,
+        7,
+        false,
+        &["--spp", "256", "--resolution", "48x32"],
+    );
+    assert_strategies_agree("saddles", &images, 4.5, Some(3.0));
+}

@@ -320,6 +320,64 @@ pub struct TriangleMeshData {
     pub uvs: Option<Vec<[f32; 2]>>,
     /// Three per triangle.
     pub indices: Vec<u32>,
+    /// pbrt-v4's bilinear patches whose corners are not in one plane: four per patch, in
+    /// its corner order p00, p10, p01, p11 (planar quads are two triangles in `indices`).
+    pub quads: Vec<u32>,
+}
+
+/// How far, relative to its size, a quad's corners may stray from one plane and still be
+/// two triangles (exported meshes round their planar quads' corners).
+pub const PLANAR_QUAD_TOLERANCE: f64 = 1e-4;
+
+impl TriangleMeshData {
+    /// Every face as triangles: the mesh's own, then each bilinear patch as two (split
+    /// along p00-p11), for what works on triangles only (displacement).
+    pub fn triangulated_indices(&self) -> Vec<u32> {
+        let mut all = self.indices.clone();
+        for q in self.quads.chunks_exact(4) {
+            all.extend_from_slice(&[q[0], q[1], q[3], q[0], q[3], q[2]]);
+        }
+        all
+    }
+
+    /// The mesh with `quads` (four indices each, p00 p10 p01 p11) added: planar ones as two
+    /// triangles split along p00-p11, the others as bilinear patches.
+    pub fn with_quads(mut self, quads: &[u32]) -> TriangleMeshData {
+        let at = |i: u32| self.positions[i as usize].map(f64::from);
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let mut kept = Vec::new();
+        for q in quads.chunks_exact(4) {
+            let [p00, p10, p01, p11] = [at(q[0]), at(q[1]), at(q[2]), at(q[3])];
+            let a = cross(sub(p10, p00), sub(p01, p00));
+            let b = cross(sub(p11, p10), sub(p11, p01));
+            let n = [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+            let len = dot(n, n).sqrt();
+            let size = dot(sub(p11, p00), sub(p11, p00))
+                .max(dot(sub(p10, p01), sub(p10, p01)))
+                .sqrt();
+            let planar = len == 0.0
+                || size == 0.0
+                || [p10, p01, p11]
+                    .iter()
+                    .all(|p| (dot(sub(*p, p00), n) / len).abs() <= PLANAR_QUAD_TOLERANCE * size);
+            if planar {
+                self.indices
+                    .extend_from_slice(&[q[0], q[1], q[3], q[0], q[3], q[2]]);
+            } else {
+                kept.extend_from_slice(q);
+            }
+        }
+        self.quads.extend(kept);
+        self
+    }
 }
 
 /// How a hair fibre's absorption is given (pbrt-v4 takes the first given of these).

@@ -257,6 +257,7 @@ pub fn loop_subdivide(
         normals: Some(normals.iter().map(to32).collect()),
         uvs: None,
         indices: tris.iter().flatten().copied().collect(),
+        quads: Vec::new(),
     })
 }
 

@@ -14,6 +14,7 @@ use crate::materials::{DielectricMaterial, Material, Model, Perturbation, Roughn
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::motion::AnimatedTransform;
+use crate::shapes::bilinear::BilinearPatch;
 use crate::shapes::curve::{CurvePiece, CurveSegment};
 use crate::shapes::cylinder::Cylinder;
 use crate::shapes::disk::Disk;
@@ -420,6 +421,28 @@ impl Builder {
                 }));
             }
         }
+        // Non-planar quads: pbrt-v4's bilinear patches, in world space.
+        if !mesh.quads.is_empty() && volume.is_some() {
+            return Err(BuildError::Unsupported {
+                loc: shape.loc.clone(),
+                message: "a VolumeLight (AreaLightSource \"volume\") on a mesh with non-planar quads (bilinear patches) is not supported yet".into(),
+            });
+        }
+        for q in mesh.quads.chunks_exact(4) {
+            let at = |k: usize| (base + q[k]) as usize;
+            let patch = BilinearPatch::new(
+                [0, 1, 2, 3].map(|k| self.prims.positions[at(k)]),
+                has_normals.then(|| [0, 1, 2, 3].map(|k| self.prims.normals[at(k)])),
+                has_uvs.then(|| [0, 1, 2, 3].map(|k| self.prims.uvs[at(k)])),
+            );
+            self.add_oriented_quadric(
+                shape,
+                QuadricShape::Patch(Box::new(patch)),
+                DMat4::IDENTITY,
+                surface(None),
+                flip,
+            )?;
+        }
         self.prims.meshes.push(MeshInfo {
             surface: surface(light),
             first_triangle,
@@ -526,7 +549,7 @@ impl Builder {
             if shape.area_light.is_some() {
                 return refuse(
                     &shape.loc,
-                    "a moving area light is not supported yet (motion blur covers surfaces that do not emit)",
+                    "a moving area light is not supported (pbrt-v4 refuses animated area lights too; motion blur covers surfaces that do not emit)",
                 );
             }
             if shape.media.is_some() && self.use_media {
@@ -653,6 +676,19 @@ impl Builder {
         to_world: DMat4,
         surface: SurfaceInfo,
     ) -> Result<(), BuildError> {
+        self.add_oriented_quadric(shape, kind, to_world, surface, shape.reverse_orientation)
+    }
+
+    /// As [`Self::add_quadric`], with the orientation given (a mesh's bilinear patches lie
+    /// in world space already, oriented by their mesh's transform).
+    fn add_oriented_quadric(
+        &mut self,
+        shape: &ShapeDesc,
+        kind: QuadricShape,
+        to_world: DMat4,
+        surface: SurfaceInfo,
+        reverse_orientation: bool,
+    ) -> Result<(), BuildError> {
         let object_area = kind.area();
         if surface.volume.is_some() {
             return Err(BuildError::Unsupported {
@@ -672,7 +708,7 @@ impl Builder {
             kind,
             to_world,
             SurfaceInfo { light, ..surface },
-            shape.reverse_orientation,
+            reverse_orientation,
         )
         .ok_or_else(|| BuildError::Unsupported {
             loc: shape.loc.clone(),

@@ -59,6 +59,8 @@ impl Cylinder {
         p.y = n.y * self.radius;
         let phi = phi_of(f64::from(p.x), f64::from(p.y)) as f32;
         LocalPoint {
+            ns: None,
+            pdf: 0.0,
             p,
             n,
             dpdu: Vec3A::new(-self.phi_max * p.y, self.phi_max * p.x, 0.0),

@@ -46,6 +46,8 @@ impl Disk {
             Vec3A::X
         };
         LocalPoint {
+            ns: None,
+            pdf: 0.0,
             p,
             n: Vec3A::Z,
             dpdu,

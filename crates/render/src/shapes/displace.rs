@@ -26,11 +26,13 @@ pub fn displace(
                 .into(),
         );
     };
+    // Displacement refines triangles: bilinear patches are split into two first.
+    let triangles = mesh.triangulated_indices();
     let mut p: Vec<Vec3> = mesh.positions.iter().map(|v| Vec3::from(*v)).collect();
     let mut uv: Vec<Vec2> = uvs.iter().map(|v| Vec2::from(*v)).collect();
     let mut n: Vec<Vec3> = match &mesh.normals {
         Some(n) => n.iter().map(|v| Vec3::from(*v)).collect(),
-        None => vertex_normals(&p, &mesh.indices),
+        None => vertex_normals(&p, &triangles),
     };
     let world = |v: Vec3| to_world.transform_point3(v.as_dvec3());
     let distance = |a: Vec3, b: Vec3| (world(a) - world(b)).length();
@@ -53,9 +55,9 @@ pub fn displace(
         ));
     }
     let mut split: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut indices: Vec<u32> = Vec::with_capacity(mesh.indices.len());
+    let mut indices: Vec<u32> = Vec::with_capacity(triangles.len());
     let mut stack: Vec<[u32; 3]> = Vec::new();
-    for t in mesh.indices.chunks_exact(3) {
+    for t in triangles.chunks_exact(3) {
         stack.push([t[0], t[1], t[2]]);
         while let Some([v0, v1, v2]) = stack.pop() {
             let (a, b, c) = (p[v0 as usize], p[v1 as usize], p[v2 as usize]);
@@ -111,6 +113,7 @@ pub fn displace(
         normals: Some(n.iter().map(|v| v.to_array()).collect()),
         uvs: Some(uv.iter().map(|v| v.to_array()).collect()),
         indices,
+        quads: Vec::new(),
     })
 }
 
@@ -144,6 +147,7 @@ mod tests {
             normals: None,
             uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
             indices: vec![0, 1, 2, 0, 2, 3],
+            quads: Vec::new(),
         }
     }
 

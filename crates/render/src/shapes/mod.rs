@@ -10,6 +10,7 @@
 //! indices a [`SurfaceInfo`] carries.
 
 mod alpha;
+pub mod bilinear;
 pub mod curve;
 pub mod cylinder;
 pub mod disk;

@@ -11,6 +11,7 @@
 //! the transform's area scale at the sampled point, so a scaled or sheared quadric is
 //! sampled without bias.
 
+use super::bilinear::BilinearPatch;
 use super::cylinder::Cylinder;
 use super::disk::Disk;
 use super::sphere::PartialSphere;
@@ -26,6 +27,11 @@ use obvhs::aabb::Aabb;
 pub struct LocalPoint {
     pub p: Vec3A,
     pub n: Vec3A,
+    /// A shading normal, where the shape has one (a bilinear patch with normals).
+    pub ns: Option<Vec3A>,
+    /// The density per unit object-space area with which the shape's `sample` reaches
+    /// this point (uniform, 1 / area, for all but bilinear patches).
+    pub pdf: f32,
     pub dpdu: Vec3A,
     pub dpdv: Vec3A,
     pub uv: Vec2,
@@ -58,12 +64,14 @@ pub fn solve_quadratic(a: f64, b: f64, c: f64, discriminant: f64) -> Option<(f64
     Some((t0.min(t1), t0.max(t1)))
 }
 
-/// The object-space shape of a quadric.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The object-space shape of a quadric (or of a bilinear patch, which is intersected and
+/// sampled in its own right as they are).
+#[derive(Debug, Clone, PartialEq)]
 pub enum QuadricShape {
     Sphere(PartialSphere),
     Disk(Disk),
     Cylinder(Cylinder),
+    Patch(Box<BilinearPatch>),
 }
 
 impl QuadricShape {
@@ -72,15 +80,21 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => s.intersect(o, d, tmin, tmax),
             QuadricShape::Disk(s) => s.intersect(o, d, tmin, tmax),
             QuadricShape::Cylinder(s) => s.intersect(o, d, tmin, tmax),
+            QuadricShape::Patch(s) => s.intersect(o, d, tmin, tmax),
         }
     }
 
     /// The surface at the point of the shape nearest `p` (a hit, or a sample).
     pub fn local(&self, p: Vec3A) -> LocalPoint {
+        let uniform = |l: LocalPoint| LocalPoint {
+            pdf: 1.0 / self.area(),
+            ..l
+        };
         match self {
-            QuadricShape::Sphere(s) => s.local(p),
-            QuadricShape::Disk(s) => s.local(p),
-            QuadricShape::Cylinder(s) => s.local(p),
+            QuadricShape::Sphere(s) => uniform(s.local(p)),
+            QuadricShape::Disk(s) => uniform(s.local(p)),
+            QuadricShape::Cylinder(s) => uniform(s.local(p)),
+            QuadricShape::Patch(s) => s.local(p),
         }
     }
 
@@ -90,15 +104,18 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => s.area(),
             QuadricShape::Disk(s) => s.area(),
             QuadricShape::Cylinder(s) => s.area(),
+            QuadricShape::Patch(s) => s.area(),
         }
     }
 
-    /// A point uniformly distributed over the object-space area.
+    /// A point distributed over the object-space area, uniformly but for bilinear
+    /// patches (whose density is [`LocalPoint::pdf`]).
     fn sample(&self, u: Vec2) -> Vec3A {
         match self {
             QuadricShape::Sphere(s) => s.sample(u),
             QuadricShape::Disk(s) => s.sample(u),
             QuadricShape::Cylinder(s) => s.sample(u),
+            QuadricShape::Patch(s) => s.sample(u),
         }
     }
 
@@ -107,6 +124,7 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => s.bounds(),
             QuadricShape::Disk(s) => s.bounds(),
             QuadricShape::Cylinder(s) => s.bounds(),
+            QuadricShape::Patch(s) => s.bounds(),
         }
     }
 }
@@ -135,6 +153,10 @@ pub struct QuadricPoint {
     pub p: Vec3A,
     /// Unit normal, oriented as hits are (see [`Quadric::flip`]).
     pub n: Vec3A,
+    /// The shading normal (the normal where the shape has none).
+    pub ns: Vec3A,
+    /// The density per unit object-space area of the shape's sampling here.
+    pub object_pdf: f32,
     pub dpdu: Vec3A,
     pub dpdv: Vec3A,
     pub uv: Vec2,
@@ -209,9 +231,21 @@ impl Quadric {
         let m = self.normal_matrix * l.n;
         let len = m.length();
         let n = if len > 0.0 { m / len } else { l.n };
+        let mut n = if self.flip { -n } else { n };
+        // With shading normals the geometric normal turns to their side, as pbrt-v4's
+        // bilinear patches do.
+        let ns = l.ns.map_or(n, |s| {
+            let s = (self.normal_matrix * s).normalize_or(n);
+            if s.dot(n) < 0.0 {
+                n = -n;
+            }
+            s
+        });
         QuadricPoint {
             p: self.to_world.transform_point3a(l.p),
-            n: if self.flip { -n } else { n },
+            n,
+            ns,
+            object_pdf: l.pdf,
             dpdu: self.to_world.transform_vector3a(l.dpdu),
             dpdv: self.to_world.transform_vector3a(l.dpdv),
             uv: l.uv,
@@ -227,26 +261,30 @@ impl Quadric {
 
     /// The density per unit world area with which [`Quadric::sample`] reaches `q`.
     pub fn area_density(&self, q: &QuadricPoint) -> f32 {
-        let a = self.shape.area() * q.area_scale;
-        if a > 0.0 { 1.0 / a } else { 0.0 }
+        if q.area_scale > 0.0 && q.object_pdf.is_finite() {
+            q.object_pdf / q.area_scale
+        } else {
+            0.0
+        }
     }
 
-    /// The world-space area: the area scale integrated over the object-space surface
-    /// (exact for similarity transforms, which scale every point's area alike; a fixed
-    /// 64 × 64 midpoint rule otherwise, the same on every machine).
+    /// The world-space area: the area scale integrated over the object-space surface, as
+    /// the mean of the area scale over the sampling density at a fixed 64 x 64 grid of
+    /// samples (exact for similarity transforms of uniformly sampled shapes; the same on
+    /// every machine).
     pub fn world_area(&self) -> f32 {
         let n = 64;
         let mut sum = 0.0f64;
         for i in 0..n {
             for j in 0..n {
                 let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
-                sum += f64::from(
-                    self.world_point(self.shape.local(self.shape.sample(u)))
-                        .area_scale,
-                );
+                let q = self.world_point(self.shape.local(self.shape.sample(u)));
+                if q.object_pdf > 0.0 {
+                    sum += f64::from(q.area_scale / q.object_pdf);
+                }
             }
         }
-        (sum / f64::from(n * n)) as f32 * self.shape.area()
+        (sum / f64::from(n * n)) as f32
     }
 }
 
@@ -264,7 +302,7 @@ impl Geometry {
             p: w.p,
             t,
             ng: w.n,
-            ns: w.n,
+            ns: w.ns,
             dpdu: w.dpdu,
             dpdv: w.dpdv,
             uv: w.uv,
@@ -347,7 +385,7 @@ mod tests {
             * DMat4::from_rotation_x(0.4)
             * DMat4::from_scale(glam::DVec3::new(1.0, 2.0, 0.5));
         for shape in shapes() {
-            let q = Quadric::new(shape, to_world, surface(), false).unwrap();
+            let q = Quadric::new(shape.clone(), to_world, surface(), false).unwrap();
             for i in 0..64 {
                 let u = Vec2::new((i % 8) as f32 / 8.0 + 0.06, (i / 8) as f32 / 8.0 + 0.06);
                 let (p, pdf) = q.sample(u);
@@ -382,7 +420,7 @@ mod tests {
             phi_max: TAU,
         });
         let q = Quadric::new(
-            cyl,
+            cyl.clone(),
             DMat4::from_scale(glam::DVec3::splat(2.0)),
             surface(),
             false,
@@ -421,7 +459,7 @@ mod tests {
             phi_max: TAU,
         });
         let up = |m: DMat4, ro: bool| {
-            let q = Quadric::new(disk, m, surface(), ro).unwrap();
+            let q = Quadric::new(disk.clone(), m, surface(), ro).unwrap();
             q.point_at(Vec3A::new(0.1, 0.1, 0.0)).n
         };
         assert!((up(DMat4::IDENTITY, false) - Vec3A::Z).length() < 1e-6);
@@ -440,7 +478,7 @@ mod tests {
                 f32::INFINITY
             );
         }
-        let q = Quadric::new(shapes()[1], DMat4::IDENTITY, surface(), false).unwrap();
+        let q = Quadric::new(shapes()[1].clone(), DMat4::IDENTITY, surface(), false).unwrap();
         assert_eq!(
             q.intersect(Vec3A::new(-5.0, 0.0, 0.3), Vec3A::X, 0.0, f32::INFINITY),
             f32::INFINITY

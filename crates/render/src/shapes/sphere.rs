@@ -235,6 +235,8 @@ impl PartialSphere {
         let (cos_phi, sin_phi) = (p.x / r_xy, p.y / r_xy);
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
         LocalPoint {
+            ns: None,
+            pdf: 0.0,
             p,
             n,
             dpdu: Vec3A::new(-self.phi_max * p.y, self.phi_max * p.x, 0.0),

@@ -19,8 +19,12 @@ pub struct PlyMesh {
     pub normals: Option<Vec<[f32; 3]>>,
     /// Per-vertex texture coordinates when the file has u/v, s/t or texture_u/texture_v (texture_s/texture_t).
     pub uvs: Option<Vec<[f32; 2]>>,
-    /// Triangle vertex indices, three per triangle. Quads are split into two triangles (0,1,2),(0,2,3); larger polygons are fanned.
+    /// Triangle vertex indices, three per triangle; polygons of five or more vertices are
+    /// fanned around their first.
     pub indices: Vec<u32>,
+    /// Quads as pbrt-v4's bilinear patches, four indices each in its corner order p00, p10,
+    /// p01, p11 (a face 0,1,2,3 gives 0,1,3,2).
+    pub quads: Vec<u32>,
 }
 
 /// Why a PLY file could not be read. Every message says where: header and
@@ -206,7 +210,9 @@ pub fn read_ply(path: &Path, loc: &Loc) -> Result<TriangleMeshData> {
         normals: mesh.normals,
         uvs: mesh.uvs,
         indices: mesh.indices,
-    })
+        quads: Vec::new(),
+    }
+    .with_quads(&mesh.quads))
 }
 
 /// Reads a PLY file held in memory into a triangle mesh.
@@ -696,7 +702,7 @@ fn read_body<S: Source>(header: &Header, mut src: S) -> Result<PlyMesh, PlyError
             mesh.indices.reserve(cap.saturating_mul(3));
             let vertices = vertex.count;
             each_record(&mut src, el, |src| {
-                read_face(src, el, prop, vertices, &mut mesh.indices)
+                read_face(src, el, prop, vertices, &mut mesh.indices, &mut mesh.quads)
             })?;
         } else {
             each_record(&mut src, el, |src| {
@@ -823,6 +829,7 @@ fn read_face<S: Source>(
     index_prop: usize,
     vertices: usize,
     indices: &mut Vec<u32>,
+    quads: &mut Vec<u32>,
 ) -> Result<(), ReadErr> {
     for (at, prop) in el.props.iter().enumerate() {
         match prop.kind {
@@ -835,8 +842,15 @@ fn read_face<S: Source>(
                 if S::BINARY && n.saturating_mul(item.size() as u64) > src.remaining() as u64 {
                     return Err(ReadErr::Eof);
                 }
-                // Fan around the first vertex as the indices stream past: a quad
-                // 0,1,2,3 gives (0,1,2),(0,2,3).
+                if n == 4 {
+                    let mut q = [0u32; 4];
+                    for v in &mut q {
+                        *v = vertex_index(src.value(item)?, vertices)?;
+                    }
+                    quads.extend_from_slice(&[q[0], q[1], q[3], q[2]]);
+                    continue;
+                }
+                // Fan around the first vertex as the indices stream past.
                 let (mut first, mut prev) = (0, 0);
                 for k in 0..n {
                     let index = vertex_index(src.value(item)?, vertices)?;
@@ -933,7 +947,8 @@ mod tests {
     fn quad_and_triangle_in_all_formats() {
         let mesh = parse_ply(ASCII_CUBE.as_bytes()).unwrap();
         assert_eq!(mesh.positions, VERTS.to_vec());
-        assert_eq!(mesh.indices, vec![0, 1, 2, 0, 2, 3, 0, 1, 4]);
+        assert_eq!(mesh.indices, vec![0, 1, 4]);
+        assert_eq!(mesh.quads, vec![0, 1, 3, 2]);
         assert_eq!((mesh.normals.as_ref(), mesh.uvs.as_ref()), (None, None));
         assert_eq!(
             parse_ply(ASCII_CUBE.replace('\n', "\r\n").as_bytes()).unwrap(),

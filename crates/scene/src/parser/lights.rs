@@ -16,7 +16,7 @@ impl Parser {
     pub(super) fn light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         let params = &self.with_spectrum_files(params)?;
         self.require_world(loc, "LightSource")?;
-        self.require_still(loc, &format!("LightSource '{ty}'"))?;
+        self.still_at_start(loc, &format!("LightSource '{ty}'"));
         let scale = params.float("scale", 1.0)? as f32;
         let scaled = |rgb: Rgb| rgb.map(|c| c * scale);
         let ctm = self.gs.ctm;

@@ -18,7 +18,7 @@ type GridBox = ([f32; 3], [f32; 3]);
 
 impl Parser {
     pub(super) fn medium(&mut self, name: String, params: &ParamSet, loc: &Loc) -> Result<()> {
-        self.require_still(loc, &format!("MakeNamedMedium '{name}'"))?;
+        self.still_at_start(loc, &format!("MakeNamedMedium '{name}'"));
         let params = &self.with_spectrum_files(params)?;
         let ty = params.string("type")?.ok_or_else(|| {
             SceneError::at(

@@ -578,6 +578,21 @@ mod tests {
 
     /// Confined loading accepts any path that stays inside the root, `..` included, and
     /// refuses one that leaves it before opening it.
+    /// A bilinearmesh's planar quads become two triangles (split along p00-p11); a quad
+    /// whose corners leave the plane stays a bilinear patch.
+    #[test]
+    fn planar_quads_are_triangles_and_saddles_patches() {
+        let s = load(
+            "WorldBegin\nShape \"bilinearmesh\" \"point3 P\" [ 0 0 0  1 0 0  0 1 0  1 1 0  0 0 1  1 0 1  0 1 1  1 1 1.5 ] \"integer indices\" [ 0 1 2 3  4 5 6 7 ]",
+        );
+        let ShapeKind::Mesh(m) = &s.shapes[0].kind else {
+            panic!("a mesh");
+        };
+        assert_eq!(m.indices, vec![0, 1, 3, 0, 3, 2]);
+        assert_eq!(m.quads, vec![4, 5, 6, 7]);
+        assert_eq!(m.triangulated_indices().len(), 12);
+    }
+
     #[test]
     fn confined_loading_keeps_every_file_inside_its_root() {
         let root = std::env::temp_dir().join(format!("kiln-confined-{}", std::process::id()));

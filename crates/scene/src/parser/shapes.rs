@@ -404,14 +404,16 @@ fn bilinear_from_params(params: &ParamSet, loc: &Loc) -> Result<TriangleMeshData
             "bilinearmesh: indices must come in fours",
         ));
     }
-    // pbrt's bilinear patch has corners p00 p10 p01 p11: split along p00-p11.
-    let mut tris = Vec::with_capacity(quads.len() / 4 * 6);
-    for q in quads.chunks_exact(4) {
-        tris.extend_from_slice(&[q[0], q[1], q[3], q[0], q[3], q[2]]);
-    }
+    // Validated as a mesh of fours, then planar patches become two triangles.
     let normals = params.point3s("N")?;
     let uvs = params.point2s("uv")?;
-    validate_mesh(positions, normals, uvs, tris, 3, "bilinearmesh", loc)
+    let mesh = validate_mesh(positions, normals, uvs, quads, 4, "bilinearmesh", loc)?;
+    let quads = mesh.indices.clone();
+    Ok(TriangleMeshData {
+        indices: Vec::new(),
+        ..mesh
+    }
+    .with_quads(&quads))
 }
 
 fn validate_mesh(
@@ -456,5 +458,6 @@ fn validate_mesh(
         normals,
         uvs,
         indices: indices.into_iter().map(|i| i as u32).collect(),
+        quads: Vec::new(),
     })
 }

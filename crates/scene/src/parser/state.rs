@@ -72,18 +72,18 @@ impl Parser {
         moves.then_some(b)
     }
 
-    /// An error if the current transform moves during the shutter interval: pbrt-v4 would
-    /// blur `what`'s motion, and Kiln cannot yet (it would render only the start).
-    pub(super) fn require_still(&self, loc: &Loc, what: &str) -> Result<()> {
+    /// Where the current transform moves during the shutter interval, a warning that
+    /// `what` stays at its start transform: pbrt-v4 moves no light and no medium either (it
+    /// warns and uses the start), so the image is pbrt-v4's.
+    pub(super) fn still_at_start(&mut self, loc: &Loc, what: &str) {
         if self.moving_end().is_some() {
-            return Err(SceneError::at(
+            self.warn(
                 loc,
                 format!(
-                    "{what}: its transform differs between the shutter's start and end (ActiveTransform), so pbrt-v4 would blur its motion; Kiln does not render motion blur yet"
+                    "{what}: its transform differs between the shutter's start and end (ActiveTransform); it stays at its start transform, as pbrt-v4 keeps lights and media still"
                 ),
-            ));
+            );
         }
-        Ok(())
     }
 
     pub(super) fn medium_id(&self, name: &str) -> Option<MediumId> {
