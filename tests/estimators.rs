@@ -3,7 +3,7 @@
 
 use crate::util::{
     assert_strategies_agree_in_blocks, max_z_score, reference_scene, render, render_strategies,
-    with_integrator, write_scene,
+    render_strategies_with, with_integrator, write_scene,
 };
 use std::path::Path;
 
@@ -85,9 +85,10 @@ fn light_and_bsdf_sampling_agree_under_environment_maps() {
 }
 
 /// 120,000 emitting triangles (the size of seed 000's snail) chosen by power through the
-/// alias table: light sampling still agrees with BSDF sampling.
+/// alias table and through the light hierarchy (120,000 leaves): light sampling still
+/// agrees with BSDF sampling.
 #[test]
-fn many_emitters_sampled_by_power_agree_with_bsdf_sampling() {
+fn many_emitters_sampled_by_power_or_hierarchy_agree_with_bsdf_sampling() {
     let dir = tempfile::tempdir().unwrap();
     let (nx, nz) = (300usize, 200usize);
     let mut p = String::new();
@@ -142,7 +143,11 @@ fn many_emitters_sampled_by_power_agree_with_bsdf_sampling() {
         Shape \"plymesh\" \"string filename\" \"ceiling.ply\"
         AttributeEnd";
     let path = write_scene(dir.path(), "many.pbrt", text);
-    strategies_agree(&path, &[], 4.5, true, (4, 2));
+    for sampler in ["power", "bvh"] {
+        let extra = format!("\"string lightsampler\" \"{sampler}\"");
+        let images = render_strategies_with(&path, "path", &extra, 1, 1, true, &[]);
+        assert_strategies_agree_in_blocks(sampler, &images, 4.5, None, (4, 2));
+    }
 }
 
 /// The light hierarchy (pbrt-v4's "bvh", Kiln's default), choosing by power, uniformly and

@@ -171,12 +171,25 @@ pub fn render_strategies(
     beside: bool,
     args: &[&str],
 ) -> Vec<RgbBuffer> {
+    render_strategies_with(path, integrator, "", max_depth, first_seed, beside, args)
+}
+
+/// As [`render_strategies`], with `extra` integrator parameters (such as a light sampler).
+pub fn render_strategies_with(
+    path: &Path,
+    integrator: &str,
+    extra: &str,
+    max_depth: u32,
+    first_seed: usize,
+    beside: bool,
+    args: &[&str],
+) -> Vec<RgbBuffer> {
     let text = std::fs::read_to_string(path).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut images = Vec::new();
     for (i, strategy) in ["light", "bsdf", "mis"].iter().enumerate() {
         let line = format!(
-            "Integrator \"{integrator}\" \"integer maxdepth\" [ {max_depth} ] \"string strategy\" \"{strategy}\""
+            "Integrator \"{integrator}\" \"integer maxdepth\" [ {max_depth} ] \"string strategy\" \"{strategy}\" {extra}"
         );
         let variant = with_integrator(&text, &line);
         let file = if beside {
