@@ -552,9 +552,6 @@ impl Builder {
                     "a moving area light is not supported (pbrt-v4 refuses animated area lights too; motion blur covers surfaces that do not emit)",
                 );
             }
-            if shape.media.is_some() && self.use_media {
-                return refuse(&shape.loc, "a moving medium boundary is not supported yet");
-            }
         }
         let (d0, d1) = (start.determinant(), end.determinant());
         if !(d0 > 0.0 && d1 > 0.0 && start.is_finite() && end.is_finite()) {
