@@ -539,6 +539,20 @@ impl Builder {
         times: [f64; 2],
         loc: &kiln_scene::Loc,
     ) -> Result<(), BuildError> {
+        self.add_placed_mover(shapes, start, end, None, times, loc)
+    }
+
+    /// As [`Self::add_mover`], the group then placed by the still transform `place` (a
+    /// shape moving inside an object instance that does not move).
+    fn add_placed_mover(
+        &mut self,
+        shapes: &[(&ShapeDesc, DMat4)],
+        start: DMat4,
+        end: DMat4,
+        place: Option<DMat4>,
+        times: [f64; 2],
+        loc: &kiln_scene::Loc,
+    ) -> Result<(), BuildError> {
         let refuse = |loc: &kiln_scene::Loc, message: &str| {
             Err(BuildError::Unsupported {
                 loc: loc.clone(),
@@ -554,7 +568,8 @@ impl Builder {
             }
         }
         let (d0, d1) = (start.determinant(), end.determinant());
-        if !(d0 > 0.0 && d1 > 0.0 && start.is_finite() && end.is_finite()) {
+        let d2 = place.map_or(1.0, |m| m.determinant());
+        if !(d0 > 0.0 && d1 > 0.0 && d2 > 0.0 && start.is_finite() && end.is_finite()) {
             return refuse(
                 loc,
                 "a moving transform must be invertible and keep its handedness throughout (a mirrored or degenerate one is not supported)",
@@ -575,7 +590,8 @@ impl Builder {
             return Ok(());
         }
         let motion = AnimatedTransform::new(start, end, times);
-        let mover = Mover::new(Geometry::new(inner), motion);
+        let place = place.map(|m| glam::Affine3A::from_mat4(m.as_mat4()));
+        let mover = Mover::placed(Geometry::new(inner), motion, place);
         let (lo, hi) = mover.bounds();
         if !within_world_limit(lo) || !within_world_limit(hi) {
             return Err(BuildError::Unsupported {
@@ -819,10 +835,34 @@ impl Scene {
             match instance.instance_to_world_end {
                 None => {
                     for shape in shapes {
-                        b.add_shape(shape, instance.instance_to_world * shape.object_to_world)?;
+                        match shape.object_to_world_end {
+                            None => b.add_shape(
+                                shape,
+                                instance.instance_to_world * shape.object_to_world,
+                            )?,
+                            // A shape moving inside a still instance: its motion, then
+                            // the instance's place.
+                            Some(end) => b.add_placed_mover(
+                                &[(shape, DMat4::IDENTITY)],
+                                shape.object_to_world,
+                                end,
+                                Some(instance.instance_to_world),
+                                times,
+                                &shape.loc,
+                            )?,
+                        }
                     }
                 }
                 Some(end) => {
+                    if let Some(shape) = shapes.iter().find(|s| s.object_to_world_end.is_some()) {
+                        return Err(BuildError::Unsupported {
+                            loc: instance.loc.clone(),
+                            message: format!(
+                                "this instance moves, and so does a shape inside its object (line {}): motion within motion is not supported yet",
+                                shape.loc.line
+                            ),
+                        });
+                    }
                     let group: Vec<(&ShapeDesc, DMat4)> =
                         shapes.iter().map(|s| (s, s.object_to_world)).collect();
                     b.add_mover(

@@ -16,6 +16,9 @@ use obvhs::aabb::Aabb;
 pub struct Mover {
     pub geometry: std::sync::Arc<Geometry>,
     pub motion: AnimatedTransform,
+    /// A still transform after the motion (world from the motion's space, and its
+    /// inverse): a shape moving inside an object instance placed by a still transform.
+    outer: Option<(Affine3A, Affine3A)>,
     lo: Vec3A,
     hi: Vec3A,
 }
@@ -31,11 +34,31 @@ impl std::fmt::Debug for Mover {
 
 impl Mover {
     pub fn new(geometry: Geometry, motion: AnimatedTransform) -> Mover {
+        Mover::placed(geometry, motion, None)
+    }
+
+    /// A moving group placed in the world by the still transform `outer` after its motion.
+    pub fn placed(geometry: Geometry, motion: AnimatedTransform, outer: Option<Affine3A>) -> Mover {
         let (lo, hi) = geometry.bounds();
-        let (lo, hi) = motion.motion_bounds(lo, hi);
+        let (mut lo, mut hi) = motion.motion_bounds(lo, hi);
+        if let Some(m) = outer {
+            let (a, b) = (lo, hi);
+            (lo, hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+            for k in 0..8 {
+                let c = Vec3A::new(
+                    if k & 1 == 0 { a.x } else { b.x },
+                    if k & 2 == 0 { a.y } else { b.y },
+                    if k & 4 == 0 { a.z } else { b.z },
+                );
+                let w = m.transform_point3a(c);
+                lo = lo.min(w);
+                hi = hi.max(w);
+            }
+        }
         Mover {
             geometry: std::sync::Arc::new(geometry),
             motion,
+            outer: outer.map(|m| (m, m.inverse())),
             lo,
             hi,
         }
@@ -48,7 +71,11 @@ impl Mover {
     /// The ray in object space at its time (unit direction), the world transform then,
     /// and object length per world length along the ray.
     fn local(&self, origin: Vec3A, dir: Vec3A, time: f32) -> Option<(Ray, Affine3A, f32)> {
-        let (to_world, to_object) = self.motion.affine_at(time);
+        let (mut to_world, mut to_object) = self.motion.affine_at(time);
+        if let Some((world_from, from_world)) = &self.outer {
+            to_world = *world_from * to_world;
+            to_object *= *from_world;
+        }
         let d = to_object.transform_vector3a(dir);
         let len = d.length();
         (len > 0.0 && len.is_finite()).then(|| {

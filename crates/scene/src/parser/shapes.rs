@@ -124,12 +124,6 @@ impl Parser {
                         "area lights inside ObjectBegin/ObjectEnd are not supported (as in pbrt-v4)",
                     ));
                 }
-                if shape.object_to_world_end.is_some() {
-                    return Err(SceneError::at(
-                        loc,
-                        "a shape that moves inside ObjectBegin/ObjectEnd is not supported yet; move the ObjectInstance instead",
-                    ));
-                }
                 object.shapes.push(shape);
             }
             None => self.shapes.push(shape),
