@@ -2,6 +2,7 @@
 //! field, and its spherical camera (every direction, equal-area or equirectangular). A camera turns a film position and a lens sample into a ray, and estimates a
 //! pixel's footprint on a surface (for texture filtering).
 
+use crate::lens::LensSystem;
 use crate::math::{Frame, Ray};
 use crate::motion::AnimatedTransform;
 use crate::sampling::concentric_disk;
@@ -23,6 +24,8 @@ pub struct Camera {
     footprint: Footprint,
     /// A moving camera's transform over the shutter (the footprint uses the start).
     motion: Option<AnimatedTransform>,
+    /// pbrt-v4's realistic camera: rays traced through its lens system, each with a weight.
+    lens: Option<std::sync::Arc<LensSystem>>,
 }
 
 /// pbrt-v4's camera-ray footprint approximation: the smallest change of a camera ray's
@@ -41,12 +44,27 @@ struct Footprint {
 impl Camera {
     /// A camera whose transform interpolates between `desc`'s start and end transforms at
     /// `times` (pbrt-v4's TransformTimes), if it moves.
-    pub fn new_moving(desc: &CameraDesc, xres: u32, yres: u32, times: [f64; 2]) -> Camera {
+    /// A camera for a film of `xres` x `yres` pixels and `diagonal` metres (the realistic
+    /// camera's film size); an error where a realistic camera's lens cannot focus.
+    pub fn new_moving(
+        desc: &CameraDesc,
+        xres: u32,
+        yres: u32,
+        diagonal: f64,
+        times: [f64; 2],
+    ) -> Result<Camera, String> {
         let mut camera = Camera::new(desc, xres, yres);
         camera.motion = desc
             .camera_to_world_end
             .map(|end| AnimatedTransform::new(desc.camera_to_world, end, times));
-        camera
+        if let Projection::Realistic(lens) = &desc.projection {
+            camera.lens = Some(std::sync::Arc::new(
+                LensSystem::new(lens, xres, yres, diagonal)
+                    .map_err(|e| format!("Camera 'realistic': {e}"))?,
+            ));
+            camera.footprint = camera.minimum_differentials();
+        }
+        Ok(camera)
     }
 
     pub fn new(desc: &CameraDesc, xres: u32, yres: u32) -> Camera {
@@ -61,7 +79,7 @@ impl Camera {
                 (false, (fov_degrees.to_radians() / 2.0).tan() as f32)
             }
             Projection::Orthographic => (true, 1.0),
-            Projection::Spherical { .. } => (false, 1.0),
+            Projection::Spherical { .. } | Projection::Realistic(_) => (false, 1.0),
         };
         let spherical = match desc.projection {
             Projection::Spherical { equal_area } => Some(equal_area),
@@ -79,6 +97,7 @@ impl Camera {
             focal_distance: desc.focal_distance as f32,
             footprint: Footprint::default(),
             motion: None,
+            lens: None,
         };
         camera.footprint = camera.minimum_differentials();
         camera
@@ -87,6 +106,35 @@ impl Camera {
     /// The world-space ray through continuous raster position `film` (pixels, y down), lens sample `lens`.
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
         self.generate_ray_at(film, lens, 0.0)
+    }
+
+    /// The ray through `film` with lens sample `lens` at `time`, and the weight its
+    /// radiance takes (1 but for the realistic camera, whose lens may also stop it: None).
+    pub fn generate_weighted_ray_at(
+        &self,
+        film: Vec2,
+        lens: Vec2,
+        time: f32,
+    ) -> Option<(Ray, f32)> {
+        match &self.lens {
+            None => Some((self.generate_ray_at(film, lens, time), 1.0)),
+            Some(system) => {
+                let (origin, dir, weight) = system.generate(film, self.resolution, lens)?;
+                Some((self.to_world_ray(origin, dir, time), weight))
+            }
+        }
+    }
+
+    fn to_world_ray(&self, origin: Vec3A, dir: Vec3A, time: f32) -> Ray {
+        let to_world = match &self.motion {
+            Some(m) => m.affine_at(time).0,
+            None => self.camera_to_world,
+        };
+        Ray::at_time(
+            to_world.transform_point3a(origin),
+            to_world.transform_vector3a(dir).normalize(),
+            time,
+        )
     }
 
     /// As [`Camera::generate_ray`], at `time` in the shutter (where a moving camera is then).
@@ -154,8 +202,15 @@ impl Camera {
         (back(px - pz), back(py - pz))
     }
 
-    /// The camera-space ray through raster position `film`, lens sample `lens`.
+    /// The camera-space ray through raster position `film`, lens sample `lens` (for the
+    /// realistic camera, where the lens stops it: the ray straight out of the film point).
     fn camera_space_ray(&self, film: Vec2, lens: Vec2) -> (Vec3A, Vec3A) {
+        if let Some(system) = &self.lens {
+            return match system.generate(film, self.resolution, lens) {
+                Some((o, d, _)) => (o, d),
+                None => (Vec3A::ZERO, Vec3A::Z),
+            };
+        }
         if let Some(equal_area) = self.spherical {
             return (
                 Vec3A::ZERO,

@@ -31,6 +31,7 @@ pub mod bsdfs;
 pub mod camera;
 pub mod filter;
 pub mod integrators;
+pub mod lens;
 pub mod lights;
 pub mod materials;
 pub mod math;

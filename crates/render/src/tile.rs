@@ -270,16 +270,21 @@ pub fn render_sample(
     } else {
         0.0
     };
-    let ray = scene.camera.generate_ray_at(film, lens, time);
     let mut work = Work::default();
-    let mut l = settings.integrator.li(
-        &renderer.prepass,
-        scene,
-        settings.footprint(),
-        ray,
-        &mut sampler,
-        &mut work,
-    );
+    // A realistic camera's lens may stop the ray (the sample counts, black) and weighs it.
+    let mut l = match scene.camera.generate_weighted_ray_at(film, lens, time) {
+        Some((ray, camera_weight)) => {
+            settings.integrator.li(
+                &renderer.prepass,
+                scene,
+                settings.footprint(),
+                ray,
+                &mut sampler,
+                &mut work,
+            ) * camera_weight
+        }
+        None => Color::ZERO,
+    };
     stats.samples += 1;
     stats.rays += work.rays;
     if work.cut_walks > 0 {

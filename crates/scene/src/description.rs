@@ -41,7 +41,7 @@ pub struct SceneDescription {
     pub warnings: Vec<Diagnostic>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Projection {
     /// `fov` is the full angle, in degrees, of the shorter image axis.
     Perspective {
@@ -53,6 +53,34 @@ pub enum Projection {
     Spherical {
         equal_area: bool,
     },
+    /// pbrt-v4's realistic camera: rays traced from the film through a lens system.
+    Realistic(Arc<RealisticLens>),
+}
+
+/// A lens system as pbrt-v4's lens files give it, front (scene side) to back, and how it
+/// is set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RealisticLens {
+    /// Per interface, in millimetres as in the file: curvature radius (0: the aperture
+    /// stop), thickness (the distance to the next interface, or to the film for the last),
+    /// the index of refraction behind it (0: air), and its aperture diameter.
+    pub elements: Vec<[f64; 4]>,
+    /// The aperture stop's diameter, in millimetres ("aperturediameter").
+    pub aperture_diameter: f64,
+    /// The distance in focus, in metres ("focusdistance").
+    pub focus_distance: f64,
+    /// The aperture's shape as a grey image over the stop's square, looked up at
+    /// ((x / r + 1) / 2, (y / r + 1) / 2) for a point (x, y) on a stop of radius r, row 0
+    /// first (pbrt-v4's image after its flip), normalised to pass as much light as the round
+    /// stop; None: round.
+    pub aperture: Option<ApertureImage>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ApertureImage {
+    pub width: usize,
+    pub height: usize,
+    pub values: Vec<f32>,
 }
 
 #[derive(Debug, Clone)]
@@ -81,6 +109,9 @@ pub struct FilmDesc {
     /// [x0, x1, y0, y1] in pixels, half-open: the region to render. The whole frame when not cropped.
     pub pixel_bounds: [u32; 4],
     pub sensor: SensorDesc,
+    /// The film's diagonal in metres (pbrt-v4's "diagonal", given in millimetres; only the
+    /// realistic camera uses it).
+    pub diagonal: f64,
     pub loc: Loc,
 }
 

@@ -898,8 +898,13 @@ impl Scene {
                 &desc.camera,
                 film.xresolution,
                 film.yresolution,
+                film.diagonal,
                 desc.transform_times,
-            ),
+            )
+            .map_err(|message| BuildError::Unsupported {
+                loc: desc.camera.loc.clone(),
+                message,
+            })?,
             filter: Filter::new(&desc.filter),
             sensor: crate::sensor::Sensor::new(
                 &film.sensor,

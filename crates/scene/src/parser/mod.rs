@@ -14,6 +14,7 @@
 //! (camera, film, sampler, filter, integrator); `materials.rs`, `lights.rs`,
 //! `shapes.rs` and `media.rs` the scene entities.
 
+mod camera;
 mod cursor;
 mod lights;
 mod materials;
@@ -512,6 +513,7 @@ impl Parser {
             filename: "kiln.exr".into(),
             pixel_bounds: [0, 1280, 0, 720],
             sensor: SensorDesc::default(),
+            diagonal: 0.035,
             loc: Loc::synthetic("default film"),
         });
         Ok(SceneDescription {

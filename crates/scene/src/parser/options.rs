@@ -9,6 +9,7 @@ use crate::error::{Loc, Result, SceneError};
 use crate::lexer::TokenKind;
 use crate::params::ParamSet;
 use glam::DMat4;
+use std::sync::Arc;
 
 impl Parser {
     /// pbrt-v4's `Option "name" value`: an untyped name and one value.
@@ -181,11 +182,12 @@ impl Parser {
                     }
                 },
             },
+            "realistic" => Projection::Realistic(Arc::new(self.realistic_lens(params, loc)?)),
             other => {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "Camera '{other}' is not supported (Kiln has perspective, orthographic and spherical)"
+                        "Camera '{other}' is not supported (Kiln has perspective, orthographic, spherical and realistic)"
                     ),
                 ));
             }
@@ -349,13 +351,21 @@ impl Parser {
             return Err(SceneError::at(loc, "Film: the crop window covers no pixel"));
         }
         let sensor = self.film_sensor(params, loc)?;
-        self.check_unused(params, "Film", &["diagonal", "savefp16"])?;
+        let diagonal = params.float("diagonal", 35.0)?;
+        if !(diagonal.is_finite() && diagonal > 0.0) {
+            return Err(SceneError::at(
+                &params.loc_of("diagonal").unwrap_or_else(|| loc.clone()),
+                format!("Film: \"diagonal\" must be positive (millimetres), got {diagonal}"),
+            ));
+        }
+        self.check_unused(params, "Film", &["savefp16"])?;
         self.film = Some(FilmDesc {
             xresolution: x,
             yresolution: y,
             filename,
             pixel_bounds: bounds,
             sensor,
+            diagonal: diagonal / 1000.0,
             loc: loc.clone(),
         });
         Ok(())
