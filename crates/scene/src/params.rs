@@ -367,7 +367,9 @@ impl ParamSet {
         let Some(v) = self.numbers(name, &["rgb", "color"], 3)? else {
             return Ok(None);
         };
-        let loc = self.loc_of(name);
+        let loc = self
+            .loc_of(name)
+            .unwrap_or_else(|| Loc::synthetic("rgb array"));
         let mut out = Vec::with_capacity(v.len() / 3);
         for c in v.chunks_exact(3) {
             let rgb = [c[0] as f32, c[1] as f32, c[2] as f32];
@@ -376,7 +378,7 @@ impl ParamSet {
                 .any(|x| !x.is_finite() || (usage != SpectrumUse::Illuminant && *x < 0.0))
             {
                 return Err(SceneError::at(
-                    loc.as_ref().expect("the parameter was found"),
+                    &loc,
                     format!("'rgb {name}' has a negative or non-finite value {rgb:?}"),
                 ));
             }

@@ -267,9 +267,12 @@ pub struct LightBvh {
     trails: Vec<Option<u64>>,
 }
 
-/// Deeper than this, clusters are split in the middle of their lights: the path to every
-/// leaf fits in a 64-bit trail.
-const SAH_DEPTH: u32 = 40;
+/// Below this depth clusters are split by cost; deeper, in the middle of their lights, so
+/// that the path to every leaf fits in a 64-bit trail whatever the lights' layout (a
+/// degenerate cost can peel one light off at a time).
+fn sah_depth(lights: usize) -> u32 {
+    63u32.saturating_sub(usize::BITS - lights.max(1).leading_zeros())
+}
 
 impl LightBvh {
     /// Builds the hierarchy over `bounds` (None: a light at infinity).
@@ -288,12 +291,19 @@ impl LightBvh {
             }
         }
         if !finite.is_empty() {
-            bvh.build(&mut finite, 0, 0);
+            let limit = sah_depth(finite.len());
+            bvh.build(&mut finite, 0, 0, limit);
         }
         bvh
     }
 
-    fn build(&mut self, lights: &mut [(u32, LightBounds)], depth: u32, trail: u64) -> LightBounds {
+    fn build(
+        &mut self,
+        lights: &mut [(u32, LightBounds)],
+        depth: u32,
+        trail: u64,
+        sah_limit: u32,
+    ) -> LightBounds {
         if lights.len() == 1 {
             let (light, b) = lights[0];
             self.nodes.push(Node {
@@ -304,7 +314,7 @@ impl LightBvh {
             self.trails[light as usize] = Some(trail);
             return b;
         }
-        let split = if depth < SAH_DEPTH {
+        let split = if depth < sah_limit {
             best_split(lights)
         } else {
             None
@@ -317,9 +327,9 @@ impl LightBvh {
             leaf: false,
         });
         let (first, second) = lights.split_at_mut(split);
-        let b0 = self.build(first, depth + 1, trail);
+        let b0 = self.build(first, depth + 1, trail, sah_limit);
         self.nodes[me].index = self.nodes.len() as u32;
-        let b1 = self.build(second, depth + 1, trail | (1 << depth));
+        let b1 = self.build(second, depth + 1, trail | (1 << depth), sah_limit);
         let b = b0.union(&b1);
         self.nodes[me].cluster = Cluster::new(&b);
         b
@@ -702,6 +712,26 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Thousands of point lights on one line (every split's boxes have no area, so the
+    /// cost cannot tell splits apart): the hierarchy stays within its 64-bit trails and its
+    /// pmfs sum to 1.
+    #[test]
+    fn collinear_lights_keep_within_the_trail() {
+        let bounds: Vec<Option<LightBounds>> = (0..5000)
+            .map(|i| point(Vec3A::new(i as f32 * 0.01, 0.0, 0.0), 1.0 + (i % 3) as f32))
+            .collect();
+        let bvh = LightBvh::new(&bounds);
+        assert!(bvh.trails.iter().all(Option::is_some));
+        let sampler = LightSampler::Bvh(Box::new(bvh));
+        let p = Vec3A::new(3.0, 1.0, 0.5);
+        let total: f32 = (0..bounds.len())
+            .map(|i| sampler.pmf(p, Vec3A::ZERO, i))
+            .sum();
+        assert!((total - 1.0).abs() < 1e-3, "{total}");
+        let (i, pmf) = sampler.sample(p, Vec3A::ZERO, 0.37).unwrap();
+        assert_eq!(pmf, sampler.pmf(p, Vec3A::ZERO, i));
     }
 
     /// A one-sided emitter facing away from the point is never chosen, and importance
