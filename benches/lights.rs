@@ -8,7 +8,7 @@
 //! `cargo bench --bench lights [-- --spp N --ref-spp N --resolution WxH]`
 
 mod common;
-use common::{arg, render_tiles};
+use common::{arg, render_image};
 use kiln_render::Renderer;
 
 /// Renders the frame with `spp` samples and `seed`; returns seconds and the pixels.
@@ -22,17 +22,7 @@ fn render(
     settings.samples_per_pixel = spp;
     settings.seed = seed;
     let renderer = renderer.with_settings(settings);
-    let (secs, results) = render_tiles(&renderer, [0, w, 0, h]);
-    let mut pixels = vec![[0.0f32; 3]; (w * h) as usize];
-    for r in &results {
-        for (i, p) in r.pixels.iter().enumerate() {
-            let (x, y) = (
-                r.rect.x0 + i as u32 % r.rect.width,
-                r.rect.y0 + i as u32 / r.rect.width,
-            );
-            pixels[(y * w + x) as usize] = *p;
-        }
-    }
+    let (secs, _, pixels) = render_image(&renderer, (w, h));
     (renderer, secs, pixels)
 }
 

@@ -9,7 +9,7 @@
 //! `cargo bench --bench media [-- --grid N --spp N --resolution N --runs N]`
 
 mod common;
-use common::{arg, peak_rss_mib, render_tiles};
+use common::{arg, peak_rss_mib, render_image};
 use kiln_render::media::Medium;
 use kiln_render::sampling::TrackingRng;
 use kiln_render::{RenderSettings, Renderer};
@@ -74,24 +74,6 @@ fn scene_text(strategy: &str, res: u32, spp: u32) -> String {
     )
 }
 
-/// Renders the frame; returns seconds, samples and the pixels.
-fn render(renderer: &Renderer, res: u32) -> (f64, u64, Vec<[f32; 3]>) {
-    let (secs, results) = render_tiles(renderer, [0, res, 0, res]);
-    let mut pixels = vec![[0.0f32; 3]; (res * res) as usize];
-    let mut samples = 0;
-    for r in &results {
-        samples += r.stats.samples;
-        for (i, p) in r.pixels.iter().enumerate() {
-            let (x, y) = (
-                r.rect.x0 + i as u32 % r.rect.width,
-                r.rect.y0 + i as u32 / r.rect.width,
-            );
-            pixels[(y * res + x) as usize] = *p;
-        }
-    }
-    (secs, samples, pixels)
-}
-
 fn main() {
     let n = arg("--grid", 128usize);
     let spp = arg("--spp", 16u32);
@@ -131,7 +113,7 @@ fn main() {
         for run in 0..runs {
             settings.seed = 1000 + run as u32;
             renderer = renderer.with_settings(settings.clone());
-            let (s, count, pixels) = render(&renderer, res);
+            let (s, count, pixels) = render_image(&renderer, (res, res));
             secs += s;
             samples += count;
             images.push(pixels);

@@ -35,3 +35,26 @@ pub fn render_tiles(
         .collect();
     (start.elapsed().as_secs_f64(), results)
 }
+
+/// [`render_tiles`] over the frame `0..w` x `0..h`, the tiles put together: seconds,
+/// samples and the row-major pixels.
+#[allow(dead_code)]
+pub fn render_image(
+    renderer: &kiln_render::Renderer,
+    (w, h): (u32, u32),
+) -> (f64, u64, Vec<[f32; 3]>) {
+    let (secs, results) = render_tiles(renderer, [0, w, 0, h]);
+    let mut pixels = vec![[0.0f32; 3]; (w * h) as usize];
+    let mut samples = 0;
+    for r in &results {
+        samples += r.stats.samples;
+        for (i, p) in r.pixels.iter().enumerate() {
+            let (x, y) = (
+                r.rect.x0 + i as u32 % r.rect.width,
+                r.rect.y0 + i as u32 / r.rect.width,
+            );
+            pixels[(y * w + x) as usize] = *p;
+        }
+    }
+    (secs, samples, pixels)
+}

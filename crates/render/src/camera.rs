@@ -140,15 +140,7 @@ impl Camera {
     /// As [`Camera::generate_ray`], at `time` in the shutter (where a moving camera is then).
     pub fn generate_ray_at(&self, film: Vec2, lens: Vec2, time: f32) -> Ray {
         let (origin, dir) = self.camera_space_ray(film, lens);
-        let to_world = match &self.motion {
-            Some(m) => m.affine_at(time).0,
-            None => self.camera_to_world,
-        };
-        Ray::at_time(
-            to_world.transform_point3a(origin),
-            to_world.transform_vector3a(dir).normalize(),
-            time,
-        )
+        self.to_world_ray(origin, dir, time)
     }
 
     /// pbrt-v4's FindMinimumDifferentials: rays through 512 points along the film's

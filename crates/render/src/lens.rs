@@ -7,6 +7,7 @@
 //! Lens space is pbrt-v4's: the film at z = 0, the lens toward −z; camera space flips z.
 //! Traced in f64: a ray crosses a dozen interfaces.
 
+use crate::shapes::quadric::solve_quadratic;
 use glam::{DVec3, Vec2, Vec3A};
 use kiln_scene::{ApertureImage, RealisticLens};
 use rayon::prelude::*;
@@ -39,20 +40,17 @@ pub struct LensSystem {
     aperture: Option<ApertureImage>,
 }
 
-fn refract(wi: DVec3, mut n: DVec3, mut eta: f64) -> Option<DVec3> {
-    let mut cos_i = n.dot(wi);
-    if cos_i < 0.0 {
-        eta = 1.0 / eta;
-        cos_i = -cos_i;
-        n = -n;
-    }
-    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
-    let sin2_t = sin2_i / (eta * eta);
-    if sin2_t >= 1.0 {
-        return None;
-    }
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
-    Some(-wi / eta + (cos_i / eta - cos_t) * n)
+/// Refraction of the unit direction `wi` (pointing away from the interface) through the
+/// normal `n` with relative index `eta`, by the BSDFs' refraction (in f32, as pbrt-v4 traces
+/// its lenses); None at total internal reflection.
+fn refract(wi: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
+    let f = |v: DVec3| Vec3A::new(v.x as f32, v.y as f32, v.z as f32);
+    let (wt, _) = crate::bsdfs::refract(f(wi), f(n), eta as f32)?;
+    Some(DVec3::new(
+        f64::from(wt.x),
+        f64::from(wt.y),
+        f64::from(wt.z),
+    ))
 }
 
 /// The ray's hit on the sphere of `radius` about (0, 0, z_center): the nearer or farther
@@ -62,18 +60,7 @@ fn intersect_element(radius: f64, z_center: f64, o: DVec3, d: DVec3) -> Option<(
     let a = d.length_squared();
     let b = 2.0 * d.dot(oc);
     let c = oc.length_squared() - radius * radius;
-    let disc = b * b - 4.0 * a * c;
-    if disc < 0.0 || a == 0.0 {
-        return None;
-    }
-    let root = disc.sqrt();
-    let q = if b < 0.0 {
-        -0.5 * (b - root)
-    } else {
-        -0.5 * (b + root)
-    };
-    let (t0, t1) = (q / a, if q != 0.0 { c / q } else { q / a });
-    let (t0, t1) = (t0.min(t1), t0.max(t1));
+    let (t0, t1) = solve_quadratic(a, b, c, b * b - 4.0 * a * c)?;
     let closer = (d.z > 0.0) ^ (radius < 0.0);
     let t = if closer { t0 } else { t1 };
     if t < 0.0 {
@@ -81,6 +68,17 @@ fn intersect_element(radius: f64, z_center: f64, o: DVec3, d: DVec3) -> Option<(
     }
     let n = (oc + t * d).normalize();
     Some((t, if n.dot(-d) < 0.0 { -n } else { n }))
+}
+
+/// Where the ray meets interface `e` whose vertex is at `z`: the ray parameter and, off the
+/// stop, the normal facing the ray; None where it misses or the stop's plane is behind it.
+fn meet(e: &Element, z: f64, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
+    if e.curvature_radius == 0.0 {
+        let t = (z - o.z) / d.z;
+        (!t.is_nan() && t >= 0.0).then_some((t, DVec3::ZERO))
+    } else {
+        intersect_element(e.curvature_radius, z + e.curvature_radius, o, d)
+    }
 }
 
 fn radical_inverse(base: u64, mut i: u64) -> f64 {
@@ -168,15 +166,7 @@ impl LensSystem {
             let e = self.elements[i];
             z -= e.thickness;
             let stop = e.curvature_radius == 0.0;
-            let (t, n) = if stop {
-                let t = (z - o.z) / d.z;
-                if t.is_nan() || t < 0.0 {
-                    return None;
-                }
-                (t, DVec3::ZERO)
-            } else {
-                intersect_element(e.curvature_radius, z + e.curvature_radius, o, d)?
-            };
+            let (t, n) = meet(&e, z, o, d)?;
             let p = o + t * d;
             match (&self.aperture, stop) {
                 (Some(image), true) => {
@@ -220,15 +210,7 @@ impl LensSystem {
         let mut z = -self.front_z();
         for (i, e) in self.elements.iter().enumerate() {
             let stop = e.curvature_radius == 0.0;
-            let (t, n) = if stop {
-                let t = (z - o.z) / d.z;
-                if t.is_nan() || t < 0.0 {
-                    return None;
-                }
-                (t, DVec3::ZERO)
-            } else {
-                intersect_element(e.curvature_radius, z + e.curvature_radius, o, d)?
-            };
+            let (t, n) = meet(e, z, o, d)?;
             let p = o + t * d;
             if p.x * p.x + p.y * p.y > e.aperture_radius * e.aperture_radius {
                 return None;

@@ -247,6 +247,43 @@ fn cone_union(a: (Vec3A, f32), b: (Vec3A, f32)) -> (Vec3A, f32) {
     (Vec3A::from(w).normalize(), theta_o.cos())
 }
 
+/// Lights at infinity (and distant lights), chosen uniformly with one share beside the
+/// bounded lights' (pbrt-v4's rule for its bvh and exhaustive samplers).
+#[derive(Debug, Clone, Default)]
+struct Beside {
+    lights: Vec<u32>,
+}
+
+impl Beside {
+    /// The probability of choosing one of these at all.
+    fn share(&self, bounded: bool) -> f32 {
+        let n = self.lights.len() as f32;
+        if n == 0.0 {
+            0.0
+        } else {
+            n / (n + if bounded { 1.0 } else { 0.0 })
+        }
+    }
+
+    /// One of these and its probability, or `u` remapped to [0, 1) for the bounded lights.
+    fn choose(&self, u: f32, bounded: bool) -> Result<(usize, f32), f32> {
+        let share = self.share(bounded);
+        if u < share {
+            let k = self.lights.len();
+            let i = ((u / share * k as f32) as usize).min(k - 1);
+            return Ok((self.lights[i] as usize, share / k as f32));
+        }
+        Err(((u - share) / (1.0 - share)).min(ONE_MINUS_EPSILON))
+    }
+
+    /// The probability `light`, one of these, is chosen with; None for other lights.
+    fn pmf(&self, light: usize, bounded: bool) -> Option<f32> {
+        self.lights
+            .contains(&(light as u32))
+            .then(|| self.share(bounded) / self.lights.len() as f32)
+    }
+}
+
 /// A node of the light hierarchy: its bounds and either its second child (the first
 /// follows it) or, in a leaf, its light.
 #[derive(Debug, Clone)]
@@ -261,7 +298,7 @@ struct Node {
 #[derive(Debug, Clone, Default)]
 pub struct LightBvh {
     nodes: Vec<Node>,
-    infinite: Vec<u32>,
+    infinite: Beside,
     /// Per light: the branches (bit k set: the second child at depth k) from the root to
     /// its leaf, or None for lights at infinity and lights that emit nothing.
     trails: Vec<Option<u64>>,
@@ -279,13 +316,13 @@ impl LightBvh {
     pub fn new(bounds: &[Option<LightBounds>]) -> LightBvh {
         let mut bvh = LightBvh {
             nodes: Vec::new(),
-            infinite: Vec::new(),
+            infinite: Beside::default(),
             trails: vec![None; bounds.len()],
         };
         let mut finite: Vec<(u32, LightBounds)> = Vec::new();
         for (i, b) in bounds.iter().enumerate() {
             match b {
-                None => bvh.infinite.push(i as u32),
+                None => bvh.infinite.lights.push(i as u32),
                 Some(b) if b.phi > 0.0 && b.phi.is_finite() => finite.push((i as u32, *b)),
                 Some(_) => {}
             }
@@ -335,24 +372,14 @@ impl LightBvh {
         b
     }
 
-    fn p_infinite(&self) -> f32 {
-        let n = self.infinite.len() as f32;
-        let finite = if self.nodes.is_empty() { 0.0 } else { 1.0 };
-        if n == 0.0 { 0.0 } else { n / (n + finite) }
-    }
-
     fn sample(&self, p: Vec3A, n: Vec3A, u: f32) -> Option<(usize, f32)> {
-        let p_inf = self.p_infinite();
-        if u < p_inf {
-            let k = self.infinite.len();
-            let i = ((u / p_inf * k as f32) as usize).min(k - 1);
-            return Some((self.infinite[i] as usize, p_inf / k as f32));
-        }
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let mut u = ((u - p_inf) / (1.0 - p_inf)).min(ONE_MINUS_EPSILON);
-        let mut pmf = 1.0 - p_inf;
+        let bounded = !self.nodes.is_empty();
+        let mut u = match self.infinite.choose(u, bounded) {
+            Ok(chosen) => return Some(chosen),
+            Err(_) if !bounded => return None,
+            Err(u) => u,
+        };
+        let mut pmf = 1.0 - self.infinite.share(bounded);
         let mut i = 0;
         loop {
             let node = &self.nodes[i];
@@ -380,14 +407,11 @@ impl LightBvh {
     }
 
     fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
+        let bounded = !self.nodes.is_empty();
         let Some(mut trail) = self.trails[light] else {
-            return if self.infinite.contains(&(light as u32)) {
-                self.p_infinite() / self.infinite.len() as f32
-            } else {
-                0.0
-            };
+            return self.infinite.pmf(light, bounded).unwrap_or(0.0);
         };
-        let mut pmf = 1.0 - self.p_infinite();
+        let mut pmf = 1.0 - self.infinite.share(bounded);
         let mut i = 0;
         loop {
             let node = &self.nodes[i];
@@ -482,7 +506,7 @@ pub enum LightSampler {
 #[derive(Debug, Clone)]
 pub struct Exhaustive {
     bounded: Vec<(u32, Cluster)>,
-    infinite: Vec<u32>,
+    infinite: Beside,
     /// Per light, its place in `bounded` (None: at infinity, or emits nothing).
     place: Vec<Option<u32>>,
 }
@@ -491,12 +515,12 @@ impl Exhaustive {
     fn new(bounds: &[Option<LightBounds>]) -> Exhaustive {
         let mut e = Exhaustive {
             bounded: Vec::new(),
-            infinite: Vec::new(),
+            infinite: Beside::default(),
             place: vec![None; bounds.len()],
         };
         for (i, b) in bounds.iter().enumerate() {
             match b {
-                None => e.infinite.push(i as u32),
+                None => e.infinite.lights.push(i as u32),
                 Some(b) if b.phi > 0.0 && b.phi.is_finite() => {
                     e.place[i] = Some(e.bounded.len() as u32);
                     e.bounded.push((i as u32, Cluster::new(b)));
@@ -507,20 +531,13 @@ impl Exhaustive {
         e
     }
 
-    fn p_infinite(&self) -> f32 {
-        let n = self.infinite.len() as f32;
-        let finite = if self.bounded.is_empty() { 0.0 } else { 1.0 };
-        if n == 0.0 { 0.0 } else { n / (n + finite) }
-    }
-
     fn sample(&self, p: Vec3A, n: Vec3A, u: f32) -> Option<(usize, f32)> {
-        let p_inf = self.p_infinite();
-        if u < p_inf {
-            let k = self.infinite.len();
-            let i = ((u / p_inf * k as f32) as usize).min(k - 1);
-            return Some((self.infinite[i] as usize, p_inf / k as f32));
-        }
-        let u = (u - p_inf) / (1.0 - p_inf);
+        let bounded = !self.bounded.is_empty();
+        let u = match self.infinite.choose(u, bounded) {
+            Ok(chosen) => return Some(chosen),
+            Err(u) => u,
+        };
+        let p_inf = self.infinite.share(bounded);
         let weights: Vec<f32> = self
             .bounded
             .iter()
@@ -550,18 +567,15 @@ impl Exhaustive {
     }
 
     fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
+        let bounded = !self.bounded.is_empty();
         let Some(k) = self.place[light] else {
-            return if self.infinite.contains(&(light as u32)) {
-                self.p_infinite() / self.infinite.len() as f32
-            } else {
-                0.0
-            };
+            return self.infinite.pmf(light, bounded).unwrap_or(0.0);
         };
         let total: f32 = self.bounded.iter().map(|(_, b)| b.importance(p, n)).sum();
         if total <= 0.0 {
             return 0.0;
         }
-        (1.0 - self.p_infinite()) * self.bounded[k as usize].1.importance(p, n) / total
+        (1.0 - self.infinite.share(bounded)) * self.bounded[k as usize].1.importance(p, n) / total
     }
 }
 
@@ -602,8 +616,8 @@ impl LightSampler {
         match self {
             LightSampler::Power(t) => t.is_empty(),
             LightSampler::Uniform(n) => *n == 0,
-            LightSampler::Bvh(b) => b.nodes.is_empty() && b.infinite.is_empty(),
-            LightSampler::Exhaustive(e) => e.bounded.is_empty() && e.infinite.is_empty(),
+            LightSampler::Bvh(b) => b.nodes.is_empty() && b.infinite.lights.is_empty(),
+            LightSampler::Exhaustive(e) => e.bounded.is_empty() && e.infinite.lights.is_empty(),
         }
     }
 

@@ -5,7 +5,7 @@
 //! by pbrt-v4's bilinear warp of the corners' area densities. [`super::quadric`] carries it
 //! with the other shapes intersected in their own right; its object space is the world's.
 
-use super::quadric::LocalPoint;
+use super::quadric::{LocalPoint, solve_quadratic};
 use glam::{DVec3, Vec2, Vec3A};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -106,18 +106,10 @@ impl BilinearPatch {
             }
             (-c / b, -c / b)
         } else {
-            let disc = b * b - 4.0 * a * c;
-            if disc < 0.0 {
-                return f64::INFINITY;
+            match solve_quadratic(a, b, c, b * b - 4.0 * a * c) {
+                Some(roots) => roots,
+                None => return f64::INFINITY,
             }
-            let root = disc.sqrt();
-            let q = if b < 0.0 {
-                -0.5 * (b - root)
-            } else {
-                -0.5 * (b + root)
-            };
-            let (x, y) = (q / a, if q != 0.0 { c / q } else { q / a });
-            (x.min(y), x.max(y))
         };
         let mut best = f64::INFINITY;
         for (k, u) in [u1, u2].into_iter().enumerate() {
