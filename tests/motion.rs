@@ -3,6 +3,7 @@
 
 use crate::util::{assert_matches_pbrt, max_z_score_to_rounding, render, scene, write_scene};
 use kiln_image::RgbBuffer;
+use std::path::Path;
 
 /// The largest |z| over a `bx` by `by` grid of blocks of the pixel-by-pixel difference of
 /// two independent renders; noise-free blocks (sky alone) must agree to rounding, as an
@@ -11,11 +12,28 @@ fn max_z(a: &RgbBuffer, b: &RgbBuffer, bx: u32, by: u32) -> f64 {
     max_z_score_to_rounding(a, b, bx, by, 1e-5)
 }
 
-/// The pixel-by-pixel mean of `n` renders, the k-th made by `still(k)`.
-fn average_of(n: usize, mut still: impl FnMut(usize) -> RgbBuffer) -> RgbBuffer {
+/// The pixel-by-pixel mean of 16 renders of the scene frozen at the instants
+/// (k + 1/2) / 16, the k-th written by `still(t)` and rendered with `args`, `spp` samples and
+/// seed k + 1: the time-average a motion blur must equal.
+fn average_of_stills(
+    dir: &Path,
+    still: impl Fn(f64) -> String,
+    args: &[&str],
+    spp: &str,
+) -> RgbBuffer {
+    let n = 16;
     let mut average: Option<RgbBuffer> = None;
     for k in 0..n {
-        let image = still(k);
+        let t = (k as f64 + 0.5) / n as f64;
+        let path = write_scene(dir, "still.pbrt", &still(t));
+        let seed = (k + 1).to_string();
+        let image = render(
+            &path,
+            dir,
+            "still",
+            &[args, &["--spp", spp, "--seed", &seed]].concat(),
+        )
+        .image;
         let sum = average.get_or_insert_with(|| {
             let mut zero = image.clone();
             zero.pixels.iter_mut().for_each(|p| *p = [0.0; 3]);
@@ -27,7 +45,7 @@ fn average_of(n: usize, mut still: impl FnMut(usize) -> RgbBuffer) -> RgbBuffer 
             }
         }
     }
-    average.expect("at least one still")
+    average.expect("sixteen stills")
 }
 
 /// The scene with every motion frozen at time `t`: the sphere slid by 2t, the box turned
@@ -58,19 +76,7 @@ fn motion_blur_is_the_average_of_stills() {
         &[&args[..], &["--spp", "512", "--seed", "100"]].concat(),
     )
     .image;
-    let n = 16;
-    let average = average_of(n, |k| {
-        let t = (k as f64 + 0.5) / n as f64;
-        let path = write_scene(dir.path(), "still.pbrt", &still_at(&text, t));
-        let seed = (k + 1).to_string();
-        render(
-            &path,
-            dir.path(),
-            "still",
-            &[&args[..], &["--spp", "32", "--seed", &seed]].concat(),
-        )
-        .image
-    });
+    let average = average_of_stills(dir.path(), |t| still_at(&text, t), &args, "32");
     let z = max_z(&blurred, &average, 4, 3);
     eprintln!(
         "blur vs stills: max z {z:.2}, means {:?} vs {:?}",
@@ -130,19 +136,7 @@ Shape "sphere" "float radius" [ 0.6 ]
         &["--spp", "512", "--seed", "50"],
     )
     .image;
-    let n = 16;
-    let average = average_of(n, |k| {
-        let t = (k as f64 + 0.5) / n as f64;
-        let path = write_scene(dir.path(), "still.pbrt", &scene_at(&look(-1.0 + 2.0 * t)));
-        let seed = (k + 1).to_string();
-        render(
-            &path,
-            dir.path(),
-            "still",
-            &["--spp", "32", "--seed", &seed],
-        )
-        .image
-    });
+    let average = average_of_stills(dir.path(), |t| scene_at(&look(-1.0 + 2.0 * t)), &[], "32");
     let z = max_z(&blurred, &average, 4, 3);
     assert!(z < 4.5, "worst block differs by {z:.2} standard errors");
 }
@@ -238,23 +232,12 @@ AttributeEnd
         &["--spp", "512", "--seed", "100"],
     )
     .image;
-    let n = 16;
-    let average = average_of(n, |k| {
-        let t = (k as f64 + 0.5) / n as f64;
-        let path = write_scene(
-            dir.path(),
-            "still.pbrt",
-            &scene(&format!("  Translate {} 0 0\n", 2.0 * t)),
-        );
-        let seed = (k + 1).to_string();
-        render(
-            &path,
-            dir.path(),
-            "still",
-            &["--spp", "32", "--seed", &seed],
-        )
-        .image
-    });
+    let average = average_of_stills(
+        dir.path(),
+        |t| scene(&format!("  Translate {} 0 0\n", 2.0 * t)),
+        &[],
+        "32",
+    );
     let z = max_z(&blurred, &average, 4, 2);
     eprintln!(
         "fog blur vs stills: max z {z:.2}, means {:?} vs {:?}",
@@ -330,20 +313,12 @@ AttributeEnd
         &["--spp", "1024", "--seed", "100"],
     )
     .image;
-    let n = 16;
-    let average = average_of(n, |k| {
-        let t = (k as f64 + 0.5) / n as f64;
-        let still = format!("    Translate {} 0 0\n", 1.5 * t);
-        let path = write_scene(dir.path(), "still.pbrt", &scene(&still, ""));
-        let seed = (k + 1).to_string();
-        render(
-            &path,
-            dir.path(),
-            "still",
-            &["--spp", "64", "--seed", &seed],
-        )
-        .image
-    });
+    let average = average_of_stills(
+        dir.path(),
+        |t| scene(&format!("    Translate {} 0 0\n", 1.5 * t), ""),
+        &[],
+        "64",
+    );
     let z = max_z(&blurred, &average, 4, 2);
     eprintln!("instanced blur vs stills: max z {z:.2}");
     assert!(z < 4.5, "worst block differs by {z:.2} standard errors");

@@ -132,14 +132,7 @@ pub struct GridMedium {
 impl GridMedium {
     /// The grid's box in world space (the bounds of its transformed corners).
     pub fn world_bounds(&self) -> (Vec3A, Vec3A) {
-        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        for k in 0..8 {
-            let c = Vec3A::new((k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32);
-            let w = self.box_to_world.transform_point3a(c);
-            lo = lo.min(w);
-            hi = hi.max(w);
-        }
-        (lo, hi)
+        crate::shapes::transformed_bounds(&self.box_to_world, Vec3A::ZERO, Vec3A::ONE)
     }
 
     pub fn new(desc: &kiln_scene::GridMediumDesc) -> GridMedium {

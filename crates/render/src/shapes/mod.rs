@@ -27,7 +27,7 @@ pub use triangle::barycentrics;
 
 use crate::math::Ray;
 use crate::textures::FloatTexture;
-use glam::{Vec2, Vec3A};
+use glam::{Affine3A, Vec2, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray as BvhRay, RayHit};
@@ -143,6 +143,22 @@ pub struct Geometry {
     any_alpha: bool,
     /// Time spent building BVHs.
     pub build_time: Duration,
+}
+
+/// The box holding the box `lo`..`hi` carried by `m` (the bounds of its eight corners).
+pub fn transformed_bounds(m: &Affine3A, lo: Vec3A, hi: Vec3A) -> (Vec3A, Vec3A) {
+    let (mut a, mut b) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    for k in 0..8 {
+        let c = Vec3A::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+        let w = m.transform_point3a(c);
+        a = a.min(w);
+        b = b.max(w);
+    }
+    (a, b)
 }
 
 /// obvhs's CWBVH traversal misses everything when a direction component is -0.0

@@ -41,19 +41,8 @@ impl Mover {
     pub fn placed(geometry: Geometry, motion: AnimatedTransform, outer: Option<Affine3A>) -> Mover {
         let (lo, hi) = geometry.bounds();
         let (mut lo, mut hi) = motion.motion_bounds(lo, hi);
-        if let Some(m) = outer {
-            let (a, b) = (lo, hi);
-            (lo, hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-            for k in 0..8 {
-                let c = Vec3A::new(
-                    if k & 1 == 0 { a.x } else { b.x },
-                    if k & 2 == 0 { a.y } else { b.y },
-                    if k & 4 == 0 { a.z } else { b.z },
-                );
-                let w = m.transform_point3a(c);
-                lo = lo.min(w);
-                hi = hi.max(w);
-            }
+        if let Some(m) = &outer {
+            (lo, hi) = super::transformed_bounds(m, lo, hi);
         }
         Mover {
             geometry: std::sync::Arc::new(geometry),

@@ -179,18 +179,7 @@ impl Quadric {
         }
         let world = Affine3A::from_mat4(to_world.as_mat4());
         let (olo, ohi) = shape.bounds();
-        let mut lo = Vec3A::splat(f32::INFINITY);
-        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
-        for i in 0..8 {
-            let c = Vec3A::new(
-                if i & 1 == 0 { olo.x } else { ohi.x },
-                if i & 2 == 0 { olo.y } else { ohi.y },
-                if i & 4 == 0 { olo.z } else { ohi.z },
-            );
-            let w = world.transform_point3a(c);
-            lo = lo.min(w);
-            hi = hi.max(w);
-        }
+        let (lo, hi) = super::transformed_bounds(&world, olo, ohi);
         Some(Quadric {
             shape,
             to_world: world,
