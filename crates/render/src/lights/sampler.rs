@@ -538,32 +538,26 @@ impl Exhaustive {
             Err(u) => u,
         };
         let p_inf = self.infinite.share(bounded);
-        let weights: Vec<f32> = self
-            .bounded
-            .iter()
-            .map(|(_, b)| b.importance(p, n))
-            .collect();
-        let total: f32 = weights.iter().sum();
+        // Two passes over the lights (the total, then the walk to it): nothing allocated.
+        let total: f32 = self.bounded.iter().map(|(_, b)| b.importance(p, n)).sum();
         if total <= 0.0 {
             return None;
         }
         let target = u * total;
         let mut acc = 0.0;
         let mut chosen = None;
-        for (k, &w) in weights.iter().enumerate() {
+        for (k, (_, b)) in self.bounded.iter().enumerate() {
+            let w = b.importance(p, n);
             if w > 0.0 {
-                chosen = Some(k);
+                chosen = Some((k, w));
                 acc += w;
                 if target < acc {
                     break;
                 }
             }
         }
-        let k = chosen?;
-        Some((
-            self.bounded[k].0 as usize,
-            (1.0 - p_inf) * weights[k] / total,
-        ))
+        let (k, w) = chosen?;
+        Some((self.bounded[k].0 as usize, (1.0 - p_inf) * w / total))
     }
 
     fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
