@@ -381,18 +381,3 @@ fn motion_kiln_cannot_blur_is_an_error_not_a_still() {
     // Renders (util::render panics with kiln's stderr if it fails).
     render(&still, dir.path(), "still", &[]);
 }
-
-/// pbrt-v4's "regularize" changes the image: refused, not ignored; "false" is no change.
-#[test]
-fn regularize_is_refused_where_it_would_change_the_image() {
-    let (err, _d) = failing("Integrator \"path\"\n  \"bool regularize\" true\nWorldBegin\n");
-    assert_names(&err, "scene.pbrt", 2, "\"regularize\"");
-    let dir = tempfile::tempdir().unwrap();
-    let off = write_scene(
-        dir.path(),
-        "off.pbrt",
-        "Integrator \"path\" \"bool regularize\" false\nFilm \"rgb\" \"integer xresolution\" [ 4 ] \"integer yresolution\" [ 4 ]\nWorldBegin\nShape \"sphere\"\n",
-    );
-    // Renders (util::render panics with kiln's stderr if it fails).
-    render(&off, dir.path(), "off", &[]);
-}

@@ -216,6 +216,9 @@ pub struct IntegratorDesc {
     pub rr_depth: u32,
     pub strategy: LightStrategy,
     pub light_sampler: LightSamplerKind,
+    /// pbrt-v4's "regularize": after the first non-specular bounce, microfacet BSDFs are
+    /// roughened (alpha under 0.3 doubled, within [0.1, 0.3]).
+    pub regularize: bool,
     /// Clamp the radiance of each path sample to this value (0 disables it).
     pub max_radiance: f32,
     /// Photons traced for the caustic photon maps (Kiln's "integer causticphotons"; 0:

@@ -21,6 +21,15 @@ impl TrowbridgeReitz {
         d
     }
 
+    /// pbrt-v4's regularisation: an alpha under 0.3 doubles, within [0.1, 0.3].
+    pub fn regularize(&mut self) {
+        for a in [&mut self.alpha_x, &mut self.alpha_y] {
+            if *a < 0.3 {
+                *a = (2.0 * *a).clamp(0.1, 0.3);
+            }
+        }
+    }
+
     pub fn effectively_smooth(&self) -> bool {
         self.alpha_x.max(self.alpha_y) < 1e-3
     }
@@ -100,5 +109,27 @@ impl TrowbridgeReitz {
         let pz = (1.0 - p.length_squared()).max(0.0).sqrt();
         let nh = p.x * t1 + p.y * t2 + pz * wh;
         Vec3A::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(1e-6)).normalize()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// pbrt-v4's rule: an alpha under 0.3 doubles, held within [0.1, 0.3]; 0.3 and above
+    /// stay; a smooth lobe becomes glossy.
+    #[test]
+    fn regularize_doubles_small_alphas_within_bounds() {
+        let mut d = TrowbridgeReitz::new(0.0, 0.0);
+        assert!(d.effectively_smooth());
+        d.regularize();
+        assert_eq!((d.alpha_x, d.alpha_y), (0.1, 0.1));
+        assert!(!d.effectively_smooth());
+        let mut d = TrowbridgeReitz::new(0.12, 0.2);
+        d.regularize();
+        assert_eq!((d.alpha_x, d.alpha_y), (0.24, 0.3));
+        let mut d = TrowbridgeReitz::new(0.05, 0.5);
+        d.regularize();
+        assert_eq!((d.alpha_x, d.alpha_y), (0.1, 0.5));
     }
 }

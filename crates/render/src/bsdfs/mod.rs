@@ -72,6 +72,26 @@ impl Bsdf<'_> {
         }
     }
 
+    /// pbrt-v4's "regularize": microfacet lobes roughened (near-specular ones made glossy)
+    /// so that paths after a diffuse bounce can find small lights; the other kinds stay.
+    pub fn regularize(&mut self) {
+        match self {
+            Bsdf::Conductor(b) => b.distrib.regularize(),
+            Bsdf::Dielectric(b) => b.distrib.regularize(),
+            Bsdf::Layered(b) => {
+                b.top.distrib.regularize();
+                if let layered::Base::Conductor(c) = &mut b.bottom {
+                    c.distrib.regularize();
+                }
+            }
+            Bsdf::Diffuse(_)
+            | Bsdf::DiffuseTransmission(_)
+            | Bsdf::ThinDielectric(_)
+            | Bsdf::Measured(_)
+            | Bsdf::Hair(_) => {}
+        }
+    }
+
     /// True when the BSDF reflects nothing at all (a black diffuse, as emitters often use).
     pub fn is_black(&self) -> bool {
         match self {

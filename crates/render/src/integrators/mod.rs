@@ -36,6 +36,8 @@ pub struct PathSettings {
     pub caustic_photons: u64,
     /// Their search radius (0: 1/200 of the scene's radius).
     pub caustic_radius: f32,
+    /// pbrt-v4's "regularize": BSDFs met after a non-specular bounce are roughened.
+    pub regularize: bool,
 }
 
 impl PathSettings {
@@ -46,6 +48,7 @@ impl PathSettings {
             strategy: i.strategy,
             caustic_photons: i.caustic_photons,
             caustic_radius: i.caustic_radius,
+            regularize: i.regularize,
         }
     }
 }

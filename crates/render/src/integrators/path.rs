@@ -45,6 +45,8 @@ struct PathState {
     /// choice depends on.
     prev_n: Vec3A,
     prev_pdf: f32,
+    /// Some bounce so far scattered non-specularly (pbrt-v4's regularize waits for one).
+    any_non_specular: bool,
     /// Interface surfaces crossed without scattering.
     pass_throughs: u32,
     /// The VolumeLight whose interior the path is in, and whether the current segment's
@@ -103,6 +105,7 @@ pub(super) fn path_li(
         prev_p: ray.origin,
         prev_n: Vec3A::ZERO,
         prev_pdf: 0.0,
+        any_non_specular: false,
         pass_throughs: 0,
         inside: None,
         medium: ctx.scene.camera_medium,
@@ -237,6 +240,7 @@ fn medium_step(
     let (wi, pdf) = phase.sample(wo, sampler.get_2d());
     // Phase functions are sampled exactly: the value over the pdf is 1.
     state.first_or_specular = false;
+    state.any_non_specular = true;
     state.prev_pdf = pdf;
     state.prev_p = p;
     state.prev_n = Vec3A::ZERO;
@@ -335,7 +339,7 @@ fn surface_step(
     let (scene, settings) = (ctx.scene, ctx.settings);
     // Shading may perturb the normal (bump and normal maps): shade a copy of the hit.
     let hit = &mut hit.clone();
-    let Some(bsdf) = scene.bsdf(hit, ctx.footprint) else {
+    let Some(mut bsdf) = scene.bsdf(hit, ctx.footprint) else {
         // An interface: continue straight through without counting a bounce.
         state.pass_throughs += 1;
         if state.pass_throughs > 256 {
@@ -349,6 +353,9 @@ fn surface_step(
     };
     if state.depth == settings.max_depth || bsdf.is_black() {
         return Next::Stop;
+    }
+    if settings.regularize && state.any_non_specular {
+        bsdf.regularize();
     }
     state.depth += 1;
     let frame = Frame::new(hit.ns, hit.dpdu);
@@ -396,6 +403,7 @@ fn surface_step(
         return Next::Stop;
     }
     state.first_or_specular = bs.specular;
+    state.any_non_specular |= !bs.specular;
     state.prev_pdf = bs.pdf;
     state.prev_p = hit.p;
     state.prev_n = hit.ns;

@@ -543,6 +543,7 @@ impl Parser {
                 rr_depth: 5,
                 strategy: LightStrategy::Mis,
                 light_sampler: LightSamplerKind::Bvh,
+                regularize: false,
                 max_radiance: 0.0,
                 caustic_photons: 0,
                 caustic_radius: 0.0,

@@ -221,11 +221,17 @@ impl Parser {
                 None => None,
             },
             Some(v) if v.len() == 4 => Some([v[0], v[1], v[2], v[3]]),
-            Some(_) => {
-                return Err(SceneError::at(
-                    loc,
-                    "Camera: \"float screenwindow\" needs 4 values",
-                ));
+            // pbrt-v4 reports this and renders with the default window (its Error is not
+            // fatal): the image is pbrt-v4's with the default, so Kiln warns and does so too.
+            Some(v) => {
+                self.warn(
+                    &params.loc_of("screenwindow").unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "Camera: \"float screenwindow\" has {} values, not 4; ignored, as pbrt-v4 ignores it (the default window is used)",
+                        v.len()
+                    ),
+                );
+                None
             }
         };
         let lens_radius = params.float("lensradius", 0.0)?;
@@ -609,14 +615,7 @@ impl Parser {
                 "Integrator: causticphotons must be 0 to 5*10^7 (each stored photon takes 64 bytes) and causticradius not negative",
             ));
         }
-        // pbrt-v4's "regularize" roughens near-specular surfaces after the first diffuse
-        // bounce: that changes the image, so Kiln refuses it rather than ignore it.
-        if params.bool("regularize", false)? {
-            return Err(SceneError::at(
-                &params.loc_of("regularize").unwrap_or_else(|| loc.clone()),
-                "Integrator: \"regularize\" (roughening near-specular surfaces after a diffuse bounce) is not supported yet and would change the image",
-            ));
-        }
+        let regularize = params.bool("regularize", false)?;
         self.check_unused(params, "Integrator", &[])?;
         self.integrator = Some(IntegratorDesc {
             name: ty.to_string(),
@@ -629,6 +628,7 @@ impl Parser {
             rr_depth: rr_depth as u32,
             strategy,
             light_sampler,
+            regularize,
             max_radiance,
             caustic_photons: caustic_photons as u64,
             caustic_radius,
@@ -673,6 +673,15 @@ mod tests {
             err.contains("prophoto") && err.contains("aces2065-1"),
             "{err}"
         );
+    }
+
+    /// A screen window of other than four values is reported and ignored, as pbrt-v4 does.
+    #[test]
+    fn a_screen_window_of_two_values_is_ignored_with_a_warning() {
+        let s =
+            load("Camera \"orthographic\" \"float screenwindow\" [ -0.0001 0.0001 ]\nWorldBegin");
+        assert_eq!(s.camera.screen_window, None);
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
     }
 
     /// pbrt-v4 takes the screen window from "frameaspectratio" when none is given.
