@@ -7,6 +7,22 @@ use crate::util::{
 };
 use std::path::Path;
 
+/// The noise variance of one render, from two of the same scene with their own seeds: half
+/// the mean squared difference of their pixels, summed over the channels.
+fn noise_variance(a: &kiln_image::RgbBuffer, b: &kiln_image::RgbBuffer) -> f64 {
+    let sq: f64 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(a, b)| {
+            (0..3)
+                .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    sq / (2.0 * a.pixels.len() as f64)
+}
+
 /// Renders the scene's direct lighting with each strategy and compares them in `blocks`.
 /// Variants are written to a temp dir, or beside `path` when `beside` (for scenes that refer to other files).
 fn strategies_agree(path: &Path, args: &[&str], max_z: f64, beside: bool, blocks: (u32, u32)) {
@@ -202,17 +218,7 @@ fn light_samplers_agree_and_the_hierarchy_is_the_least_noisy() {
                 .image
             })
             .collect();
-        let sq: f64 = pair[0]
-            .pixels
-            .iter()
-            .zip(&pair[1].pixels)
-            .map(|(a, b)| {
-                (0..3)
-                    .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
-                    .sum::<f64>()
-            })
-            .sum();
-        noise.push(sq / (2.0 * pair[0].pixels.len() as f64));
+        noise.push(noise_variance(&pair[0], &pair[1]));
         images.push(pair.into_iter().next().unwrap());
     }
     for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
@@ -291,17 +297,7 @@ AttributeEnd
                 .image
             })
             .collect();
-        let sq: f64 = pair[0]
-            .pixels
-            .iter()
-            .zip(&pair[1].pixels)
-            .map(|(a, b)| {
-                (0..3)
-                    .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
-                    .sum::<f64>()
-            })
-            .sum();
-        noise.push(sq / pair[0].pixels.len() as f64);
+        noise.push(noise_variance(&pair[0], &pair[1]));
         means.push(pair[0].mean());
     }
     eprintln!(

@@ -131,8 +131,13 @@ pub struct EmissionPoint {
 }
 
 /// Radiance leaving a diffuse emitter's point with normal `n` in direction `w`.
+/// Whether a diffuse emitter with normal `n` sends light in direction `w`.
+fn emits_toward(two_sided: bool, n: Vec3A, w: Vec3A) -> bool {
+    two_sided || n.dot(w) > 0.0
+}
+
 fn diffuse_le(radiance: Color, two_sided: bool, n: Vec3A, w: Vec3A) -> Color {
-    if two_sided || n.dot(w) > 0.0 {
+    if emits_toward(two_sided, n, w) {
         radiance
     } else {
         Color::ZERO
@@ -180,7 +185,7 @@ impl TriangleLight {
 
     /// Radiance leaving the triangle's point `q` (normal `n`) in direction `w`.
     pub fn le(&self, geometry: &Geometry, q: Vec3A, n: Vec3A, w: Vec3A) -> Color {
-        if !self.two_sided && n.dot(w) <= 0.0 {
+        if !emits_toward(self.two_sided, n, w) {
             return Color::ZERO;
         }
         self.emitted(geometry, q)
@@ -311,7 +316,7 @@ impl QuadricLight {
     /// Radiance leaving the quadric's point `q` (normal `n`, oriented as hits are) in
     /// direction `w`.
     pub fn le(&self, geometry: &Geometry, q: Vec3A, n: Vec3A, w: Vec3A) -> Color {
-        if !self.two_sided && n.dot(w) <= 0.0 {
+        if !emits_toward(self.two_sided, n, w) {
             return Color::ZERO;
         }
         self.emitted(

@@ -17,6 +17,8 @@ pub struct BilinearPatch {
     /// Per-corner texture coordinates, in the same order.
     pub uv: Option<[Vec2; 4]>,
     area: f32,
+    /// The corners' area densities |dp/du x dp/dv|: the weights of the bilinear warp.
+    weights: [f32; 4],
 }
 
 fn lerp3(t: f64, a: DVec3, b: DVec3) -> DVec3 {
@@ -39,7 +41,14 @@ impl BilinearPatch {
             n,
             uv,
             area: 0.0,
+            weights: [0.0; 4],
         };
+        patch.weights = [
+            patch.jacobian(0.0, 0.0),
+            patch.jacobian(1.0, 0.0),
+            patch.jacobian(0.0, 1.0),
+            patch.jacobian(1.0, 1.0),
+        ];
         // The area by a fixed 32 x 32 midpoint rule (the same on every machine).
         let k = 32;
         let mut sum = 0.0f64;
@@ -218,19 +227,9 @@ impl BilinearPatch {
         }
     }
 
-    /// The corners' area densities: the weights of the bilinear warp.
-    fn weights(&self) -> [f32; 4] {
-        [
-            self.jacobian(0.0, 0.0),
-            self.jacobian(1.0, 0.0),
-            self.jacobian(0.0, 1.0),
-            self.jacobian(1.0, 1.0),
-        ]
-    }
-
     /// The density of (u, v) under [`BilinearPatch::sample`].
     fn param_pdf(&self, u: f32, v: f32) -> f32 {
-        let w = self.weights();
+        let w = self.weights;
         let total = w.iter().sum::<f32>();
         if total == 0.0 {
             return 1.0;
@@ -245,7 +244,7 @@ impl BilinearPatch {
     /// A point on the patch, its (u, v) drawn by the bilinear warp of the corners' area
     /// densities (nearly uniform by area); its density per unit area is [`LocalPoint::pdf`].
     pub fn sample(&self, u: Vec2) -> Vec3A {
-        let w = self.weights();
+        let w = self.weights;
         let v = sample_linear(u.y, w[0] + w[1], w[2] + w[3]);
         let s = sample_linear(u.x, w[0] + (w[2] - w[0]) * v, w[1] + (w[3] - w[1]) * v);
         self.point(s, v)
