@@ -381,3 +381,58 @@ fn motion_kiln_cannot_blur_is_an_error_not_a_still() {
     // Renders (util::render panics with kiln's stderr if it fails).
     render(&still, dir.path(), "still", &[]);
 }
+
+/// A nanovdb medium's file problems are errors naming the directive's line, the file and
+/// what is wrong: missing, not NanoVDB, truncated, Blosc, a grid that is not there (the
+/// grids that are listed), a level set.
+#[test]
+fn nanovdb_errors_name_the_line() {
+    use kiln_scene::files::nanovdb::{CLASS_FOG_VOLUME, GridToWrite, write_nanovdb};
+    let dir = tempfile::tempdir().unwrap();
+    let values = vec![0.5f32; 10 * 10 * 10];
+    let grid = |class| GridToWrite {
+        name: "density",
+        class,
+        voxel_size: [0.1; 3],
+        origin: [0.0; 3],
+        lo: [0, 0, 0],
+        dims: [10, 10, 10],
+        values: &values,
+    };
+    let good = write_nanovdb(&[grid(CLASS_FOG_VOLUME)], false);
+    std::fs::write(dir.path().join("good.nvdb"), &good).unwrap();
+    std::fs::write(dir.path().join("cut.nvdb"), &good[..good.len() / 2]).unwrap();
+    std::fs::write(dir.path().join("text.nvdb"), b"density 1 2 3\n").unwrap();
+    let mut blosc = good.clone();
+    blosc[14] = 2;
+    std::fs::write(dir.path().join("blosc.nvdb"), &blosc).unwrap();
+    std::fs::write(
+        dir.path().join("sdf.nvdb"),
+        write_nanovdb(&[grid(1)], false),
+    )
+    .unwrap();
+    for (file, extra, says) in [
+        ("missing.nvdb", "", "missing.nvdb"),
+        ("text.nvdb", "", "not a NanoVDB file"),
+        ("cut.nvdb", "", "truncated"),
+        ("blosc.nvdb", "", "Blosc-compressed"),
+        (
+            "good.nvdb",
+            "\"string gridname\" \"smoke\"",
+            "no grid named 'smoke' (it has density)",
+        ),
+        ("sdf.nvdb", "", "is not a fog volume"),
+    ] {
+        let err = crate::util::failing_in(
+            dir.path(),
+            &format!(
+                "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"nanovdb\"\n  \"string filename\" \"{file}\" {extra}\n"
+            ),
+        );
+        assert!(
+            err.contains("scene.pbrt:2:") || err.contains("scene.pbrt:3:"),
+            "{file}: expected the line in:\n{err}"
+        );
+        assert!(err.contains(says), "{file}: expected '{says}' in:\n{err}");
+    }
+}

@@ -629,6 +629,21 @@ pub struct GridMediumDesc {
     pub p1: [f32; 3],
     /// The CTM when the medium was defined (pbrt's renderFromMedium).
     pub medium_to_world: DMat4,
+    /// Where the grids' samples sit in the box.
+    pub lattice: Lattice,
+}
+
+/// Where a grid medium's samples sit in its box `p0`..`p1`. Either way values are trilinear
+/// between samples and zero beyond the grid's outermost ones.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Lattice {
+    /// pbrt-v4's `SampledGrid`: sample (i, j, k) of an nx·ny·nz grid at the centre of voxel
+    /// (i, j, k) when the box is cut into nx·ny·nz voxels.
+    Centred,
+    /// At the integer points of a space the box maps into affinely (a NanoVDB grid's index
+    /// space, shifted to put sample (0, 0, 0) at its origin): `to_samples` takes a point of
+    /// the unit box (0..1 across `p0`..`p1`) there.
+    Affine { to_samples: DMat4 },
 }
 
 /// What multiplies a grid medium's `sigma_a` and `sigma_s` at each point of its box.
@@ -663,12 +678,14 @@ pub enum GridEmission {
         scale: VoxelGrid,
     },
     /// The peak-normalised blackbody at (T − offset) · t_scale (none at or below 100 K),
-    /// times the `scale` grid.
+    /// times `le_scale` and the `scale` grid where there is one (pbrt-v4's "uniformgrid" has
+    /// a grid, its "nanovdb" a constant).
     Temperature {
         temperature: VoxelGrid,
         offset: f32,
         t_scale: f32,
-        scale: VoxelGrid,
+        scale: Option<VoxelGrid>,
+        le_scale: f32,
     },
     /// An RGB value per voxel (pbrt-v4's "rgbgrid" `Le`, the three grids its channels),
     /// times `scale`.

@@ -1,6 +1,6 @@
 //! A heterogeneous medium: pbrt-v4's "uniformgrid" (density, emission and temperature
-//! grids), "rgbgrid" (RGB coefficient and emission grids) and "cloud" (a procedural
-//! density), tracked against a coarse majorant grid walked with a 3D DDA, and its
+//! grids), "rgbgrid" (RGB coefficient and emission grids), "cloud" (a procedural density)
+//! and "nanovdb" (density and temperature grids from a NanoVDB file, on its lattice), tracked against a coarse majorant grid walked with a 3D DDA, and its
 //! emission distribution for sampling it as a light (seed 001).
 
 use super::cloud::Cloud;
@@ -15,7 +15,7 @@ use glam::{Affine3A, Vec3A};
 enum Emission {
     Constant(Color),
     /// An RGB grid (the channels), times a scale.
-    Rgb([SampledGrid; 3], f32),
+    Rgb(Box<[SampledGrid; 3]>, f32),
     /// Temperature, then (T - offset) * t_scale through a table of the peak-normalised
     /// blackbody.
     Temperature {
@@ -38,7 +38,8 @@ struct BlackbodyTable {
 const BLACKBODY_MIN_K: f32 = 100.0;
 
 impl BlackbodyTable {
-    fn new(t_max: f32) -> BlackbodyTable {
+    /// The table up to `t_max`, every entry times `scale`.
+    fn new(t_max: f32, scale: f32) -> BlackbodyTable {
         let n = 2048usize;
         let t_max = t_max.max(BLACKBODY_MIN_K * 2.0);
         let step = (t_max - BLACKBODY_MIN_K) / (n - 1) as f32;
@@ -46,7 +47,7 @@ impl BlackbodyTable {
             .map(|i| {
                 crate::math::rgb(kiln_scene::spectrum::blackbody_peak_rgb(
                     BLACKBODY_MIN_K + step * i as f32,
-                ))
+                )) * scale
             })
             .collect();
         BlackbodyTable { t_max, step, rgb }
@@ -104,8 +105,10 @@ fn rgb_max_over(g: &Option<Box<[SampledGrid; 3]>>, lo: Vec3A, hi: Vec3A) -> Colo
     })
 }
 
-/// Cells of the majorant grid along each axis (pbrt-v4 uses 16 too).
+/// Cells of the majorant grid along each axis: 16 for grids on the centred lattice and the
+/// cloud, 64 for NanoVDB grids (pbrt-v4's choices; NanoVDB grids are usually larger).
 const MAJORANT_RES: usize = 16;
+const MAJORANT_RES_NANOVDB: usize = 64;
 
 /// A heterogeneous medium: pbrt-v4's "uniformgrid". Tracking runs against a coarse grid of
 /// majorants (the largest density each cell can hold), walked cell by cell with a 3D DDA.
@@ -118,9 +121,11 @@ pub struct GridMedium {
     field: Field,
     /// The emission and the grid that scales it (None: 1).
     emission: Option<(Emission, Option<SampledGrid>)>,
-    /// World space to the unit box, and to majorant cells ([0, MAJORANT_RES]^3).
+    /// World space to the unit box.
     world_to_box: Affine3A,
     box_to_world: Affine3A,
+    /// Majorant cells along each axis.
+    res: usize,
     /// Per cell, the largest sigma_t channel anywhere in it.
     majorant: Vec<f32>,
     /// World-space volume of the box.
@@ -143,12 +148,13 @@ impl GridMedium {
             Affine3A::from_translation((p0).into()) * Affine3A::from_scale((p1 - p0).into());
         let box_to_world = medium_to_world * box_to_medium;
         let world_to_box = box_to_world.inverse();
+        let lattice = &desc.lattice;
+        let grid = |g: &kiln_scene::VoxelGrid| SampledGrid::on(g, lattice);
         let field = match &desc.density {
-            kiln_scene::GridDensity::Scalar(g) => Field::Scalar(SampledGrid::new(g)),
+            kiln_scene::GridDensity::Scalar(g) => Field::Scalar(grid(g)),
             kiln_scene::GridDensity::Rgb { sigma_a, sigma_s } => {
                 let grids = |g: &Option<Box<[kiln_scene::VoxelGrid; 3]>>| {
-                    g.as_deref()
-                        .map(|g| Box::new(g.each_ref().map(SampledGrid::new)))
+                    g.as_deref().map(|g| Box::new(g.each_ref().map(grid)))
                 };
                 Field::Rgb {
                     a: grids(sigma_a),
@@ -171,36 +177,39 @@ impl GridMedium {
         };
         let emission = match &desc.emission {
             kiln_scene::GridEmission::None => None,
-            kiln_scene::GridEmission::Constant { le, scale } => Some((
-                Emission::Constant(crate::math::rgb(*le)),
-                Some(SampledGrid::new(scale)),
-            )),
+            kiln_scene::GridEmission::Constant { le, scale } => {
+                Some((Emission::Constant(crate::math::rgb(*le)), Some(grid(scale))))
+            }
             kiln_scene::GridEmission::Temperature {
                 temperature,
                 offset,
                 t_scale,
                 scale,
+                le_scale,
             } => {
-                let grid = SampledGrid::new(temperature);
-                let t_max = (grid.max() - offset) * t_scale;
+                let temperature = grid(temperature);
+                let t_max = (temperature.max() - offset) * t_scale;
                 Some((
                     Emission::Temperature {
-                        grid,
+                        grid: temperature,
                         offset: *offset,
                         t_scale: *t_scale,
-                        table: BlackbodyTable::new(t_max.max(0.0)),
+                        table: BlackbodyTable::new(t_max.max(0.0), *le_scale),
                     },
-                    Some(SampledGrid::new(scale)),
+                    scale.as_ref().map(grid),
                 ))
             }
             kiln_scene::GridEmission::Rgb { le, scale } => Some((
-                Emission::Rgb(le.each_ref().map(SampledGrid::new), *scale),
+                Emission::Rgb(Box::new(le.each_ref().map(grid)), *scale),
                 None,
             )),
         };
         let sigma_a = crate::math::rgb(desc.sigma_a);
         let sigma_s = crate::math::rgb(desc.sigma_s);
-        let r = MAJORANT_RES;
+        let r = match desc.lattice {
+            kiln_scene::Lattice::Centred => MAJORANT_RES,
+            kiln_scene::Lattice::Affine { .. } => MAJORANT_RES_NANOVDB,
+        };
         let mut majorant = vec![0.0; r * r * r];
         for z in 0..r {
             for y in 0..r {
@@ -227,6 +236,7 @@ impl GridMedium {
             emission,
             world_to_box,
             box_to_world,
+            res: r,
             majorant,
             box_volume: box_to_world.matrix3.determinant().abs(),
             emission_distribution: None,
@@ -278,7 +288,8 @@ impl GridMedium {
         }
         match emission {
             Emission::Constant(le) => *le * s,
-            Emission::Rgb([r, g, b], scale) => {
+            Emission::Rgb(grids, scale) => {
+                let [r, g, b] = &**grids;
                 Color::new(r.lookup(p), g.lookup(p), b.lookup(p)) * (*scale * s)
             }
             Emission::Temperature {
@@ -311,7 +322,7 @@ impl GridMedium {
         if p.min_element() < 0.0 || p.max_element() > 1.0 {
             return 0.0;
         }
-        let r = MAJORANT_RES;
+        let r = self.res;
         let c = (p * r as f32)
             .as_uvec3()
             .min(glam::UVec3::splat(r as u32 - 1));
@@ -331,7 +342,7 @@ impl GridMedium {
         mut visit: impl FnMut(f32, Vec3A, f32) -> bool,
     ) -> Walk {
         let mut steps = 0u32;
-        let r = MAJORANT_RES as f32;
+        let r = self.res as f32;
         let oc = self.world_to_box.transform_point3a(o) * r;
         let dc = self.world_to_box.transform_vector3a(d) * r;
         // Clip to the box [0, r]^3.
@@ -355,7 +366,7 @@ impl GridMedium {
             return Walk::Ended;
         }
         let p = oc + dc * t;
-        let n = MAJORANT_RES as i32;
+        let n = self.res as i32;
         let mut cell = [0i32; 3];
         let mut next = [f32::INFINITY; 3];
         let mut delta = [f32::INFINITY; 3];
@@ -589,6 +600,7 @@ mod tests {
             p0: [-1.0, -1.0, -1.0],
             p1: [1.0, 1.0, 3.0],
             medium_to_world: glam::DMat4::from_rotation_y(0.3),
+            lattice: kiln_scene::Lattice::Centred,
         })
     }
 
@@ -651,7 +663,8 @@ mod tests {
                 temperature,
                 offset: 0.0,
                 t_scale: 1.0,
-                scale: grid([1, 1, 1], |_, _, _| 1.0),
+                scale: Some(grid([1, 1, 1], |_, _, _| 1.0)),
+                le_scale: 1.0,
             },
         );
         let dist = m.emission_distribution.as_ref().unwrap();

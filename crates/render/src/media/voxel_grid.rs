@@ -1,24 +1,46 @@
-//! The one voxel-grid type: a scalar grid over the unit box, sampled at voxel centres and
-//! trilinear in between. Grid media (density, emission, temperature) and VolumeLight
+//! The one voxel-grid type: a scalar grid over the unit box, sampled at voxel centres (or on
+//! a NanoVDB grid's lattice, mapped into the box affinely) and trilinear in between. Grid media (density, emission, temperature) and VolumeLight
 //! interiors both use it; they differ only in what lies beyond the outermost centres, so
 //! that choice is the caller's: [`SampledGrid::lookup`] (zero outside, pbrt-v4's
 //! `SampledGrid`) or [`SampledGrid::lookup_clamped`] (the nearest centre's value, seed 000's).
 
-use glam::Vec3A;
+use glam::{Affine3A, Vec3A};
 
 /// A scalar grid over the unit box: sample (i, j, k) at the centre of voxel (i, j, k),
-/// trilinear in between.
+/// or where a lattice map puts it; trilinear in between.
 #[derive(Debug, Clone)]
 pub struct SampledGrid {
     pub(crate) n: [usize; 3],
     values: Vec<f32>,
+    /// Unit box to sample coordinates (sample (i, j, k) at the point (i, j, k)); None for the
+    /// centred lattice, p · n − 1/2.
+    to_samples: Option<Affine3A>,
 }
 
 impl SampledGrid {
+    /// A grid on pbrt-v4's centred lattice.
     pub fn new(g: &kiln_scene::VoxelGrid) -> SampledGrid {
+        SampledGrid::on(g, &kiln_scene::Lattice::Centred)
+    }
+
+    pub fn on(g: &kiln_scene::VoxelGrid, lattice: &kiln_scene::Lattice) -> SampledGrid {
         SampledGrid {
             n: [g.nx, g.ny, g.nz],
             values: g.values.clone(),
+            to_samples: match lattice {
+                kiln_scene::Lattice::Centred => None,
+                kiln_scene::Lattice::Affine { to_samples } => {
+                    Some(Affine3A::from_mat4(to_samples.as_mat4()))
+                }
+            },
+        }
+    }
+
+    /// Sample coordinates of a point of the unit box.
+    fn sample_coords(&self, p: Vec3A) -> Vec3A {
+        match &self.to_samples {
+            None => p * Vec3A::new(self.n[0] as f32, self.n[1] as f32, self.n[2] as f32) - 0.5,
+            Some(m) => m.transform_point3a(p),
         }
     }
 
@@ -33,7 +55,7 @@ impl SampledGrid {
     /// The value at `p` in the unit box; zero beyond the outermost samples, as pbrt-v4's
     /// `SampledGrid` (half way to zero at the box's faces).
     pub fn lookup(&self, p: Vec3A) -> f32 {
-        let s = p * Vec3A::new(self.n[0] as f32, self.n[1] as f32, self.n[2] as f32) - 0.5;
+        let s = self.sample_coords(p);
         let f = s.floor();
         let d = s - f;
         let (x, y, z) = (f.x as i64, f.y as i64, f.z as i64);
@@ -61,6 +83,10 @@ impl SampledGrid {
     /// between interpolate trilinearly, points beyond the outermost centres take the nearest
     /// centre's value along that axis (seed 000's VolumeLight grids).
     pub fn lookup_clamped(&self, p: Vec3A) -> f32 {
+        debug_assert!(
+            self.to_samples.is_none(),
+            "clamped lookups are on the centred lattice"
+        );
         let axis = |v: f32, n: usize| -> (usize, usize, f32) {
             let c = (v * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
             let i0 = (c.floor() as usize).min(n - 1);
@@ -82,10 +108,27 @@ impl SampledGrid {
     /// An upper bound of the value over the box `lo`..`hi` of the unit box: the largest
     /// sample whose interpolation reaches into it.
     pub fn max_over(&self, lo: Vec3A, hi: Vec3A) -> f32 {
+        // The box's extent in sample coordinates: its corners' bounds.
+        let (s0, s1) = match &self.to_samples {
+            None => (self.sample_coords(lo), self.sample_coords(hi)),
+            Some(m) => {
+                let (mut s0, mut s1) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+                for c in 0..8 {
+                    let corner = Vec3A::select(
+                        glam::BVec3A::new(c & 1 == 1, c & 2 == 2, c & 4 == 4),
+                        hi,
+                        lo,
+                    );
+                    let s = m.transform_point3a(corner);
+                    (s0, s1) = (s0.min(s), s1.max(s));
+                }
+                (s0, s1)
+            }
+        };
         let range = |a: usize| {
             let n = self.n[a] as f32;
-            let i0 = ((lo[a] * n - 0.5).floor().max(0.0)) as usize;
-            let i1 = ((hi[a] * n - 0.5).floor() + 1.0).clamp(0.0, n - 1.0) as usize;
+            let i0 = s0[a].floor().max(0.0) as usize;
+            let i1 = (s1[a].floor() + 1.0).clamp(0.0, n - 1.0) as usize;
             i0.min(self.n[a] - 1)..=i1
         };
         let mut m = 0.0f32;

@@ -1,5 +1,5 @@
 //! Readers for the files a scene refers to, one format a file: PLY and OBJ meshes, voxel
-//! grids (CSV and Mitsuba `.vol`) and EXR environment maps. Errors name the directive's
+//! grids (CSV, Mitsuba `.vol` and NanoVDB) and EXR environment maps. Errors name the directive's
 //! location and the file.
 
 use crate::error::{Loc, Result, SceneError};
@@ -7,6 +7,7 @@ use std::path::Path;
 
 pub mod images;
 pub mod measured;
+pub mod nanovdb;
 pub mod obj;
 pub mod ply;
 pub mod tensor;
