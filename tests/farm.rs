@@ -10,7 +10,7 @@ use std::path::Path;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
-fn farm(scene_path: &Path, dir: &Path, name: &str, args: &[&str]) -> Vec<u8> {
+pub fn farm(scene_path: &Path, dir: &Path, name: &str, args: &[&str]) -> Vec<u8> {
     let out = dir.join(format!("{name}.exr"));
     let o = kiln()
         .arg("farm")

@@ -8,6 +8,7 @@ mod determinism;
 mod errors;
 mod estimators;
 mod farm;
+mod gbuffer;
 mod media;
 mod motion;
 mod reference;

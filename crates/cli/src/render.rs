@@ -146,20 +146,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     });
     progress.finish_and_clear();
     let render_time = render_start.elapsed();
-    let mut frame = RgbBuffer::new(film.xresolution, film.yresolution, x0, y0, x1 - x0, y1 - y0);
+    let mut frame = RgbBuffer::new(film.xresolution, film.yresolution, x0, y0, x1 - x0, y1 - y0)
+        .with_aovs(kiln_render::aov_names(film.gbuffer));
     let mut stats = TileStats::default();
     for r in results {
         stats.merge(&r.stats);
-        let t = r.rect;
-        let mut tile = RgbBuffer::new(
-            film.xresolution,
-            film.yresolution,
-            t.x0,
-            t.y0,
-            t.width,
-            t.height,
-        );
-        tile.pixels = r.pixels;
+        let tile =
+            kiln_farm::tile_image(r, (film.xresolution, film.yresolution), renderer.settings());
         frame.paste(&tile)?;
     }
     if let Some(why) = stats.cut_off_error() {

@@ -3,7 +3,6 @@
 use crate::api::{JobSpec, Lease};
 use crate::bundle;
 use crate::client::{Client, ClientError};
-use kiln_image::RgbBuffer;
 use kiln_render::{Renderer, TileRect, render_tile_until};
 use reqwest::StatusCode;
 use std::collections::HashMap;
@@ -273,15 +272,7 @@ async fn render_and_upload(
         if let Some(why) = result.stats.cut_off_error() {
             return Err(why);
         }
-        let mut buffer = RgbBuffer::new(
-            loaded2.frame.0,
-            loaded2.frame.1,
-            rect.x0,
-            rect.y0,
-            rect.width,
-            rect.height,
-        );
-        buffer.pixels = result.pixels;
+        let buffer = crate::tile_image(result, loaded2.frame, loaded2.renderer.settings());
         kiln_image::encode_exr(&buffer)
             .map(Some)
             .map_err(|e| e.to_string())

@@ -38,7 +38,20 @@ pub struct RgbBuffer {
     pub height: u32,
     /// Row-major, top row first, `width * height` entries.
     pub pixels: Vec<[f32; 3]>,
+    /// Further channels (a G-buffer's), written beside R, G and B.
+    pub aovs: Aovs,
 }
+
+/// Channels beyond R, G and B: their names, sorted (as EXR stores channels), and their
+/// values, `names.len()` per pixel in the pixels' order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Aovs {
+    pub names: Vec<String>,
+    pub values: Vec<f32>,
+}
+
+/// The most channels beyond R, G and B that an image may hold.
+pub const MAX_AOVS: usize = 64;
 
 impl RgbBuffer {
     /// A black buffer of `width x height` at (x0, y0) in a `frame_width x frame_height` frame.
@@ -58,7 +71,24 @@ impl RgbBuffer {
             width,
             height,
             pixels: vec![[0.0; 3]; width as usize * height as usize],
+            aovs: Aovs::default(),
         }
+    }
+
+    /// This buffer with the further channels `names` (sorted here), all zero.
+    pub fn with_aovs<S: Into<String>>(mut self, names: impl IntoIterator<Item = S>) -> RgbBuffer {
+        let mut names: Vec<String> = names.into_iter().map(Into::into).collect();
+        names.sort();
+        self.aovs.values = vec![0.0; names.len() * self.pixels.len()];
+        self.aovs.names = names;
+        self
+    }
+
+    /// The further channels' values at (x, y) of the data window.
+    pub fn aovs_at(&self, x: u32, y: u32) -> &[f32] {
+        let n = self.aovs.names.len();
+        let i = (y * self.width + x) as usize * n;
+        &self.aovs.values[i..i + n]
     }
 
     pub fn windows(&self) -> Windows {
@@ -92,6 +122,26 @@ impl RgbBuffer {
                 "tile size does not match its pixels".into(),
             ));
         }
+        if tile.aovs.names != self.aovs.names {
+            return Err(ImageError::Invalid(format!(
+                "a tile with channels R, G, B{} cannot be pasted into a frame with R, G, B{}",
+                tile.aovs
+                    .names
+                    .iter()
+                    .map(|n| format!(", {n}"))
+                    .collect::<String>(),
+                self.aovs
+                    .names
+                    .iter()
+                    .map(|n| format!(", {n}"))
+                    .collect::<String>(),
+            )));
+        }
+        if tile.aovs.values.len() != tile.pixels.len() * tile.aovs.names.len() {
+            return Err(ImageError::Invalid(
+                "tile's further channels do not match its pixels".into(),
+            ));
+        }
         let inside = |t0: u32, tn: u32, s0: u32, sn: u32| {
             t0 >= s0 && t0 as u64 + tn as u64 <= s0 as u64 + sn as u64
         };
@@ -117,6 +167,11 @@ impl RgbBuffer {
                 + row * self.width as usize
                 + (tile.x0 - self.x0) as usize;
             self.pixels[dst..dst + w].copy_from_slice(&tile.pixels[src..src + w]);
+            let n = self.aovs.names.len();
+            if n > 0 {
+                self.aovs.values[dst * n..(dst + w) * n]
+                    .copy_from_slice(&tile.aovs.values[src * n..(src + w) * n]);
+            }
         }
         Ok(())
     }
@@ -154,6 +209,7 @@ pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
     if buffer.pixels.len() != buffer.width as usize * buffer.height as usize
         || buffer.width == 0
         || buffer.height == 0
+        || buffer.aovs.values.len() != buffer.pixels.len() * buffer.aovs.names.len()
     {
         return Err(ImageError::Invalid(
             "buffer size does not match its pixels".into(),
@@ -165,11 +221,24 @@ pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
             FlatSamples::F32(buffer.pixels.iter().map(|p| p[c]).collect()),
         )
     };
-    let channels = AnyChannels::sort(smallvec_of(vec![
-        channel("B", 2),
-        channel("G", 1),
-        channel("R", 0),
-    ]));
+    let mut list = vec![channel("B", 2), channel("G", 1), channel("R", 0)];
+    let n = buffer.aovs.names.len();
+    for (c, name) in buffer.aovs.names.iter().enumerate() {
+        list.push(AnyChannel::new(
+            name.as_str(),
+            FlatSamples::F32(
+                buffer
+                    .aovs
+                    .values
+                    .iter()
+                    .skip(c)
+                    .step_by(n)
+                    .copied()
+                    .collect(),
+            ),
+        ));
+    }
+    let channels = AnyChannels::sort(smallvec_of(list));
     let size = Vec2(buffer.width as usize, buffer.height as usize);
     let attributes = LayerAttributes {
         layer_position: Vec2(buffer.x0 as i32, buffer.y0 as i32),
@@ -295,6 +364,34 @@ pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, Im
             }
         }
     }
+    // Every other channel but alpha is a further channel, in the file's (sorted) order.
+    let others: Vec<_> = layer
+        .channel_data
+        .list
+        .iter()
+        .filter(|ch| !["R", "G", "B", "A"].contains(&ch.name.to_string().as_str()))
+        .collect();
+    if others.len() > MAX_AOVS {
+        return Err(ImageError::Invalid(format!(
+            "EXR has {} channels besides R, G, B and A; at most {MAX_AOVS} are read",
+            others.len()
+        )));
+    }
+    let mut aovs = Aovs {
+        names: others.iter().map(|ch| ch.name.to_string()).collect(),
+        values: vec![0.0; others.len() * w * h],
+    };
+    aovs.names.sort();
+    for ch in &others {
+        let c = aovs
+            .names
+            .iter()
+            .position(|n| *n == ch.name.to_string())
+            .unwrap();
+        for (i, v) in ch.sample_data.values_as_f32().enumerate().take(w * h) {
+            aovs.values[i * others.len() + c] = v;
+        }
+    }
     let display = image.attributes.display_window;
     let pos = layer.attributes.layer_position;
     Ok(RgbBuffer {
@@ -305,6 +402,7 @@ pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, Im
         width: w as u32,
         height: h as u32,
         pixels,
+        aovs,
     })
 }
 
@@ -389,6 +487,27 @@ mod tests {
         }
         let back = decode_exr(&encode_exr(&b).unwrap()).unwrap();
         assert_eq!(back, b);
+    }
+
+    /// Further channels (a G-buffer's) survive an EXR round trip and a paste, value for
+    /// value; a tile whose channels differ from the frame's is refused.
+    #[test]
+    fn further_channels_round_trip_and_paste() {
+        let mut tile = RgbBuffer::new(10, 8, 3, 2, 4, 5).with_aovs(["P.Z", "Albedo.R", "u"]);
+        assert_eq!(tile.aovs.names, ["Albedo.R", "P.Z", "u"]);
+        for (i, v) in tile.aovs.values.iter_mut().enumerate() {
+            *v = i as f32 * 0.25 - 3.0;
+        }
+        let back = decode_exr(&encode_exr(&tile).unwrap()).unwrap();
+        assert_eq!(back, tile);
+        let mut frame = RgbBuffer::new(10, 8, 0, 0, 10, 8).with_aovs(["u", "P.Z", "Albedo.R"]);
+        frame.paste(&tile).unwrap();
+        assert_eq!(frame.aovs_at(3, 2), tile.aovs_at(0, 0));
+        assert_eq!(frame.aovs_at(6, 6), tile.aovs_at(3, 4));
+        assert_eq!(frame.aovs_at(2, 2), [0.0; 3]);
+        let mut plain = RgbBuffer::new(10, 8, 0, 0, 10, 8);
+        assert!(plain.paste(&tile).is_err());
+        assert!(frame.paste(&RgbBuffer::new(10, 8, 3, 2, 4, 5)).is_err());
     }
 
     /// A tiny file whose header claims a huge image (the 440-byte tile upload that aborted

@@ -125,11 +125,16 @@ impl Camera {
         }
     }
 
-    fn to_world_ray(&self, origin: Vec3A, dir: Vec3A, time: f32) -> Ray {
-        let to_world = match &self.motion {
+    /// Camera space to world space at `time` (a moving camera's transform then).
+    pub fn camera_to_world_at(&self, time: f32) -> Affine3A {
+        match &self.motion {
             Some(m) => m.affine_at(time).0,
             None => self.camera_to_world,
-        };
+        }
+    }
+
+    fn to_world_ray(&self, origin: Vec3A, dir: Vec3A, time: f32) -> Ray {
+        let to_world = self.camera_to_world_at(time);
         Ray::at_time(
             to_world.transform_point3a(origin),
             to_world.transform_vector3a(dir).normalize(),

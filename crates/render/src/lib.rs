@@ -30,6 +30,7 @@
 pub mod bsdfs;
 pub mod camera;
 pub mod filter;
+pub mod gbuffer;
 pub mod integrators;
 pub mod lens;
 pub mod lights;
@@ -49,6 +50,6 @@ pub mod work;
 pub use integrators::{Integrator, PathSettings};
 pub use scene::{BuildError, MediaPolicy, Scene};
 pub use tile::{
-    RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, render_pixel, render_tile,
-    render_tile_until, split_into_tiles,
+    RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names, render_pixel,
+    render_tile, render_tile_until, split_into_tiles,
 };

@@ -2,6 +2,7 @@
 //! that `kiln render` and the farm's workers both call, and the [`Renderer`] it renders
 //! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
+use crate::gbuffer::{GBufferLayout, GBufferPixel, VisibleSurface};
 use crate::integrators::{Integrator, Prepass};
 use crate::math::Color;
 use crate::sampling::PixelSampler;
@@ -57,6 +58,8 @@ pub struct RenderSettings {
     pub integrator: Integrator,
     /// Clamp each sample's radiance to this maximum component (0 disables it).
     pub max_radiance: f32,
+    /// A G-buffer film: its channels beside each pixel's radiance, in this space.
+    pub gbuffer: Option<kiln_scene::GBufferSpace>,
 }
 
 impl RenderSettings {
@@ -73,6 +76,7 @@ impl RenderSettings {
             seed: desc.sampler.seed,
             integrator: Integrator::from_description(&desc.integrator),
             max_radiance: desc.integrator.max_radiance,
+            gbuffer: desc.film.gbuffer,
         }
     }
 }
@@ -189,7 +193,16 @@ pub struct TileResult {
     pub rect: TileRect,
     /// Row-major, `rect.width * rect.height` linear RGB pixels.
     pub pixels: Vec<[f32; 3]>,
+    /// With a G-buffer film, each pixel's channels in turn (named by
+    /// [`GBufferLayout::names`]); empty otherwise.
+    pub aovs: Vec<f32>,
     pub stats: TileStats,
+}
+
+/// The names of the further channels a film writes beside R, G and B (sorted, as images
+/// hold them): a G-buffer's, or none.
+pub fn aov_names(gbuffer: Option<kiln_scene::GBufferSpace>) -> Vec<String> {
+    gbuffer.map_or_else(Vec::new, |space| GBufferLayout::new(space).names())
 }
 
 /// Renders one tile. The result depends only on the scene, the settings and the
@@ -206,39 +219,69 @@ pub fn render_tile_until(
     rect: TileRect,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<TileResult> {
-    let rows: Option<Vec<(Vec<[f32; 3]>, TileStats)>> = (rect.y0..rect.y0 + rect.height)
+    let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
+    let channels = layout.as_ref().map_or(0, |l| l.channels());
+    type Row = (Vec<[f32; 3]>, Vec<f32>, TileStats);
+    let rows: Option<Vec<Row>> = (rect.y0..rect.y0 + rect.height)
         .into_par_iter()
         .map(|y| {
             let mut stats = TileStats::default();
+            let mut aovs = vec![0.0f32; channels * rect.width as usize];
             let row = (rect.x0..rect.x0 + rect.width)
-                .map(|x| (!stop()).then(|| render_pixel(renderer, x, y, &mut stats)))
+                .map(|x| {
+                    let i = (x - rect.x0) as usize * channels;
+                    let out = layout.as_ref().map(|l| (l, &mut aovs[i..i + channels]));
+                    (!stop()).then(|| render_pixel_with(renderer, x, y, &mut stats, out))
+                })
                 .collect::<Option<Vec<_>>>()?;
-            Some((row, stats))
+            Some((row, aovs, stats))
         })
         .collect();
     let mut pixels = Vec::with_capacity(rect.pixel_count() as usize);
+    let mut aovs = Vec::with_capacity(rect.pixel_count() as usize * channels);
     let mut stats = TileStats::default();
-    for (row, s) in rows? {
+    for (row, row_aovs, s) in rows? {
         pixels.extend(row);
+        aovs.extend(row_aovs);
         stats.merge(&s);
     }
     Some(TileResult {
         rect,
         pixels,
+        aovs,
         stats,
     })
 }
 
 /// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean.
 pub fn render_pixel(renderer: &Renderer, x: u32, y: u32, stats: &mut TileStats) -> [f32; 3] {
+    render_pixel_with(renderer, x, y, stats, None)
+}
+
+/// [`render_pixel`], and with `gbuffer` the pixel's G-buffer channels written there.
+fn render_pixel_with(
+    renderer: &Renderer,
+    x: u32,
+    y: u32,
+    stats: &mut TileStats,
+    gbuffer: Option<(&GBufferLayout, &mut [f32])>,
+) -> [f32; 3] {
     let mut sum = [0.0f64; 3];
     let mut weight_sum = 0.0f64;
+    let mut g = GBufferPixel::default();
+    let want = gbuffer.as_ref().map(|(l, _)| l.space);
     for s in 0..renderer.settings.samples_per_pixel {
-        let (l, w) = render_sample(renderer, x, y, s, stats);
+        let (l, w, seen) = render_sample_seeing(renderer, x, y, s, stats, want);
         for c in 0..3 {
             sum[c] += (l[c] * w) as f64;
         }
         weight_sum += w as f64;
+        if want.is_some() {
+            g.add(l, w, seen.as_ref());
+        }
+    }
+    if let Some((layout, out)) = gbuffer {
+        g.finish(layout, out);
     }
     if weight_sum == 0.0 {
         return [0.0; 3];
@@ -257,7 +300,22 @@ pub fn render_sample(
     sample: u32,
     stats: &mut TileStats,
 ) -> (Color, f32) {
+    let (l, w, _) = render_sample_seeing(renderer, x, y, sample, stats, None);
+    (l, w)
+}
+
+/// [`render_sample`], and with `gbuffer` the first surface the sample saw, in that space,
+/// with its screen-space derivatives.
+fn render_sample_seeing(
+    renderer: &Renderer,
+    x: u32,
+    y: u32,
+    sample: u32,
+    stats: &mut TileStats,
+    gbuffer: Option<kiln_scene::GBufferSpace>,
+) -> (Color, f32, Option<VisibleSurface>) {
     let (scene, settings) = (&renderer.scene, &renderer.settings);
+    let mut seen = None;
     let mut sampler = PixelSampler::new(x, y, sample, settings.seed);
     let (offset, weight) = scene.filter.sample(sampler.get_2d());
     let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
@@ -274,14 +332,19 @@ pub fn render_sample(
     // A realistic camera's lens may stop the ray (the sample counts, black) and weighs it.
     let mut l = match scene.camera.generate_weighted_ray_at(film, lens, time) {
         Some((ray, camera_weight)) => {
-            settings.integrator.li(
+            let l = settings.integrator.li(
                 &renderer.prepass,
                 scene,
                 settings.footprint(),
                 ray,
                 &mut sampler,
                 &mut work,
-            ) * camera_weight
+                gbuffer.is_some().then_some(&mut seen),
+            ) * camera_weight;
+            if let (Some(space), Some(s)) = (gbuffer, seen.as_mut()) {
+                *s = seen_from_camera(renderer, s, &ray, film, lens, time, space);
+            }
+            l
         }
         None => Color::ZERO,
     };
@@ -306,7 +369,48 @@ pub fn render_sample(
             l *= settings.max_radiance / m;
         }
     }
-    (scene.sensor.respond(l), weight)
+    (scene.sensor.respond(l), weight, seen)
+}
+
+/// A visible surface with its screen-space derivatives, in the G-buffer's space. The
+/// derivatives are pbrt-v4's: rays through the next pixel right and down (same lens sample
+/// and time), their offsets scaled by the footprint scale (1/sqrt(spp), at least 1/8), met
+/// on the surface's tangent plane.
+fn seen_from_camera(
+    renderer: &Renderer,
+    s: &VisibleSurface,
+    ray: &crate::math::Ray,
+    film: Vec2,
+    lens: Vec2,
+    time: f32,
+    space: kiln_scene::GBufferSpace,
+) -> VisibleSurface {
+    let camera = &renderer.scene.camera;
+    let scale = renderer.settings.footprint();
+    let derivative = |step: Vec2| {
+        let Some((r, _)) = camera.generate_weighted_ray_at(film + step, lens, time) else {
+            return glam::Vec3A::ZERO;
+        };
+        let o = ray.origin + (r.origin - ray.origin) * scale;
+        let d = ray.dir + (r.dir - ray.dir) * scale;
+        let denom = s.ng.dot(d);
+        if denom == 0.0 {
+            return glam::Vec3A::ZERO;
+        }
+        let t = s.ng.dot(s.p - o) / denom;
+        o + d * t - s.p
+    };
+    let world = VisibleSurface {
+        dpdx: derivative(Vec2::X),
+        dpdy: derivative(Vec2::Y),
+        ..*s
+    };
+    match space {
+        kiln_scene::GBufferSpace::World => world,
+        kiln_scene::GBufferSpace::Camera => {
+            world.transformed(&camera.camera_to_world_at(time).inverse())
+        }
+    }
 }
 
 #[cfg(test)]

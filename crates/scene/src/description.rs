@@ -112,8 +112,46 @@ pub struct FilmDesc {
     /// The film's diagonal in metres (pbrt-v4's "diagonal", given in millimetres; only the
     /// realistic camera uses it).
     pub diagonal: f64,
+    /// pbrt-v4's "gbuffer" film: [`GBUFFER_CHANNELS`] beside R, G and B, in this space.
+    pub gbuffer: Option<GBufferSpace>,
     pub loc: Loc,
 }
+
+/// The space a G-buffer's positions and normals are given in (pbrt-v4's "coordinatesystem").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GBufferSpace {
+    /// The camera's space (pbrt-v4's default): the camera at the origin, looking down +z.
+    Camera,
+    World,
+}
+
+/// The channels a G-buffer film writes beside R, G and B, named as pbrt-v4 names them: the
+/// first visible surface's reflectance, position, screen-space depth derivatives, geometric
+/// and shading normals and uv, and the per-pixel variance of the samples that saw a surface.
+pub const GBUFFER_CHANNELS: [&str; 22] = [
+    "Albedo.R",
+    "Albedo.G",
+    "Albedo.B",
+    "P.X",
+    "P.Y",
+    "P.Z",
+    "dzdx",
+    "dzdy",
+    "N.X",
+    "N.Y",
+    "N.Z",
+    "Ns.X",
+    "Ns.Y",
+    "Ns.Z",
+    "u",
+    "v",
+    "Variance.R",
+    "Variance.G",
+    "Variance.B",
+    "RelativeVariance.R",
+    "RelativeVariance.G",
+    "RelativeVariance.B",
+];
 
 /// pbrt-v4's pixel sensor on the CIE 1931 observer: each sample's XYZ times the imaging
 /// ratio (exposure time · ISO / 100), its largest component clamped to `max_component`,

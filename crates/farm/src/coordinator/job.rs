@@ -70,7 +70,8 @@ impl Job {
             .map_err(PlanError::Overrides)?;
         let f = &desc.film;
         let [x0, x1, y0, y1] = f.pixel_bounds;
-        let frame = RgbBuffer::new(f.xresolution, f.yresolution, x0, y0, x1 - x0, y1 - y0);
+        let frame = RgbBuffer::new(f.xresolution, f.yresolution, x0, y0, x1 - x0, y1 - y0)
+            .with_aovs(kiln_render::aov_names(f.gbuffer));
         let tiles = split_into_tiles(f.pixel_bounds, spec.tile);
         let n = tiles.len();
         Ok(Job {

@@ -120,7 +120,8 @@ impl Integrator {
     }
 
     /// Radiance arriving along `ray`; `work` counts what it cost. Textures filter over the
-    /// camera's pixel footprint times `footprint`.
+    /// camera's pixel footprint times `footprint`. With `visible`, the first surface the
+    /// ray reached (for a G-buffer) is written there.
     #[allow(clippy::too_many_arguments)]
     pub fn li(
         &self,
@@ -130,6 +131,7 @@ impl Integrator {
         ray: Ray,
         sampler: &mut PixelSampler,
         work: &mut Work,
+        visible: Option<&mut Option<crate::gbuffer::VisibleSurface>>,
     ) -> Color {
         match self {
             // The path tracer is the volumetric one; without media in the scene its medium
@@ -141,7 +143,7 @@ impl Integrator {
                     prepass,
                     footprint,
                 };
-                path::path_li(&ctx, ray, sampler, work)
+                path::path_li(&ctx, ray, sampler, work, visible)
             }
         }
     }

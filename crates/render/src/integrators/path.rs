@@ -9,6 +9,7 @@
 
 use super::direct::{Vertex, emission_weight, sample_direct, survives_roulette};
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, Prepass};
+use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
 use crate::math::{Color, Frame, Ray, offset_origin};
 use crate::media::{Emitted, MediumEvent};
 use crate::sampling::{PixelSampler, TrackingRng};
@@ -60,6 +61,9 @@ struct PathState {
     /// With caustic photon maps: specular bounces since the last vertex that gathered
     /// photons (None before the first).
     specular_since_gather: Option<u32>,
+    /// For a G-buffer: whether to note the first surface with a BSDF, and what it was.
+    want_visible: bool,
+    visible: Option<VisibleSurface>,
 }
 
 impl PathState {
@@ -95,6 +99,7 @@ pub(super) fn path_li(
     mut ray: Ray,
     sampler: &mut PixelSampler,
     work: &mut Work,
+    visible: Option<&mut Option<VisibleSurface>>,
 ) -> Color {
     let mut state = PathState {
         l: Color::ZERO,
@@ -111,6 +116,8 @@ pub(super) fn path_li(
         medium: ctx.scene.camera_medium,
         segments: 0,
         specular_since_gather: None,
+        want_visible: visible.is_some(),
+        visible: None,
     };
     loop {
         work.rays += 1;
@@ -132,6 +139,9 @@ pub(super) fn path_li(
             Next::Continue | Next::Surface => {}
             Next::Stop => break,
         }
+    }
+    if let Some(out) = visible {
+        *out = state.visible;
     }
     state.l
 }
@@ -326,6 +336,37 @@ fn surface_emission(
     }
 }
 
+/// The first surface a camera ray reached, for a G-buffer: its normals turned toward the
+/// camera and its reflectance toward it estimated as pbrt-v4 does, from fixed BSDF samples.
+fn visible_surface(
+    hit: &SurfaceHit,
+    bsdf: &crate::bsdfs::Bsdf,
+    toward_camera: Vec3A,
+) -> VisibleSurface {
+    let frame = Frame::new(hit.ns, hit.dpdu);
+    let wo = frame.to_local(toward_camera);
+    let mut albedo = Color::ZERO;
+    for i in 0..RHO_SAMPLES {
+        let (uc, u) = rho_sample(i);
+        if let Some(bs) = bsdf.sample(wo, uc, u)
+            && bs.pdf > 0.0
+        {
+            albedo += bs.f * bs.wi.z.abs() / bs.pdf;
+        }
+    }
+    // Both normals face the camera, as pbrt-v4's VisibleSurface turns them.
+    let facing = |n: Vec3A| if n.dot(toward_camera) < 0.0 { -n } else { n };
+    VisibleSurface {
+        p: hit.p,
+        ng: facing(hit.ng),
+        ns: facing(hit.ns),
+        uv: hit.uv,
+        albedo: albedo / RHO_SAMPLES as f32,
+        dpdx: Vec3A::ZERO,
+        dpdy: Vec3A::ZERO,
+    }
+}
+
 /// Scattering at a surface: caustic photons, a light sample, and the next direction by
 /// BSDF sampling; or straight on through an interface.
 fn surface_step(
@@ -351,6 +392,9 @@ fn surface_step(
         *ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
         return Next::Continue;
     };
+    if state.depth == 0 && state.want_visible {
+        state.visible = Some(visible_surface(hit, &bsdf, -ray.dir));
+    }
     if state.depth == settings.max_depth || bsdf.is_black() {
         return Next::Stop;
     }

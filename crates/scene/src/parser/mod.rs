@@ -514,6 +514,7 @@ impl Parser {
             pixel_bounds: [0, 1280, 0, 720],
             sensor: SensorDesc::default(),
             diagonal: 0.035,
+            gbuffer: None,
             loc: Loc::synthetic("default film"),
         });
         Ok(SceneDescription {

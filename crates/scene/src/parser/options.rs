@@ -272,12 +272,22 @@ impl Parser {
 
     pub(super) fn film(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_options(loc, "Film")?;
-        match ty {
-            "rgb" => {}
-            "gbuffer" => self.warn(
-                loc,
-                "Film 'gbuffer': Kiln writes the RGB film without the geometric channels",
-            ),
+        let gbuffer = match ty {
+            "rgb" => None,
+            "gbuffer" => match params.string("coordinatesystem")?.as_deref() {
+                None | Some("camera") => Some(GBufferSpace::Camera),
+                Some("world") => Some(GBufferSpace::World),
+                Some(other) => {
+                    return Err(SceneError::at(
+                        &params
+                            .loc_of("coordinatesystem")
+                            .unwrap_or_else(|| loc.clone()),
+                        format!(
+                            "Film 'gbuffer': unknown coordinate system '{other}' (pbrt-v4 has \"camera\" and \"world\")"
+                        ),
+                    ));
+                }
+            },
             // pbrt-v4's spectral film writes radiance in wavelength buckets: an RGB renderer
             // cannot make them, and an RGB film in their place would be a different file.
             "spectral" => {
@@ -292,7 +302,7 @@ impl Parser {
                     format!("Film '{other}' is unknown (pbrt-v4 has rgb, gbuffer and spectral)"),
                 ));
             }
-        }
+        };
         // The output's colour space: Kiln writes linear sRGB only.
         if let Some(space) = params.string("colorspace")?
             && space != "srgb"
@@ -372,6 +382,7 @@ impl Parser {
             pixel_bounds: bounds,
             sensor,
             diagonal: diagonal / 1000.0,
+            gbuffer,
             loc: loc.clone(),
         });
         Ok(())
@@ -734,7 +745,7 @@ mod tests {
     }
 
     /// A spectral film cannot be made by an RGB renderer: an error, as is an unknown film;
-    /// a gbuffer film is its RGB image, with a warning.
+    /// a gbuffer film asks for its channels in camera space unless told otherwise.
     #[test]
     fn spectral_and_unknown_films_are_errors() {
         let err = load_err("\nFilm \"spectral\"\nWorldBegin");
@@ -745,7 +756,12 @@ mod tests {
         let err = load_err("Film \"hdr\"\nWorldBegin");
         assert!(err.contains("'hdr' is unknown"), "{err}");
         let s = load("Film \"gbuffer\"\nWorldBegin");
-        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        assert_eq!(s.film.gbuffer, Some(GBufferSpace::Camera));
+        let s = load("Film \"gbuffer\" \"string coordinatesystem\" \"world\"\nWorldBegin");
+        assert_eq!(s.film.gbuffer, Some(GBufferSpace::World));
+        let err = load_err("Film \"gbuffer\" \"string coordinatesystem\" \"screen\"\nWorldBegin");
+        assert!(err.contains("unknown coordinate system 'screen'"), "{err}");
     }
 
     /// pbrt-v4's light samplers: "bvh" by default, "power" and "uniform" when named.
