@@ -18,7 +18,7 @@ use crate::shapes::bilinear::BilinearPatch;
 use crate::shapes::curve::{CurvePiece, CurveSegment};
 use crate::shapes::cylinder::Cylinder;
 use crate::shapes::disk::Disk;
-use crate::shapes::mover::Mover;
+use crate::shapes::mover::{Mover, Outer};
 use crate::shapes::sphere::PartialSphere;
 use crate::shapes::{
     Geometry, MeshInfo, NO_MEDIUM, Primitives, Quadric, QuadricShape, Sphere, SurfaceInfo,
@@ -76,6 +76,17 @@ fn power_scale(power: Option<f32>, area: f32, two_sided: bool, image_luminance: 
 pub enum MediaPolicy {
     Render,
     Ignore,
+}
+
+/// Where a moving group goes after its own motion.
+#[derive(Clone, Copy)]
+enum Place {
+    /// Its motion is in world space.
+    World,
+    /// Inside an instance placed by a still transform.
+    Still(DMat4),
+    /// Inside an instance moving from the first transform to the second.
+    Moving(DMat4, DMat4),
 }
 
 struct Builder {
@@ -539,17 +550,17 @@ impl Builder {
         times: [f64; 2],
         loc: &kiln_scene::Loc,
     ) -> Result<(), BuildError> {
-        self.add_placed_mover(shapes, start, end, None, times, loc)
+        self.add_placed_mover(shapes, start, end, Place::World, times, loc)
     }
 
-    /// As [`Self::add_mover`], the group then placed by the still transform `place` (a
-    /// shape moving inside an object instance that does not move).
+    /// As [`Self::add_mover`], the group then placed by `place` (a shape moving inside an
+    /// object instance, which may move too).
     fn add_placed_mover(
         &mut self,
         shapes: &[(&ShapeDesc, DMat4)],
         start: DMat4,
         end: DMat4,
-        place: Option<DMat4>,
+        place: Place,
         times: [f64; 2],
         loc: &kiln_scene::Loc,
     ) -> Result<(), BuildError> {
@@ -568,8 +579,12 @@ impl Builder {
             }
         }
         let (d0, d1) = (start.determinant(), end.determinant());
-        let d2 = place.map_or(1.0, |m| m.determinant());
-        if !(d0 > 0.0 && d1 > 0.0 && d2 > 0.0 && start.is_finite() && end.is_finite()) {
+        let (d2, d3) = match place {
+            Place::World => (1.0, 1.0),
+            Place::Still(m) => (m.determinant(), 1.0),
+            Place::Moving(a, b) => (a.determinant(), b.determinant()),
+        };
+        if !(d0 > 0.0 && d1 > 0.0 && d2 > 0.0 && d3 > 0.0 && start.is_finite() && end.is_finite()) {
             return refuse(
                 loc,
                 "a moving transform must be invertible and keep its handedness throughout (a mirrored or degenerate one is not supported)",
@@ -590,8 +605,15 @@ impl Builder {
             return Ok(());
         }
         let motion = AnimatedTransform::new(start, end, times);
-        let place = place.map(|m| glam::Affine3A::from_mat4(m.as_mat4()));
-        let mover = Mover::placed(Geometry::new(inner), motion, place);
+        let outer = match place {
+            Place::World => Outer::None,
+            Place::Still(m) => {
+                let m = glam::Affine3A::from_mat4(m.as_mat4());
+                Outer::Still(m, m.inverse())
+            }
+            Place::Moving(a, b) => Outer::Moving(AnimatedTransform::new(a, b, times)),
+        };
+        let mover = Mover::placed(Geometry::new(inner), motion, outer);
         let (lo, hi) = mover.bounds();
         if !within_world_limit(lo) || !within_world_limit(hi) {
             return Err(BuildError::Unsupported {
@@ -846,7 +868,7 @@ impl Scene {
                                 &[(shape, DMat4::IDENTITY)],
                                 shape.object_to_world,
                                 end,
-                                Some(instance.instance_to_world),
+                                Place::Still(instance.instance_to_world),
                                 times,
                                 &shape.loc,
                             )?,
@@ -854,24 +876,35 @@ impl Scene {
                     }
                 }
                 Some(end) => {
-                    if let Some(shape) = shapes.iter().find(|s| s.object_to_world_end.is_some()) {
-                        return Err(BuildError::Unsupported {
-                            loc: instance.loc.clone(),
-                            message: format!(
-                                "this instance moves, and so does a shape inside its object (line {}): motion within motion is not supported yet",
-                                shape.loc.line
-                            ),
-                        });
+                    // The object's still shapes move with the instance as one group; each
+                    // moving shape moves by its own motion, then by the instance's at the
+                    // same time (pbrt-v4's animated primitive inside an animated instance).
+                    let group: Vec<(&ShapeDesc, DMat4)> = shapes
+                        .iter()
+                        .filter(|s| s.object_to_world_end.is_none())
+                        .map(|s| (s, s.object_to_world))
+                        .collect();
+                    if !group.is_empty() {
+                        b.add_mover(
+                            &group,
+                            instance.instance_to_world,
+                            end,
+                            times,
+                            &instance.loc,
+                        )?;
                     }
-                    let group: Vec<(&ShapeDesc, DMat4)> =
-                        shapes.iter().map(|s| (s, s.object_to_world)).collect();
-                    b.add_mover(
-                        &group,
-                        instance.instance_to_world,
-                        end,
-                        times,
-                        &instance.loc,
-                    )?;
+                    for shape in shapes {
+                        if let Some(shape_end) = shape.object_to_world_end {
+                            b.add_placed_mover(
+                                &[(shape, DMat4::IDENTITY)],
+                                shape.object_to_world,
+                                shape_end,
+                                Place::Moving(instance.instance_to_world, end),
+                                times,
+                                &shape.loc,
+                            )?;
+                        }
+                    }
                 }
             }
         }

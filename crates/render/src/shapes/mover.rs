@@ -16,11 +16,22 @@ use obvhs::aabb::Aabb;
 pub struct Mover {
     pub geometry: std::sync::Arc<Geometry>,
     pub motion: AnimatedTransform,
-    /// A still transform after the motion (world from the motion's space, and its
-    /// inverse): a shape moving inside an object instance placed by a still transform.
-    outer: Option<(Affine3A, Affine3A)>,
+    /// What places the moving group in the world after its motion.
+    outer: Outer,
     lo: Vec3A,
     hi: Vec3A,
+}
+
+/// A transform after a group's own motion: a shape moving inside an object instance.
+#[derive(Clone)]
+pub enum Outer {
+    /// The group's motion is in world space.
+    None,
+    /// An instance placed by a still transform (world from the motion's space, and its
+    /// inverse).
+    Still(Affine3A, Affine3A),
+    /// An instance that moves too: its motion at the ray's time, after the group's.
+    Moving(AnimatedTransform),
 }
 
 impl std::fmt::Debug for Mover {
@@ -34,20 +45,23 @@ impl std::fmt::Debug for Mover {
 
 impl Mover {
     pub fn new(geometry: Geometry, motion: AnimatedTransform) -> Mover {
-        Mover::placed(geometry, motion, None)
+        Mover::placed(geometry, motion, Outer::None)
     }
 
-    /// A moving group placed in the world by the still transform `outer` after its motion.
-    pub fn placed(geometry: Geometry, motion: AnimatedTransform, outer: Option<Affine3A>) -> Mover {
+    /// A moving group placed in the world by `outer` after its motion. Its bounds cover
+    /// every place its motion takes it, and every place the outer motion takes those.
+    pub fn placed(geometry: Geometry, motion: AnimatedTransform, outer: Outer) -> Mover {
         let (lo, hi) = geometry.bounds();
         let (mut lo, mut hi) = motion.motion_bounds(lo, hi);
-        if let Some(m) = &outer {
-            (lo, hi) = super::transformed_bounds(m, lo, hi);
+        match &outer {
+            Outer::None => {}
+            Outer::Still(m, _) => (lo, hi) = super::transformed_bounds(m, lo, hi),
+            Outer::Moving(m) => (lo, hi) = m.motion_bounds(lo, hi),
         }
         Mover {
             geometry: std::sync::Arc::new(geometry),
             motion,
-            outer: outer.map(|m| (m, m.inverse())),
+            outer,
             lo,
             hi,
         }
@@ -61,9 +75,14 @@ impl Mover {
     /// and object length per world length along the ray.
     fn local(&self, origin: Vec3A, dir: Vec3A, time: f32) -> Option<(Ray, Affine3A, f32)> {
         let (mut to_world, mut to_object) = self.motion.affine_at(time);
-        if let Some((world_from, from_world)) = &self.outer {
-            to_world = *world_from * to_world;
-            to_object *= *from_world;
+        let (world_from, from_world) = match &self.outer {
+            Outer::None => (Affine3A::IDENTITY, Affine3A::IDENTITY),
+            Outer::Still(m, inverse) => (*m, *inverse),
+            Outer::Moving(m) => m.affine_at(time),
+        };
+        if !matches!(self.outer, Outer::None) {
+            to_world = world_from * to_world;
+            to_object *= from_world;
         }
         let d = to_object.transform_vector3a(dir);
         let len = d.length();
