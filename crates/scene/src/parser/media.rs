@@ -17,6 +17,13 @@ const CIE_Y_INTEGRAL: f32 = 106.856_895;
 /// A grid's bounding box as a .vol file gives it: (min corner, max corner).
 type GridBox = ([f32; 3], [f32; 3]);
 
+/// A medium's coefficients per unit density (`scale` applied) and its phase function.
+struct Coefficients {
+    sigma_a: [f32; 3],
+    sigma_s: [f32; 3],
+    phase: PhaseDesc,
+}
+
 impl Parser {
     pub(super) fn medium(&mut self, name: String, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.still_at_start(loc, &format!("MakeNamedMedium '{name}'"));
@@ -79,13 +86,29 @@ impl Parser {
                     phase,
                 }
             }
-            "uniformgrid" => MediumKind::Grid(Arc::new(
-                self.grid_medium(params, &name, loc, sigma_a, sigma_s, phase)?,
-            )),
+            "uniformgrid" => MediumKind::Grid(Arc::new(self.grid_medium(
+                params,
+                &name,
+                loc,
+                Coefficients {
+                    sigma_a,
+                    sigma_s,
+                    phase,
+                },
+            )?)),
             "rgbgrid" => MediumKind::Grid(Arc::new(
                 self.rgb_grid_medium(params, &name, loc, scale, phase)?,
             )),
-            "nanovdb" => self.nanovdb_medium(params, &name, loc, sigma_a, sigma_s, phase)?,
+            "nanovdb" => self.nanovdb_medium(
+                params,
+                &name,
+                loc,
+                Coefficients {
+                    sigma_a,
+                    sigma_s,
+                    phase,
+                },
+            )?,
             "cloud" => {
                 let box_ = self.medium_box(params, &name, loc, ([0.0; 3], [1.0; 3]))?;
                 let wispiness = params.float("wispiness", 1.0)? as f32;
@@ -216,16 +239,18 @@ impl Parser {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn grid_medium(
         &mut self,
         params: &ParamSet,
         name: &str,
         loc: &Loc,
-        sigma_a: [f32; 3],
-        sigma_s: [f32; 3],
-        phase: PhaseDesc,
+        c: Coefficients,
     ) -> Result<GridMediumDesc> {
+        let Coefficients {
+            sigma_a,
+            sigma_s,
+            phase,
+        } = c;
         let Some((density, bbox)) = self.medium_grid(params, name, "density", loc)? else {
             return Err(SceneError::at(
                 loc,
@@ -370,16 +395,18 @@ impl Parser {
     /// NanoVDB file, looked up trilinearly in the grid's index space over the union of the
     /// grids' world boxes, as pbrt-v4's `NanoVDBMedium` does. The grids are copied into dense
     /// arrays over that box (with a sample of margin), so lookups cost what a uniform grid's do.
-    #[allow(clippy::too_many_arguments)]
     fn nanovdb_medium(
         &mut self,
         params: &ParamSet,
         name: &str,
         loc: &Loc,
-        sigma_a: [f32; 3],
-        sigma_s: [f32; 3],
-        phase: PhaseDesc,
+        c: Coefficients,
     ) -> Result<MediumKind> {
+        let Coefficients {
+            sigma_a,
+            sigma_s,
+            phase,
+        } = c;
         use files::nanovdb;
         let file = params.string("filename")?.ok_or_else(|| {
             SceneError::at(
