@@ -57,6 +57,9 @@ pub(super) struct Vertex<'a> {
     pub medium: Option<u32>,
     /// The path's time within the shutter.
     pub time: f32,
+    /// The path's last scattering (maxdepth reached): as in pbrt-v4, the segment after it
+    /// counts no medium emission, so light sampling skips emissive media here too.
+    pub last: bool,
 }
 
 impl Vertex<'_> {
@@ -89,6 +92,9 @@ pub(super) fn sample_direct(
     let Some((index, pmf)) = scene.light_sampler.sample(v.p, v.normal(), u_light) else {
         return Color::ZERO;
     };
+    if v.last && matches!(scene.lights[index], crate::lights::Light::Medium(_)) {
+        return Color::ZERO;
+    }
     let (sample, traced) = scene.lights[index].sample(&scene.light_context(), v.p, u);
     work.rays += traced;
     let Some(ls) = sample else {

@@ -178,7 +178,10 @@ fn medium_step(
         state.prev_pdf,
     );
     let l = &mut state.l;
+    // As in pbrt-v4, the segment after the last scattering (maxdepth) counts no emission.
+    let counts = state.depth < settings.max_depth;
     let event = med.sample_interaction(ray, t_max, &mut rng, &mut state.beta, |e| match e {
+        _ if !counts => {}
         Emitted::Segment(c) => *l += c,
         Emitted::Collision {
             t,
@@ -234,6 +237,7 @@ fn medium_step(
             surface: None,
             medium: state.medium,
             time: ray.time,
+            last: state.depth == settings.max_depth,
         };
         state.l += state.beta
             * sample_direct(
@@ -430,6 +434,7 @@ fn surface_step(
             surface: Some(hit),
             medium: state.medium,
             time: ray.time,
+            last: state.depth == settings.max_depth,
         };
         let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
         let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
