@@ -348,10 +348,13 @@ impl Builder {
         }
         let has_normals = mesh.normals.is_some();
         if let Some(n) = &mesh.normals {
-            // Normals transform by the inverse transpose.
+            // Normals transform by the inverse transpose; ReverseOrientation turns them round,
+            // as pbrt-v4's meshes do (the geometric normal then follows them).
+            let sign = if shape.reverse_orientation { -1.0 } else { 1.0 };
             self.prims.normals.resize(base as usize, Vec3A::Z);
             self.prims.normals.extend(n.iter().map(|v| {
                 Vec3A::from(normal_m.transform_vector3(glam::Vec3::from(*v))).normalize_or_zero()
+                    * sign
             }));
         }
         let has_uvs = mesh.uvs.is_some();
