@@ -28,7 +28,7 @@ impl VisibleSurface {
     /// This surface in another space: points and vectors by `xf`, normals by its inverse
     /// transpose.
     pub fn transformed(&self, xf: &Affine3A) -> VisibleSurface {
-        let normals = xf.matrix3.inverse().transpose();
+        let normals = crate::motion::normal_matrix(xf);
         VisibleSurface {
             p: xf.transform_point3a(self.p),
             ng: normals * self.ng,

@@ -272,7 +272,9 @@ fn for_each_grid(
                             .get(8..8usize.saturating_add(n))
                             .ok_or_else(|| format!("truncated: grid '{name}''s compressed data"))?;
                         use std::io::Read;
-                        let mut out = Vec::with_capacity(size);
+                        // No reservation from the size the file claims: `take` bounds the
+                        // growth, and a small hostile file allocates only what it inflates to.
+                        let mut out = Vec::new();
                         flate2::read::ZlibDecoder::new(data)
                             .take(size as u64 + 1)
                             .read_to_end(&mut out)

@@ -324,14 +324,11 @@ impl Parser {
                 GridEmission::Constant { le, scale }
             }
             (_, Some((temperature, _))) => {
-                let offset = match params.float_opt("temperatureoffset")? {
-                    Some(v) => v,
-                    None => params.float("temperaturecutoff", 0.0)?,
-                } as f32;
+                let (offset, t_scale) = temperature_mapping(params)?;
                 GridEmission::Temperature {
                     temperature,
                     offset,
-                    t_scale: params.float("temperaturescale", 1.0)? as f32,
+                    t_scale,
                     scale: Some(scale),
                     le_scale: 1.0,
                 }
@@ -458,11 +455,7 @@ impl Parser {
             )));
         }
         let le_scale = params.float("Lescale", 1.0)? as f32;
-        let offset = match params.float_opt("temperatureoffset")? {
-            Some(v) => v,
-            None => params.float("temperaturecutoff", 0.0)?,
-        } as f32;
-        let t_scale = params.float("temperaturescale", 1.0)? as f32;
+        let (offset, t_scale) = temperature_mapping(params)?;
         if ![le_scale, offset, t_scale].iter().all(|v| v.is_finite()) || le_scale < 0.0 {
             return Err(SceneError::at(
                 loc,
@@ -704,6 +697,17 @@ impl Parser {
             lattice: Lattice::Centred,
         })
     }
+}
+
+/// How a grid's temperature becomes a blackbody's, as pbrt-v4 reads it for "uniformgrid" and
+/// "nanovdb": (T - offset) * scale, the offset given as "temperatureoffset" or, under its
+/// older name, "temperaturecutoff".
+fn temperature_mapping(params: &ParamSet) -> Result<(f32, f32)> {
+    let offset = match params.float_opt("temperatureoffset")? {
+        Some(v) => v,
+        None => params.float("temperaturecutoff", 0.0)?,
+    };
+    Ok((offset as f32, params.float("temperaturescale", 1.0)? as f32))
 }
 
 /// The phase function of a medium: "float g" and Kiln's "string phase" ("hg", the default,
