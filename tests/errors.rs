@@ -292,8 +292,8 @@ fn spectra_read_from_files_equal_the_same_spectra_inline() {
     );
 }
 
-/// The film's sensor parameters that pbrt-v4 rejects, or that Kiln cannot reproduce yet,
-/// are errors naming the line.
+/// The film's sensor parameters that pbrt-v4 rejects, and a camera sensor without camera
+/// data, are errors naming the line.
 #[test]
 fn film_sensor_errors_name_the_line() {
     for (text, line, says) in [
@@ -305,7 +305,7 @@ fn film_sensor_errors_name_the_line() {
         (
             "Film \"rgb\" \"string sensor\" \"canon_eos_100d\"\nWorldBegin\n",
             1,
-            "sensor 'canon_eos_100d'",
+            "sensor 'canon_eos_100d' is a camera's measured spectral response, which Kiln does not ship: set KILN_SENSOR_DATA",
         ),
         (
             "Film \"rgb\" \"float iso\" [ -5 ]\nWorldBegin\n",
@@ -325,6 +325,49 @@ fn film_sensor_errors_name_the_line() {
     ] {
         let (err, _d) = failing(text);
         assert_names(&err, "scene.pbrt", line, says);
+    }
+}
+
+/// Camera data that is missing or broken is an error naming the Film's line and the file,
+/// and a sensor name cannot reach outside the data folder.
+#[test]
+fn camera_sensor_data_errors_name_the_line_and_the_file() {
+    let data = tempfile::tempdir().unwrap();
+    std::fs::write(data.path().join("broken.json"), "{\"spectral_data\": 3}").unwrap();
+    std::fs::write(
+        data.path().join("flat.json"),
+        r#"{"spectral_data": {"index": {"main": ["R","G","B"]}, "data": {"main": {"400": [1,1,1], "700": [1,1,1]}}}}"#,
+    )
+    .unwrap();
+    std::fs::write(data.path().join("Nikon_D850_380_780_5.json"), "not json").unwrap();
+    for (sensor, says) in [
+        ("broken", "broken.json': no \"spectral_data.index.main\""),
+        ("flat", "not independent"),
+        ("nikon_d850", "Nikon_D850_380_780_5.json': not valid JSON"),
+        ("sony_ilce_9", "no response file for sensor 'sony_ilce_9'"),
+        ("leica", "neither a camera pbrt-v4 knows"),
+        ("../../etc/passwd", "not a camera name"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = write_scene(
+            dir.path(),
+            "scene.pbrt",
+            &format!(
+                "Sampler \"halton\"\nFilm \"rgb\"\n  \"string sensor\" \"{sensor}\"\nWorldBegin\n"
+            ),
+        );
+        let out = kiln()
+            .env("KILN_SENSOR_DATA", data.path())
+            .arg("render")
+            .arg(&scene)
+            .arg("-o")
+            .arg(dir.path().join("out.exr"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{sensor}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert_names(&err, "scene.pbrt", 3, says);
     }
 }
 

@@ -12,6 +12,7 @@ mod gbuffer;
 mod media;
 mod motion;
 mod reference;
+mod sensor;
 mod shapes;
 mod textures;
 mod volume_light;

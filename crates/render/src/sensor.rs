@@ -1,12 +1,15 @@
-//! The film's pixel sensor, as pbrt-v4's on the CIE 1931 observer: a camera sample's
-//! radiance times the imaging ratio (the shutter's exposure time · ISO / 100), its largest
-//! XYZ component clamped to "maxcomponentvalue", then white balanced ("whitebalance": from
-//! daylight at that temperature to the sRGB white). With pbrt-v4's defaults it is the
-//! identity and costs nothing.
+//! The film's pixel sensor, as pbrt-v4's: a camera sample's radiance times the imaging
+//! ratio (the shutter's exposure time · ISO / 100), taken into the sensor's space (XYZ for
+//! the CIE 1931 observer, a named camera's raw RGB), its largest component there clamped to
+//! "maxcomponentvalue", then white balanced into the image's linear sRGB ("whitebalance":
+//! from daylight at that temperature to the sRGB white; a camera's fitted matrix,
+//! `kiln_scene::camera_sensor`). With pbrt-v4's defaults it is the identity and costs
+//! nothing.
 
 use crate::math::Color;
 use glam::Mat3A;
 use kiln_scene::SensorDesc;
+use kiln_scene::camera_sensor::RawTable;
 use kiln_scene::spectrum::{SRGB_TO_XYZ, white_balance_srgb};
 
 #[derive(Debug, Clone)]
@@ -16,6 +19,8 @@ pub struct Sensor {
     /// Linear sRGB to XYZ, where the clamp is taken.
     to_xyz: Mat3A,
     balance: Option<Mat3A>,
+    /// A named camera: linear sRGB to its raw RGB, and raw RGB to the image.
+    camera: Option<(std::sync::Arc<RawTable>, Mat3A)>,
 }
 
 fn mat(rows: [[f64; 3]; 3]) -> Mat3A {
@@ -28,8 +33,12 @@ impl Sensor {
             ratio: (exposure_time * desc.iso / 100.0) as f32,
             max_component: desc.max_component as f32,
             to_xyz: mat(SRGB_TO_XYZ),
-            balance: (desc.white_balance != 0.0)
+            balance: (desc.white_balance != 0.0 && desc.camera.is_none())
                 .then(|| mat(white_balance_srgb(desc.white_balance))),
+            camera: desc
+                .camera
+                .as_ref()
+                .map(|c| (std::sync::Arc::new(c.raw.clone()), mat(c.raw_to_srgb))),
         }
     }
 
@@ -41,6 +50,14 @@ impl Sensor {
     /// What the sensor records of a sample's radiance `l` (linear sRGB).
     pub fn respond(&self, l: Color) -> Color {
         let mut l = l * self.ratio;
+        if let Some((to_raw, to_image)) = &self.camera {
+            let mut raw = Color::from(to_raw.raw(l.to_array()));
+            let m = raw.max_element();
+            if m > self.max_component {
+                raw *= self.max_component / m;
+            }
+            return *to_image * raw;
+        }
         if self.max_component.is_finite() {
             let m = (self.to_xyz * l).max_element();
             if m > self.max_component {

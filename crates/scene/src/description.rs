@@ -153,15 +153,18 @@ pub const GBUFFER_CHANNELS: [&str; 22] = [
     "RelativeVariance.B",
 ];
 
-/// pbrt-v4's pixel sensor on the CIE 1931 observer: each sample's XYZ times the imaging
-/// ratio (exposure time · ISO / 100), its largest component clamped to `max_component`,
-/// then white balanced from daylight at `white_balance` kelvin (0: none) to the output's
-/// white.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// pbrt-v4's pixel sensor: each sample's response (XYZ on the CIE 1931 observer, or a named
+/// camera's raw RGB) times the imaging ratio (exposure time · ISO / 100), its largest
+/// component clamped to `max_component`, then white balanced from daylight at
+/// `white_balance` kelvin (0: none) to the output's white.
+#[derive(Debug, Clone, PartialEq)]
 pub struct SensorDesc {
     pub iso: f64,
+    /// Kelvin; 0 for none (a camera's is never 0: it defaults to 6500).
     pub white_balance: f64,
     pub max_component: f64,
+    /// A named camera's response; None for the CIE 1931 observer ("cie1931").
+    pub camera: Option<crate::camera_sensor::CameraResponse>,
 }
 
 impl Default for SensorDesc {
@@ -170,6 +173,7 @@ impl Default for SensorDesc {
             iso: 100.0,
             white_balance: 0.0,
             max_component: f64::INFINITY,
+            camera: None,
         }
     }
 }

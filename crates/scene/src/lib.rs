@@ -22,6 +22,7 @@
 //! assert!(bad.unwrap_err().to_string().starts_with("bad.pbrt:2:"));
 //! ```
 
+pub mod camera_sensor;
 pub mod colorspace;
 pub mod description;
 pub mod error;
@@ -31,6 +32,7 @@ pub mod loop_subdiv;
 mod params;
 mod parser;
 pub mod photometry;
+mod rgb_spectrum;
 pub mod spectrum;
 pub mod textures;
 

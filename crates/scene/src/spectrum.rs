@@ -34,9 +34,9 @@ pub enum SpectrumUse {
 }
 
 /// First wavelength of the tables and of the integration range, nm.
-const LAMBDA_MIN: f64 = 360.0;
+pub(crate) const LAMBDA_MIN: f64 = 360.0;
 /// Last wavelength of the tables and of the integration range, nm.
-const LAMBDA_MAX: f64 = 830.0;
+pub(crate) const LAMBDA_MAX: f64 = 830.0;
 /// Spacing of the tables, nm.
 const TABLE_STEP: f64 = 5.0;
 /// Entries per table: 360, 365, …, 830 nm.
@@ -101,7 +101,7 @@ const D65: [f64; 95] = [
 ];
 
 /// CIE XYZ → linear sRGB (IEC 61966-2-1, D65 white).
-const XYZ_TO_SRGB: [[f64; 3]; 3] = [
+pub(crate) const XYZ_TO_SRGB: [[f64; 3]; 3] = [
     [3.2404542, -1.5371385, -0.4985314],
     [-0.9692660, 1.8760108, 0.0415560],
     [0.0556434, -0.2040259, 1.0572252],
@@ -116,7 +116,7 @@ fn table_at(table: &[f64; TABLE_LEN], lambda: f64) -> f64 {
 }
 
 /// A validated piecewise-linear spectrum evaluated at `lambda`; constant beyond its ends.
-fn spectrum_at(pairs: &[(f64, f64)], lambda: f64) -> f64 {
+pub(crate) fn spectrum_at(pairs: &[(f64, f64)], lambda: f64) -> f64 {
     let (l_first, v_first) = pairs[0];
     let (l_last, v_last) = pairs[pairs.len() - 1];
     if lambda <= l_first {
@@ -220,6 +220,59 @@ pub fn daylight_xy(kelvin: f64) -> [f64; 2] {
         -2.0064e9 / t.powi(3) + 1.9018e6 / (t * t) + 0.24748e3 / t + 0.237040
     };
     [x, -3.0 * x * x + 2.870 * x - 0.275]
+}
+
+/// The components S0, S1, S2 of CIE daylight, 360–830 nm every 10 nm (CIE 015:2018
+/// tabulation): daylight of any correlated colour temperature is S0 + M1·S1 + M2·S2.
+#[rustfmt::skip]
+const DAYLIGHT_S: [[f64; 3]; 48] = [
+    [61.5, 38.0, 5.3], [68.8, 42.4, 6.1], [63.4, 38.5, 3.0], [65.8, 35.0, 1.2], [94.8, 43.4, -1.1],
+    [104.8, 46.3, -0.5], [105.9, 43.9, -0.7], [96.8, 37.1, -1.2], [113.9, 36.7, -2.6],
+    [125.6, 35.9, -2.9], [125.5, 32.6, -2.8], [121.3, 27.9, -2.6], [121.3, 24.3, -2.6],
+    [113.5, 20.1, -1.8], [113.1, 16.2, -1.5], [110.8, 13.2, -1.3], [106.5, 8.6, -1.2],
+    [108.8, 6.1, -1.0], [105.3, 4.2, -0.5], [104.4, 1.9, -0.3], [100.0, 0.0, 0.0],
+    [96.0, -1.6, 0.2], [95.1, -3.5, 0.5], [89.1, -3.5, 2.1], [90.5, -5.8, 3.2], [90.3, -7.2, 4.1],
+    [88.4, -8.6, 4.7], [84.0, -9.5, 5.1], [85.1, -10.9, 6.7], [81.9, -10.7, 7.3],
+    [82.6, -12.0, 8.6], [84.9, -14.0, 9.8], [81.3, -13.6, 10.2], [71.9, -12.0, 8.3],
+    [74.3, -13.3, 9.6], [76.4, -12.9, 8.5], [63.3, -10.6, 7.0], [71.7, -11.6, 7.6],
+    [77.0, -12.2, 8.0], [65.2, -10.2, 6.7], [47.7, -7.8, 5.2], [68.6, -11.2, 7.4],
+    [65.0, -10.4, 6.8], [66.0, -10.6, 7.0], [61.0, -9.7, 6.4], [53.3, -8.3, 5.5],
+    [58.9, -9.3, 6.1], [61.9, -9.8, 6.5],
+];
+
+/// pbrt-v4's daylight illuminant D(T) (`Spectra::D`) as (wavelength nm, relative power)
+/// pairs, piecewise linear: for a corrected temperature of 4000 K or more the CIE daylight
+/// at the chromaticity [`daylight_xy`] gives, below it a blackbody. Only its shape is
+/// meaningful (it is normalised wherever it is used).
+pub(crate) fn daylight_samples(kelvin: f64) -> Vec<(f64, f64)> {
+    let t = kelvin * 1.4388 / 1.4380;
+    if t < 4000.0 {
+        return blackbody_samples(t, false);
+    }
+    let [x, y] = daylight_xy(kelvin);
+    let m = 0.0241 + 0.2562 * x - 0.7341 * y;
+    let m1 = (-1.3515 - 1.7703 * x + 5.9114 * y) / m;
+    let m2 = (0.0300 - 31.4424 * x + 30.0717 * y) / m;
+    DAYLIGHT_S
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (LAMBDA_MIN + 10.0 * i as f64, s[0] + m1 * s[1] + m2 * s[2]))
+        .collect()
+}
+
+/// The CIE 1931 colour matching functions (x̄, ȳ, z̄) at `lambda` nm, interpolated linearly
+/// in the 5 nm tables (0 is never returned inside 360–830 nm; held at the ends beyond).
+pub(crate) fn cmf_at(lambda: f64) -> [f64; 3] {
+    [
+        table_at(&CIE_X, lambda),
+        table_at(&CIE_Y, lambda),
+        table_at(&CIE_Z, lambda),
+    ]
+}
+
+/// The CIE D65 illuminant at `lambda` nm (relative, 100 at 560 nm).
+pub(crate) fn d65_at(lambda: f64) -> f64 {
+    table_at(&D65, lambda)
 }
 
 /// pbrt-v4's white balance for a film ("whitebalance" in kelvin): a von Kries adaptation in

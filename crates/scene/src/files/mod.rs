@@ -1,6 +1,6 @@
 //! Readers for the files a scene refers to, one format a file: PLY and OBJ meshes, voxel
-//! grids (CSV, Mitsuba `.vol` and NanoVDB) and EXR environment maps. Errors name the directive's
-//! location and the file.
+//! grids (CSV, Mitsuba `.vol` and NanoVDB), EXR environment maps and cameras' spectral
+//! responses. Errors name the directive's location and the file.
 
 use crate::error::{Loc, Result, SceneError};
 use std::path::Path;
@@ -10,6 +10,7 @@ pub mod measured;
 pub mod nanovdb;
 pub mod obj;
 pub mod ply;
+pub mod sensor_curves;
 pub mod tensor;
 pub mod vol;
 pub mod voxel_csv;

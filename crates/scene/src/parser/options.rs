@@ -4,8 +4,10 @@
 
 use super::Parser;
 use super::cursor::Cursor;
+use crate::camera_sensor::{CameraResponse, camera_response};
 use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
+use crate::files::sensor_curves::{SENSOR_DATA_ENV, find_sensor, read_sensor_curves};
 use crate::lexer::TokenKind;
 use crate::params::ParamSet;
 use glam::DMat4;
@@ -388,8 +390,8 @@ impl Parser {
         Ok(())
     }
 
-    /// The film's pixel sensor: pbrt-v4's "iso", "whitebalance" and "maxcomponentvalue" on
-    /// the CIE 1931 observer.
+    /// The film's pixel sensor: pbrt-v4's "sensor" (the CIE 1931 observer, or a camera whose
+    /// response [`SENSOR_DATA_ENV`] holds), "iso", "whitebalance" and "maxcomponentvalue".
     fn film_sensor(&self, params: &ParamSet, loc: &Loc) -> Result<SensorDesc> {
         let at = |name: &str| params.loc_of(name).unwrap_or_else(|| loc.clone());
         if params.loc_of("exposuretime").is_some() {
@@ -399,16 +401,8 @@ impl Parser {
             ));
         }
         let sensor = params.string("sensor")?.unwrap_or_else(|| "cie1931".into());
-        if sensor != "cie1931" {
-            return Err(SceneError::at(
-                &at("sensor"),
-                format!(
-                    "Film: sensor '{sensor}' (a camera's measured spectral response) is not supported yet; Kiln's sensor is the CIE 1931 observer (\"cie1931\")"
-                ),
-            ));
-        }
         let iso = params.float("iso", 100.0)?;
-        let white_balance = params.float("whitebalance", 0.0)?;
+        let mut white_balance = params.float("whitebalance", 0.0)?;
         let max_component = params.float("maxcomponentvalue", f64::INFINITY)?;
         if !(iso.is_finite() && iso > 0.0) {
             return Err(SceneError::at(
@@ -430,10 +424,23 @@ impl Parser {
                 format!("Film: \"maxcomponentvalue\" must be positive, got {max_component}"),
             ));
         }
+        let camera = if sensor == "cie1931" {
+            None
+        } else {
+            // pbrt-v4 balances a camera for 6500 K daylight unless told otherwise.
+            if white_balance == 0.0 {
+                white_balance = 6500.0;
+            }
+            Some(
+                camera_of(&sensor, white_balance)
+                    .map_err(|e| SceneError::at(&at("sensor"), format!("Film: {e}")))?,
+            )
+        };
         Ok(SensorDesc {
             iso,
             white_balance,
             max_component,
+            camera,
         })
     }
 
@@ -786,4 +793,21 @@ mod tests {
         let err = load_err("\nIntegrator \"path\" \"string lightsampler\" \"nearest\"\nWorldBegin");
         assert!(err.contains("t.pbrt:2") && err.contains("nearest"), "{err}");
     }
+}
+
+/// The response of the camera a film's "sensor" names, read from the folder
+/// [`SENSOR_DATA_ENV`] names, white balanced for daylight at `kelvin`.
+fn camera_of(name: &str, kelvin: f64) -> std::result::Result<CameraResponse, String> {
+    let Some(dir) = std::env::var_os(SENSOR_DATA_ENV).filter(|d| !d.is_empty()) else {
+        return Err(format!(
+            "sensor '{name}' is a camera's measured spectral response, which Kiln does not ship: \
+             set {SENSOR_DATA_ENV} to a folder of camera response files (PhysLight's data/camera, \
+             github.com/wetadigital/physlight, Apache-2.0, has every camera pbrt-v4 names), or \
+             use \"cie1931\""
+        ));
+    };
+    let dir = std::path::PathBuf::from(dir);
+    let path = find_sensor(&dir, name)?;
+    let curves = read_sensor_curves(&path)?;
+    camera_response(name, &curves, kelvin)
 }
