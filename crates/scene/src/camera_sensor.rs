@@ -22,7 +22,9 @@
 
 use crate::files::sensor_curves::SensorCurves;
 use crate::rgb_spectrum::{Upsampler, grid};
-use crate::spectrum::{XYZ_TO_SRGB, cmf_at, d65_at, daylight_samples, inverse3, mul3, spectrum_at};
+use crate::spectrum::{
+    XYZ_TO_SRGB, cmf_at, d65_at, daylight_samples, det3, inverse3, mul3, spectrum_at,
+};
 
 /// A camera's colour response and white balance.
 #[derive(Debug, Clone, PartialEq)]
@@ -115,9 +117,7 @@ fn least_squares(a: &[[f64; 3]], b: &[[f64; 3]]) -> Option<[[f64; 3]; 3]> {
         }
     }
     let scale = (0..3).map(|i| ata[i][i]).sum::<f64>();
-    let det = ata[0][0] * (ata[1][1] * ata[2][2] - ata[1][2] * ata[2][1])
-        - ata[0][1] * (ata[1][0] * ata[2][2] - ata[1][2] * ata[2][0])
-        + ata[0][2] * (ata[1][0] * ata[2][1] - ata[1][1] * ata[2][0]);
+    let det = det3(&ata);
     if !(det.is_finite() && det > 1e-12 * scale.powi(3)) {
         return None;
     }

@@ -11,7 +11,7 @@
 //!
 //! Sums are over 360–830 nm every 1 nm (pbrt-v4's `InnerProduct` grid).
 
-use crate::spectrum::{LAMBDA_MAX, LAMBDA_MIN, XYZ_TO_SRGB, cmf_at, d65_at};
+use crate::spectrum::{LAMBDA_MAX, LAMBDA_MIN, XYZ_TO_SRGB, cmf_at, d65_at, det3};
 
 /// Wavelengths of the sums: 360, 361, …, 830 nm.
 pub(crate) fn grid() -> impl Iterator<Item = f64> {
@@ -143,12 +143,7 @@ impl Upsampler {
 
 /// Solves the 3×3 system m·x = b by Cramer's rule; None when m is singular.
 fn solve3(m: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
-    let det = |m: &[[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
-    let d = det(&m);
+    let d = det3(&m);
     if !d.is_finite() || d.abs() <= 1e-300 {
         return None;
     }
@@ -157,7 +152,7 @@ fn solve3(m: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
         for row in 0..3 {
             mc[row][col] = b[row];
         }
-        det(&mc) / d
+        det3(&mc) / d
     });
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
