@@ -129,6 +129,10 @@ fn media_are_bit_identical_across_tiles_and_threads() {
     assert_same_bits_for_any_split("fog", load(&scene("media/fog.pbrt"), 4, Some((60, 40))));
     // Caustic photon maps: built once per render, the same for every tile.
     assert_same_bits_for_any_split("lens", load(&scene("media/lens.pbrt"), 4, Some((40, 40))));
+    // A volume photon map (k-nearest gathers in a k-d tree) with weight-aware roulette.
+    assert_same_bits_for_any_split("haze", load(&scene("media/haze.pbrt"), 4, Some((40, 40))));
+    // SPPM: each tile runs every iteration's photon pass itself.
+    assert_same_bits_for_any_split("sppm", load(&scene("photons/ball.pbrt"), 4, Some((24, 24))));
     // A grid medium: delta and ratio tracking, and a flame sampled as a light.
     assert_same_bits_for_any_split("ember", load(&scene("media/ember.pbrt"), 4, Some((60, 40))));
 }
@@ -140,6 +144,7 @@ fn media_are_bit_identical_across_tiles_and_threads() {
 fn building_the_scene_again_on_another_thread_count_gives_the_same_bits() {
     for (path, resolution) in [
         (scene("media/lens.pbrt"), (40, 40)),
+        (scene("media/haze.pbrt"), (40, 40)),
         (scene("volume-light/blue-volume.pbrt"), (60, 45)),
     ] {
         let build_on = |threads: usize| {

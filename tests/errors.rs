@@ -207,6 +207,37 @@ fn too_many_caustic_photons() {
     assert_names(&err, "scene.pbrt", 1, "causticphotons must be 0 to 5*10^7");
 }
 
+/// Photon-map and SPPM parameters out of range name the Integrator's line and what is
+/// allowed.
+#[test]
+fn photon_and_sppm_parameters_are_checked() {
+    for (text, message) in [
+        (
+            "Integrator \"photonmap\" \"integer volumenearest\" [ -3 ]\nWorldBegin\n",
+            "volumenearest must be 0 (a fixed radius) to 10000, not -3",
+        ),
+        (
+            "Integrator \"volpath\" \"float volumeradius\" [ -1 ]\nWorldBegin\n",
+            "volumeradius must be 0 (automatic) or a positive distance",
+        ),
+        (
+            "Integrator \"volpath\" \"string photonroulette\" \"russian\"\nWorldBegin\n",
+            "photonroulette 'russian' is unknown (weight or none)",
+        ),
+        (
+            "Integrator \"sppm\" \"integer photonsperiteration\" [ 0 ]\nWorldBegin\n",
+            "photonsperiteration must be -1 (one per pixel) or 1 to 5*10^7, not 0",
+        ),
+        (
+            "Integrator \"sppm\" \"float radius\" [ 0 ]\nWorldBegin\n",
+            "radius must be a positive distance, not 0",
+        ),
+    ] {
+        let (err, _d) = failing(text);
+        assert_names(&err, "scene.pbrt", 1, message);
+    }
+}
+
 /// pbrt-v4 reads `.gz` meshes and includes decompressed; a gzip bomb or a corrupt file is an
 /// error that names the file.
 #[test]

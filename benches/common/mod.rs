@@ -19,20 +19,17 @@ pub fn peak_rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
-/// Renders the pixels `bounds` in 32-pixel tiles on rayon's pool; returns the seconds taken
-/// and the tiles in order.
+/// Renders the pixels `bounds` in 32-pixel tiles on rayon's pool (as `kiln render` does:
+/// SPPM iterates over all of them at once); returns the seconds taken and the tiles in
+/// order.
 #[allow(dead_code)]
 pub fn render_tiles(
     renderer: &kiln_render::Renderer,
     bounds: [u32; 4],
 ) -> (f64, Vec<kiln_render::TileResult>) {
-    use rayon::prelude::*;
     let tiles = kiln_render::split_into_tiles(bounds, 32);
     let start = std::time::Instant::now();
-    let results: Vec<_> = tiles
-        .par_iter()
-        .map(|t| kiln_render::render_tile(renderer, *t))
-        .collect();
+    let results = kiln_render::render_tiles(renderer, &tiles, &|| {});
     (start.elapsed().as_secs_f64(), results)
 }
 

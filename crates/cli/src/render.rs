@@ -3,8 +3,7 @@
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use kiln_image::RgbBuffer;
-use kiln_render::{Renderer, TileStats, render_tile, split_into_tiles};
-use rayon::prelude::*;
+use kiln_render::{Renderer, TileStats, render_tiles, split_into_tiles};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -123,27 +122,25 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let progress = if args.quiet {
         ProgressBar::hidden()
     } else {
-        let bar = ProgressBar::new(tiles.len() as u64);
+        let units = kiln_render::progress_units(&renderer, tiles.len());
+        let bar = ProgressBar::new(units);
+        // SPPM renders every tile together, an iteration at a time.
+        let what = if units == tiles.len() as u64 {
+            "tiles"
+        } else {
+            "iterations"
+        };
         bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] [{wide_bar}] {pos}/{len} tiles ({eta} left)",
-            )
+            ProgressStyle::with_template(&format!(
+                "{{spinner}} [{{elapsed_precise}}] [{{wide_bar}}] {{pos}}/{{len}} {what} ({{eta}} left)"
+            ))
             .expect("the template is valid")
             .progress_chars("=> "),
         );
         bar
     };
     let render_start = Instant::now();
-    let results: Vec<_> = pool.install(|| {
-        tiles
-            .par_iter()
-            .map(|t| {
-                let r = render_tile(&renderer, *t);
-                progress.inc(1);
-                r
-            })
-            .collect()
-    });
+    let results = pool.install(|| render_tiles(&renderer, &tiles, &|| progress.inc(1)));
     progress.finish_and_clear();
     let render_time = render_start.elapsed();
     let mut frame = RgbBuffer::new(film.xresolution, film.yresolution, x0, y0, x1 - x0, y1 - y0)

@@ -50,6 +50,6 @@ pub mod work;
 pub use integrators::{Integrator, PathSettings};
 pub use scene::{BuildError, MediaPolicy, Scene};
 pub use tile::{
-    RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names, render_pixel,
-    render_tile, render_tile_until, split_into_tiles,
+    RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names, progress_units,
+    render_pixel, render_tile, render_tile_until, render_tiles, split_into_tiles,
 };

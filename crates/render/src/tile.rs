@@ -71,10 +71,17 @@ impl RenderSettings {
 
     /// Settings as the scene file gives them.
     pub fn from_description(desc: &kiln_scene::SceneDescription) -> RenderSettings {
+        let mut integrator = Integrator::from_description(&desc.integrator);
+        // pbrt-v4's SPPM traces as many photons per iteration as the image has pixels.
+        if let Integrator::Sppm(s) = &mut integrator
+            && s.photons_per_iteration == 0
+        {
+            s.photons_per_iteration = desc.rendered_pixels();
+        }
         RenderSettings {
             samples_per_pixel: desc.sampler.pixel_samples,
             seed: desc.sampler.seed,
-            integrator: Integrator::from_description(&desc.integrator),
+            integrator,
             max_radiance: desc.integrator.max_radiance,
             gbuffer: desc.film.gbuffer,
         }
@@ -100,6 +107,12 @@ impl Renderer {
         } else {
             MediaPolicy::Ignore
         };
+        if settings.gbuffer.is_some() && matches!(settings.integrator, Integrator::Sppm(_)) {
+            return Err(BuildError::Unsupported {
+                loc: desc.integrator.loc.clone(),
+                message: "Integrator 'sppm' does not write a G-buffer film's channels; use 'volpath' with Film \"gbuffer\"".into(),
+            });
+        }
         let scene = Scene::build(desc, media)?;
         Ok(Renderer::new(scene, settings))
     }
@@ -219,6 +232,9 @@ pub fn render_tile_until(
     rect: TileRect,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<TileResult> {
+    if let Integrator::Sppm(sppm) = &renderer.settings.integrator {
+        return render_sppm(renderer, sppm, &[rect], stop, &|| {})?.pop();
+    }
     let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
     let channels = layout.as_ref().map_or(0, |l| l.channels());
     type Row = (Vec<[f32; 3]>, Vec<f32>, TileStats);
@@ -251,6 +267,152 @@ pub fn render_tile_until(
         aovs,
         stats,
     })
+}
+
+/// Renders `rects` (each as [`render_tile`] would) and calls `progress` after each unit of
+/// work: a tile, or for SPPM an iteration over all of them, which is why they are rendered
+/// together (each iteration's photons are traced once for every tile). The number of
+/// units is [`progress_units`].
+pub fn render_tiles(
+    renderer: &Renderer,
+    rects: &[TileRect],
+    progress: &(dyn Fn() + Sync),
+) -> Vec<TileResult> {
+    if let Integrator::Sppm(sppm) = &renderer.settings.integrator {
+        return render_sppm(renderer, sppm, rects, &|| false, progress).expect("never stopped");
+    }
+    rects
+        .par_iter()
+        .map(|r| {
+            let t = render_tile(renderer, *r);
+            progress();
+            t
+        })
+        .collect()
+}
+
+/// How many times [`render_tiles`] reports progress for `tiles` tiles.
+pub fn progress_units(renderer: &Renderer, tiles: usize) -> u64 {
+    match &renderer.settings.integrator {
+        Integrator::Sppm(_) => renderer.settings.samples_per_pixel as u64,
+        Integrator::Path(_) | Integrator::VolPath(_) => tiles as u64,
+    }
+}
+
+/// SPPM over the pixels of `rects`: iterations outermost (a camera pass, a photon pass, the
+/// gathers), then each pixel's radiance. Every pixel's value depends only on its own
+/// samples and the photon passes, so any split gives the same bytes.
+fn render_sppm(
+    renderer: &Renderer,
+    sppm: &crate::integrators::SppmSettings,
+    rects: &[TileRect],
+    stop: &(dyn Fn() -> bool + Sync),
+    progress: &(dyn Fn() + Sync),
+) -> Option<Vec<TileResult>> {
+    use crate::integrators::sppm::{PixelState, camera_pass, gather, photon_pass};
+    let (scene, settings) = (&renderer.scene, &renderer.settings);
+    let pixels: Vec<(u32, u32)> = rects
+        .iter()
+        .flat_map(|r| {
+            (r.y0..r.y0 + r.height).flat_map(move |y| (r.x0..r.x0 + r.width).map(move |x| (x, y)))
+        })
+        .collect();
+    let mut states = vec![(PixelState::new(sppm.radius), 0u64); pixels.len()];
+    let iterations = settings.samples_per_pixel;
+    for it in 0..iterations {
+        if stop() {
+            return None;
+        }
+        let vps: Vec<_> = pixels
+            .par_iter()
+            .zip(states.par_iter_mut())
+            .map(|(&(x, y), (state, rays))| {
+                let CameraSample {
+                    mut sampler,
+                    weight,
+                    ray,
+                    ..
+                } = camera_sample(renderer, x, y, it);
+                let mut work = Work::default();
+                let (ray, weight) = ray.map_or((None, 0.0), |(r, w)| (Some(r), w * weight));
+                let vp = camera_pass(scene, sppm, ray, weight, &mut sampler, &mut work, state);
+                *rays += work.rays;
+                vp
+            })
+            .collect();
+        let map = photon_pass(scene, sppm, settings.seed, it);
+        vps.par_iter()
+            .zip(states.par_iter_mut())
+            .for_each(|(vp, (state, _))| gather(&map, vp.as_ref(), state));
+        progress();
+    }
+    let mut results = Vec::with_capacity(rects.len());
+    let mut start = 0;
+    for &rect in rects {
+        let n = rect.pixel_count() as usize;
+        let mut stats = TileStats::default();
+        let pixels = states[start..start + n]
+            .iter()
+            .zip(&pixels[start..start + n])
+            .map(|((state, rays), &(x, y))| {
+                stats.samples += iterations as u64;
+                stats.rays += rays;
+                let mut l = state.radiance(iterations, sppm.photons_per_iteration);
+                if !l.is_finite() {
+                    stats.nonfinite += 1;
+                    if stats.nonfinite_examples.len() < TileStats::MAX_EXAMPLES {
+                        stats.nonfinite_examples.push(SampleId { x, y, sample: 0 });
+                    }
+                    l = Color::ZERO;
+                }
+                scene.sensor.respond(l).to_array()
+            })
+            .collect();
+        results.push(TileResult {
+            rect,
+            pixels,
+            aovs: Vec::new(),
+            stats,
+        });
+        start += n;
+    }
+    Some(results)
+}
+
+/// One camera sample of a pixel: its sampler (past the film and lens dimensions), where it
+/// lies on the film and the lens, its instant, its filter weight, and the camera's ray with
+/// the camera's weight (None where a realistic camera's lens stops it).
+struct CameraSample {
+    sampler: PixelSampler,
+    film: Vec2,
+    lens: Vec2,
+    time: f32,
+    weight: f32,
+    ray: Option<(crate::math::Ray, f32)>,
+}
+
+fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) -> CameraSample {
+    let scene = &renderer.scene;
+    let mut sampler = PixelSampler::new(x, y, sample, renderer.settings.seed);
+    let (offset, weight) = scene.filter.sample(sampler.get_2d());
+    let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
+    let lens = sampler.get_2d();
+    // The sample's instant in the shutter, from a dimension of its own (so still scenes
+    // keep every other dimension as they were).
+    let time = if scene.has_motion {
+        let u = sampler.value(TIME_DIMENSION);
+        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * u
+    } else {
+        0.0
+    };
+    CameraSample {
+        sampler,
+        film,
+        lens,
+        time,
+        weight,
+        ray: scene.camera.generate_weighted_ray_at(film, lens, time),
+    }
 }
 
 /// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean.
@@ -316,21 +478,17 @@ fn render_sample_seeing(
 ) -> (Color, f32, Option<VisibleSurface>) {
     let (scene, settings) = (&renderer.scene, &renderer.settings);
     let mut seen = None;
-    let mut sampler = PixelSampler::new(x, y, sample, settings.seed);
-    let (offset, weight) = scene.filter.sample(sampler.get_2d());
-    let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
-    let lens = sampler.get_2d();
-    // The sample's instant in the shutter, from a dimension of its own (so still scenes
-    // keep every other dimension as they were).
-    let time = if scene.has_motion {
-        let u = sampler.value(TIME_DIMENSION);
-        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * u
-    } else {
-        0.0
-    };
+    let CameraSample {
+        mut sampler,
+        film,
+        lens,
+        time,
+        weight,
+        ray,
+    } = camera_sample(renderer, x, y, sample);
     let mut work = Work::default();
     // A realistic camera's lens may stop the ray (the sample counts, black) and weighs it.
-    let mut l = match scene.camera.generate_weighted_ray_at(film, lens, time) {
+    let mut l = match ray {
         Some((ray, camera_weight)) => {
             let l = settings.integrator.li(
                 &renderer.prepass,

@@ -245,6 +245,8 @@ pub enum LightSamplerKind {
 pub enum IntegratorKind {
     Path,
     VolPath,
+    /// pbrt-v4's stochastic progressive photon mapping (surfaces only, as pbrt-v4's).
+    Sppm,
 }
 
 #[derive(Debug, Clone)]
@@ -263,12 +265,53 @@ pub struct IntegratorDesc {
     pub regularize: bool,
     /// Clamp the radiance of each path sample to this value (0 disables it).
     pub max_radiance: f32,
-    /// Photons traced for the caustic photon maps (Kiln's "integer causticphotons"; 0:
-    /// none, pure path tracing).
-    pub caustic_photons: u64,
-    /// Their search radius ("float causticradius"; 0: 1/200 of the scene's radius).
-    pub caustic_radius: f32,
+    /// Kiln's photon maps (none unless asked for, or Integrator "photonmap").
+    pub photons: PhotonDesc,
+    /// SPPM's photons per iteration ("integer photonsperiteration"; None: pbrt-v4's default,
+    /// the number of pixels rendered).
+    pub sppm_photons: Option<u64>,
+    /// SPPM's initial search radius ("float radius", default 1).
+    pub sppm_radius: f32,
     pub loc: Loc,
+}
+
+/// Kiln's photon maps (seeds 003 and 004): on "path" and "volpath" with
+/// "integer causticphotons" or "integer volumephotons", or Integrator "photonmap", which
+/// turns both on by default.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhotonDesc {
+    /// Photons traced for the caustic maps ("integer causticphotons"; 0: none).
+    pub caustic_photons: u64,
+    /// Their search radius, or the k-nearest gather's largest ("float causticradius"; 0:
+    /// 1/200 of the scene's radius).
+    pub caustic_radius: f32,
+    /// Gather the k nearest caustic photons ("integer causticnearest"; 0: all within the
+    /// radius).
+    pub caustic_nearest: u32,
+    /// Photons traced for the volume map of multiply scattered light in media
+    /// ("integer volumephotons"; 0: none).
+    pub volume_photons: u64,
+    /// As `caustic_radius`, for the volume map ("float volumeradius"; 0: 1/50 of the
+    /// scene's radius).
+    pub volume_radius: f32,
+    /// As `caustic_nearest` ("integer volumenearest").
+    pub volume_nearest: u32,
+    /// Weight-aware Russian roulette while tracing photons ("string photonroulette":
+    /// "weight", the default, or "none").
+    pub roulette: bool,
+}
+
+impl PhotonDesc {
+    /// No photon maps.
+    pub const NONE: PhotonDesc = PhotonDesc {
+        caustic_photons: 0,
+        caustic_radius: 0.0,
+        caustic_nearest: 0,
+        volume_photons: 0,
+        volume_radius: 0.0,
+        volume_nearest: 0,
+        roulette: true,
+    };
 }
 
 /// Microfacet roughness along u and v, as the scene gives it.
@@ -813,6 +856,9 @@ pub enum LightKind {
 #[derive(Debug, Clone)]
 pub struct LightDesc {
     pub kind: LightKind,
+    /// The outside medium current at the LightSource directive: where photons from the light
+    /// start (pbrt-v4 records it the same way).
+    pub medium: Option<MediumId>,
     pub loc: Loc,
 }
 

@@ -84,10 +84,10 @@ impl Coordinator {
         spec: JobSpec,
         idempotency_key: Option<String>,
     ) -> Result<(u64, bool), Error> {
-        if let Some(k) = &idempotency_key {
-            if let Some(id) = self.lock().store.job_with_key(k)? {
-                return Ok((id, false));
-            }
+        if let Some(k) = &idempotency_key
+            && let Some(id) = self.lock().store.job_with_key(k)?
+        {
+            return Ok((id, false));
         }
         let (scenes, now) = (self.files().scenes(), self.now());
         let max_pixels = self.config().max_frame_pixels;
@@ -100,10 +100,10 @@ impl Coordinator {
         let id = {
             let mut state = self.lock();
             // A retry may have created it while this one planned.
-            if let Some(k) = &idempotency_key {
-                if let Some(id) = state.store.job_with_key(k)? {
-                    return Ok((id, false));
-                }
+            if let Some(k) = &idempotency_key
+                && let Some(id) = state.store.job_with_key(k)?
+            {
+                return Ok((id, false));
             }
             let id = state.store.insert_job(&spec, idempotency_key.as_deref())?;
             job.id = id;

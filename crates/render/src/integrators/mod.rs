@@ -1,8 +1,8 @@
 //! Integrators: the estimators that turn a camera ray into radiance.
 //!
 //! [`Integrator`] is built from the scene description's Integrator directive. Before any
-//! tile renders, [`Integrator::prepare`] runs the job's pre-passes once (the caustic photon
-//! maps, [`photons`]) into a [`Prepass`]; every camera ray then goes through
+//! tile renders, [`Integrator::prepare`] runs the job's pre-passes once (the photon maps,
+//! [`photons`]) into a [`Prepass`]; every camera ray then goes through
 //! [`Integrator::li`]. The path tracers' steps live in [`path`], next-event estimation and
 //! its weights in [`direct`].
 //!
@@ -11,14 +11,16 @@
 mod direct;
 mod path;
 pub mod photons;
+pub mod sppm;
 
-pub use photons::{CausticMaps, CausticSettings};
+pub use photons::{Gather, PhotonMaps, PhotonSettings, Roulette};
+pub use sppm::SppmSettings;
 
 use crate::math::{Color, Ray};
 use crate::sampling::PixelSampler;
 use crate::scene::Scene;
 use crate::work::Work;
-use kiln_scene::{IntegratorDesc, LightStrategy};
+use kiln_scene::{IntegratorDesc, LightStrategy, PhotonDesc};
 
 /// Where each bounce's sample dimensions start: 4 for the film and lens, then 8 per bounce.
 const CAMERA_DIMENSIONS: u32 = 4;
@@ -32,10 +34,8 @@ pub struct PathSettings {
     /// The first bounce after which Russian roulette may end a path.
     pub rr_depth: u32,
     pub strategy: LightStrategy,
-    /// Photons traced for the caustic photon maps (0: none, pure path tracing).
-    pub caustic_photons: u64,
-    /// Their search radius (0: 1/200 of the scene's radius).
-    pub caustic_radius: f32,
+    /// The photon maps to build (none: pure path tracing).
+    pub photons: PhotonDesc,
     /// pbrt-v4's "regularize": BSDFs met after a non-specular bounce are roughened.
     pub regularize: bool,
 }
@@ -46,8 +46,7 @@ impl PathSettings {
             max_depth: i.max_depth,
             rr_depth: i.rr_depth,
             strategy: i.strategy,
-            caustic_photons: i.caustic_photons,
-            caustic_radius: i.caustic_radius,
+            photons: i.photons,
             regularize: i.regularize,
         }
     }
@@ -61,15 +60,18 @@ pub enum Integrator {
     Path(PathSettings),
     /// pbrt-v4's "volpath": surfaces and participating media.
     VolPath(PathSettings),
+    /// pbrt-v4's "sppm": stochastic progressive photon mapping, iterations from the samples
+    /// per pixel; surfaces only, as pbrt-v4's. Rendered by [`crate::tile`]'s SPPM driver,
+    /// not through [`Integrator::li`].
+    Sppm(SppmSettings),
 }
 
 /// What an integrator computes once per job, before any tile: the same on every worker
 /// whatever its thread count, so tiles stay pure functions of (scene, settings, tile).
 #[derive(Debug, Clone, Default)]
 pub struct Prepass {
-    /// Caustic photon maps, when the integrator asks for them and the scene has lights
-    /// that shoot photons.
-    pub caustics: Option<CausticMaps>,
+    /// Photon maps, when the integrator asks for them and some light emits.
+    pub photons: Option<PhotonMaps>,
 }
 
 impl Integrator {
@@ -79,44 +81,77 @@ impl Integrator {
         match desc.kind {
             kiln_scene::IntegratorKind::Path => Integrator::Path(settings),
             kiln_scene::IntegratorKind::VolPath => Integrator::VolPath(settings),
+            kiln_scene::IntegratorKind::Sppm => Integrator::Sppm(SppmSettings {
+                max_depth: desc.max_depth,
+                // Resolved from the pixels rendered by RenderSettings::from_description.
+                photons_per_iteration: desc.sppm_photons.unwrap_or(0),
+                radius: desc.sppm_radius,
+            }),
         }
     }
 
     /// Whether the scene must be built with its participating media.
     pub fn renders_media(&self) -> bool {
         match self {
-            Integrator::Path(_) => false,
+            Integrator::Path(_) | Integrator::Sppm(_) => false,
             Integrator::VolPath(_) => true,
         }
     }
 
-    pub fn path_settings(&self) -> &PathSettings {
+    /// The path tracer's settings; None for SPPM.
+    pub fn path_settings(&self) -> Option<&PathSettings> {
         match self {
-            Integrator::Path(s) | Integrator::VolPath(s) => s,
+            Integrator::Path(s) | Integrator::VolPath(s) => Some(s),
+            Integrator::Sppm(_) => None,
         }
     }
 
     /// Runs the pre-passes this integrator needs on `scene`.
     pub fn prepare(&self, scene: &Scene) -> Prepass {
-        let settings = self.path_settings();
-        if settings.caustic_photons == 0 {
+        let Some(settings) = self.photon_settings(scene) else {
             return Prepass::default();
-        }
-        let radius = if settings.caustic_radius > 0.0 {
-            settings.caustic_radius
-        } else {
-            scene.radius / 200.0
         };
-        let maps = CausticMaps::build(
-            scene,
-            CausticSettings {
-                photons: settings.caustic_photons,
-                radius,
-            },
-        );
+        let maps = PhotonMaps::build(scene, &settings);
         Prepass {
-            caustics: (!maps.is_empty()).then_some(maps),
+            photons: (!maps.is_empty()).then_some(maps),
         }
+    }
+
+    /// The photon pass this integrator asks for on `scene`, with its automatic radii
+    /// resolved; None for none.
+    pub fn photon_settings(&self, scene: &Scene) -> Option<PhotonSettings> {
+        let settings = self.path_settings()?;
+        let p = &settings.photons;
+        // Without media there is nothing for a volume map to hold.
+        let volume_photons = if scene.media.is_empty() {
+            0
+        } else {
+            p.volume_photons
+        };
+        if p.caustic_photons == 0 && volume_photons == 0 {
+            return None;
+        }
+        let gather = |radius: f32, automatic: f32, k: u32| {
+            let r = if radius > 0.0 { radius } else { automatic };
+            if k == 0 {
+                Gather::Radius(r)
+            } else {
+                Gather::Nearest { k, max_radius: r }
+            }
+        };
+        Some(PhotonSettings {
+            caustic_photons: p.caustic_photons,
+            caustic_gather: gather(p.caustic_radius, scene.radius / 200.0, p.caustic_nearest),
+            volume_photons,
+            volume_gather: gather(p.volume_radius, scene.radius / 50.0, p.volume_nearest),
+            max_depth: settings.max_depth,
+            roulette: if p.roulette {
+                Roulette::WeightAware
+            } else {
+                Roulette::Off
+            },
+            index: None,
+        })
     }
 
     /// Radiance arriving along `ray`; `work` counts what it cost. Textures filter over the
@@ -145,6 +180,8 @@ impl Integrator {
                 };
                 path::path_li(&ctx, ray, sampler, work, visible)
             }
+            // SPPM's pixels come from its own driver; a single camera ray has no estimate.
+            Integrator::Sppm(_) => Color::ZERO,
         }
     }
 }

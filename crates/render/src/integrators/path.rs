@@ -61,12 +61,21 @@ struct PathState {
     /// With caustic photon maps: specular bounces since the last vertex that gathered
     /// photons (None before the first).
     specular_since_gather: Option<u32>,
+    /// The path gathered a volume photon map's estimate at its last vertex: its current
+    /// segment only collects emission, and it ends at the next scattering.
+    ending: bool,
     /// For a G-buffer: whether to note the first surface with a BSDF, and what it was.
     want_visible: bool,
     visible: Option<VisibleSurface>,
 }
 
 impl PathState {
+    /// Whether the path reached its current segment through one or more specular bounces
+    /// from a vertex that gathered caustic photons, which counted the light it would find.
+    fn after_caustic_gather(&self) -> bool {
+        matches!(self.specular_since_gather, Some(k) if k > 0)
+    }
+
     /// Russian roulette after a scattering event: the path goes on, or stops.
     fn roulette(&mut self, settings: &PathSettings, sampler: &mut PixelSampler) -> Next {
         if survives_roulette(
@@ -116,6 +125,7 @@ pub(super) fn path_li(
         medium: ctx.scene.camera_medium,
         segments: 0,
         specular_since_gather: None,
+        ending: false,
         want_visible: visible.is_some(),
         visible: None,
     };
@@ -177,9 +187,11 @@ fn medium_step(
         state.prev_n,
         state.prev_pdf,
     );
+    // As in pbrt-v4, the segment after the last scattering (maxdepth) counts no emission;
+    // nor does a segment reached through specular bounces from a vertex that gathered
+    // caustic photons (the emissive media's photons counted it there).
+    let counts = state.depth < settings.max_depth && !state.after_caustic_gather();
     let l = &mut state.l;
-    // As in pbrt-v4, the segment after the last scattering (maxdepth) counts no emission.
-    let counts = state.depth < settings.max_depth;
     let event = med.sample_interaction(ray, t_max, &mut rng, &mut state.beta, |e| match e {
         _ if !counts => {}
         Emitted::Segment(c) => *l += c,
@@ -209,18 +221,23 @@ fn medium_step(
         }
         MediumEvent::Scattered(t) => t,
     };
-    if state.depth == settings.max_depth {
+    if state.depth == settings.max_depth || state.ending {
         return Next::Stop;
     }
     state.depth += 1;
     let p = ray.at(t);
     let phase = med.phase();
     let wo = -ray.dir;
-    if let Some(maps) = &ctx.prepass.caustics {
-        // Caustic light scattered here, from the volume photon map; the throughput already
-        // holds sigma_s, the estimate divides it out.
+    // With a volume map the path ends here: the map holds all light scattered here but the
+    // direct, which next-event estimation adds with full weight.
+    let mut ends_here = false;
+    if let Some(maps) = &ctx.prepass.photons
+        && (maps.has_volume_map() || maps.caustics)
+    {
+        // Light scattered here from the photons; the throughput already holds sigma_s, the
+        // estimate divides it out.
         let sigma_s = med.sigma_s_at(p);
-        let lv = maps.volume_radiance(p, wo, |a, b| phase.p(a, b));
+        let lv = maps.medium_radiance(p, wo, |a, b| phase.p(a, b));
         let inv = Color::select(
             sigma_s.cmpgt(Color::ZERO),
             Color::ONE / sigma_s,
@@ -228,6 +245,7 @@ fn medium_step(
         );
         state.l += state.beta * lv * inv;
         state.specular_since_gather = Some(0);
+        ends_here = maps.has_volume_map();
     }
     let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.depth - 1);
     sampler.set_dimension(base);
@@ -262,6 +280,9 @@ fn medium_step(
     if let Some((volume, _)) = state.inside {
         state.inside = Some((volume, true));
     }
+    // After a volume map's gather, the phase-sampled segment only looks for the light the
+    // map leaves out (the direct light, weighed against the light sample as usual).
+    state.ending |= ends_here;
     state.roulette(settings, sampler)
 }
 
@@ -286,6 +307,10 @@ fn interior_segment(scene: &Scene, state: &mut PathState, ray: &Ray, found: Opti
 /// A ray that left the scene: the lights at infinity.
 fn escape(ctx: &PathContext, state: &mut PathState, ray: &Ray) {
     let scene = ctx.scene;
+    // The caustic photons of the lights at infinity counted this path's light.
+    if state.after_caustic_gather() {
+        return;
+    }
     for &i in &scene.infinite_lights {
         let le = scene.lights[i as usize].infinite_le(ray.origin, ray.dir);
         if le != Color::ZERO {
@@ -323,8 +348,8 @@ fn surface_emission(
     };
     let light = &scene.lights[light_id as usize];
     // Reached through specular bounces from a vertex that gathered caustic photons: the
-    // photon map has already counted the lights that shoot photons.
-    if matches!(state.specular_since_gather, Some(k) if k > 0) && light.shoots_photons() {
+    // photon map has already counted it (every light shoots photons).
+    if state.after_caustic_gather() {
         return;
     }
     let (le, traced) = light.le(&scene.light_context(), hit.p, hit.ng, hit.ns, -ray.dir);
@@ -396,6 +421,9 @@ fn surface_step(
         *ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
         return Next::Continue;
     };
+    if state.ending {
+        return Next::Stop;
+    }
     if state.depth == 0 && state.want_visible {
         state.visible = Some(visible_surface(hit, &bsdf, -ray.dir));
     }
@@ -408,7 +436,7 @@ fn surface_step(
     state.depth += 1;
     let frame = Frame::new(hit.ns, hit.dpdu);
     let wo = frame.to_local(-ray.dir);
-    if let Some(maps) = &ctx.prepass.caustics {
+    if let Some(maps) = ctx.prepass.photons.as_ref().filter(|m| m.caustics) {
         if bsdf.is_specular() {
             state.specular_since_gather = state.specular_since_gather.map(|k| k + 1);
         } else {

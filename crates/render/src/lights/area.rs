@@ -4,7 +4,7 @@
 
 use super::LightSample;
 use crate::math::{Color, luminance};
-use crate::sampling::{uniform_sphere, uniform_triangle};
+use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle};
 use crate::shapes::quadric::QuadricPoint;
 use crate::shapes::sphere::{sample_sphere, sphere_pdf, sphere_uv};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
@@ -128,6 +128,27 @@ pub struct EmissionPoint {
     pub radiance: Color,
     pub area: f32,
     pub two_sided: bool,
+}
+
+impl EmissionPoint {
+    /// A photon leaving the point in a cosine-distributed direction (on a side chosen by
+    /// `uc` for a two-sided light): flux = L A pi, twice that for two sides.
+    pub fn emit(self, u: Vec2, uc: f32) -> Option<super::EmittedRay> {
+        if self.radiance == Color::ZERO || self.area <= 0.0 {
+            return None;
+        }
+        let (n, sides) = match (self.two_sided, uc < 0.5) {
+            (false, _) => (self.n, 1.0),
+            (true, true) => (self.n, 2.0),
+            (true, false) => (-self.n, 2.0),
+        };
+        Some(super::EmittedRay {
+            origin: self.p,
+            dir: crate::math::Frame::from_z(n).to_world(cosine_hemisphere(u)),
+            n,
+            flux: self.radiance * (self.area * PI * sides),
+        })
+    }
 }
 
 /// Radiance leaving a diffuse emitter's point with normal `n` in direction `w`.

@@ -257,6 +257,15 @@ impl ImageInfiniteLight {
         ))
     }
 
+    /// A direction towards the map by its own distribution, whatever the portal (photons
+    /// leave the map from outside the scene, where a portal does not choose directions).
+    pub fn sample_direction(&self, u: Vec2) -> Option<LightSample> {
+        let (uv, pdf_uv) = self.distribution.sample(u);
+        let (wi, jacobian) = self.uv_to_dir(uv);
+        (pdf_uv > 0.0 && jacobian > 0.0)
+            .then(|| LightSample::at_infinity(self.lookup(uv), wi, pdf_uv / jacobian))
+    }
+
     /// The radiance along the ray from `origin` in direction `w` that left the scene.
     pub fn le(&self, origin: Vec3A, w: Vec3A) -> Color {
         if let Some(portal) = &self.portal

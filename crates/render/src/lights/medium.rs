@@ -50,6 +50,23 @@ impl MediumLight {
         })
     }
 
+    /// A photon leaving a point drawn by the emission distribution in a uniform direction:
+    /// flux = source * 4 pi / (density of the point).
+    pub fn emit(&self, ctx: &LightContext, u: [Vec2; 2], uc: f32) -> Option<super::EmittedRay> {
+        let Medium::Grid(g) = &ctx.media[self.medium as usize] else {
+            return None;
+        };
+        let mut rng = TrackingRng::from_values(&[u[0].x, u[0].y, uc], 2);
+        let (q, pdf_volume) = g.sample_emission([u[0].x, u[0].y, uc], &mut rng)?;
+        let source = g.source(g.to_box(q));
+        (pdf_volume > 0.0 && source != Color::ZERO).then(|| super::EmittedRay {
+            origin: q,
+            dir: crate::sampling::uniform_sphere(u[1]),
+            n: Vec3A::ZERO,
+            flux: source * (4.0 * std::f32::consts::PI / pdf_volume),
+        })
+    }
+
     /// The density, per unit solid angle and length, with which choosing this light with
     /// probability `pmf` and sampling it from `p` gives the point `q`.
     pub fn pdf(&self, ctx: &LightContext, pmf: f32, p: Vec3A, q: Vec3A) -> f32 {

@@ -407,43 +407,91 @@ impl Light {
         }
     }
 
-    /// Whether photons leave this light (the caustic photon maps trace them from diffuse
-    /// area lights only; the path tracer keeps counting the caustics of the others).
-    pub fn shoots_photons(&self) -> bool {
+    /// A ray leaving the light, for photon tracing: a point and direction drawn from two 2D
+    /// samples and one 1D sample, with the flux it carries (emitted radiance times cosine
+    /// over the density of the point and direction: each kind's photons together carry its
+    /// power), and the rays traced to find it. Lights at infinity shine onto a disk as wide
+    /// as `sphere`, the scene's bounding sphere. None where the sample emits nothing.
+    pub fn emit(
+        &self,
+        ctx: &LightContext,
+        sphere: SceneSphere,
+        u: [Vec2; 2],
+        uc: f32,
+    ) -> (Option<EmittedRay>, u64) {
         match self {
-            Light::Triangle(_) | Light::Sphere(_) | Light::Quadric(_) => true,
-            Light::Point(_)
-            | Light::Spot(_)
-            | Light::Goniometric(_)
-            | Light::Projection(_)
-            | Light::Distant(_)
-            | Light::VolumeTriangle(_)
-            | Light::VolumeSphere(_)
-            | Light::Medium(_)
-            | Light::UniformInfinite(_)
-            | Light::ImageInfinite(_)
-            | Light::Dome(_) => false,
+            Light::Point(l) => (point_emission(l.position, u[0], |p| l.sample(p)), 0),
+            Light::Spot(l) => (l.emit(u[0]), 0),
+            Light::Goniometric(l) => (point_emission(l.position, u[0], |p| l.sample(p)), 0),
+            Light::Projection(l) => (point_emission(l.position, u[0], |p| l.sample(p)), 0),
+            Light::Distant(l) => (Some(sphere.parallel(l.direction, u[0], l.radiance)), 0),
+            Light::Triangle(l) => (l.emission_point(ctx.geometry, u[0]).emit(u[1], uc), 0),
+            Light::Sphere(l) => (l.emission_point(ctx.geometry, u[0]).emit(u[1], uc), 0),
+            Light::Quadric(l) => (l.emission_point(ctx.geometry, u[0]).emit(u[1], uc), 0),
+            Light::VolumeTriangle(l) => l.emit(ctx, u),
+            Light::VolumeSphere(l) => l.emit(ctx, u),
+            Light::Medium(l) => (l.emit(ctx, u, uc), 0),
+            Light::UniformInfinite(l) => (at_infinity(sphere, l.sample(u[0]), u[1]), 0),
+            Light::ImageInfinite(l) => (at_infinity(sphere, l.sample_direction(u[0]), u[1]), 0),
+            Light::Dome(l) => (at_infinity(sphere, l.sample(u[0]), u[1]), 0),
         }
     }
+}
 
-    /// A point from which a photon leaves the light, from a 2D sample (None for the lights
-    /// that do not [shoot photons](Light::shoots_photons)).
-    pub fn emission_point(&self, ctx: &LightContext, u: Vec2) -> Option<EmissionPoint> {
-        match self {
-            Light::Triangle(l) => Some(l.emission_point(ctx.geometry, u)),
-            Light::Sphere(l) => Some(l.emission_point(ctx.geometry, u)),
-            Light::Quadric(l) => Some(l.emission_point(ctx.geometry, u)),
-            Light::Point(_)
-            | Light::Spot(_)
-            | Light::Goniometric(_)
-            | Light::Projection(_)
-            | Light::Distant(_)
-            | Light::VolumeTriangle(_)
-            | Light::VolumeSphere(_)
-            | Light::Medium(_)
-            | Light::UniformInfinite(_)
-            | Light::ImageInfinite(_)
-            | Light::Dome(_) => None,
+/// A ray that leaves a light, for photon tracing (see [`Light::emit`]).
+#[derive(Debug, Clone, Copy)]
+pub struct EmittedRay {
+    pub origin: Vec3A,
+    pub dir: Vec3A,
+    /// The normal of the surface it leaves, on the side it leaves by (zero for points, media
+    /// and lights at infinity).
+    pub n: Vec3A,
+    /// Flux: radiance times cosine over the sample's density.
+    pub flux: Color,
+}
+
+/// The scene's bounding sphere.
+#[derive(Debug, Clone, Copy)]
+pub struct SceneSphere {
+    pub center: Vec3A,
+    pub radius: f32,
+}
+
+impl SceneSphere {
+    /// A ray of a parallel beam arriving from direction `wi` (towards the light) with
+    /// `radiance`: from a uniform point of the disk that covers the sphere, across it.
+    fn parallel(&self, wi: Vec3A, u: Vec2, radiance: Color) -> EmittedRay {
+        let frame = Frame::from_z(wi);
+        let d = crate::sampling::concentric_disk(u) * self.radius;
+        let origin = self.center + wi * self.radius + frame.x * d.x + frame.y * d.y;
+        EmittedRay {
+            origin,
+            dir: -wi,
+            n: Vec3A::ZERO,
+            flux: radiance * (std::f32::consts::PI * self.radius * self.radius),
         }
     }
+}
+
+/// A photon from a light at infinity: its sampled direction, then a parallel beam.
+fn at_infinity(sphere: SceneSphere, s: Option<LightSample>, u: Vec2) -> Option<EmittedRay> {
+    let s = s.filter(|s| s.pdf > 0.0 && s.radiance != Color::ZERO)?;
+    Some(sphere.parallel(s.wi, u, s.radiance / s.pdf))
+}
+
+/// A photon from a point light, in a uniform direction; `sample` is the light's own sampling
+/// from a reference point, here one unit away, which gives the intensity that way.
+fn point_emission(
+    position: Vec3A,
+    u: Vec2,
+    sample: impl Fn(Vec3A) -> Option<LightSample>,
+) -> Option<EmittedRay> {
+    let dir = crate::sampling::uniform_sphere(u);
+    let intensity = sample(position + dir)?.radiance;
+    (intensity != Color::ZERO).then(|| EmittedRay {
+        origin: position,
+        dir,
+        n: Vec3A::ZERO,
+        flux: intensity * (4.0 * std::f32::consts::PI),
+    })
 }

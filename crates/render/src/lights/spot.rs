@@ -51,6 +51,24 @@ impl SpotLight {
     }
 }
 
+impl SpotLight {
+    /// A photon in a uniform direction of the cone the spot lights.
+    pub fn emit(&self, u: glam::Vec2) -> Option<super::EmittedRay> {
+        let cos_end = self.cos_end.clamp(-1.0, 1.0);
+        let dir = self
+            .frame
+            .to_world(crate::sampling::uniform_cone(u, cos_end));
+        let falloff = smoothstep(self.cos_end, self.cos_start, dir.dot(self.frame.z));
+        let pdf = 1.0 / (2.0 * PI * (1.0 - cos_end));
+        (falloff > 0.0 && pdf.is_finite()).then(|| super::EmittedRay {
+            origin: self.position,
+            dir,
+            n: Vec3A::ZERO,
+            flux: self.intensity * (falloff / pdf),
+        })
+    }
+}
+
 fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
     if a == b {
         return if x < a { 0.0 } else { 1.0 };

@@ -9,7 +9,7 @@
 //! The integrator also adds the emission of interior segments that paths travel after
 //! reflecting inside ([`VolumeInterior::segment`]).
 
-use super::{LightContext, LightSample};
+use super::{EmittedRay, LightContext, LightSample};
 use crate::bsdfs::{fresnel_dielectric, refract};
 use crate::math::{Color, Frame, Ray, luminance};
 use crate::media::SampledGrid;
@@ -66,6 +66,38 @@ impl VolumeTriangleLight {
     pub fn pdf(&self, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
         triangle_pdf(self.area, p, wi, q, n)
     }
+
+    /// A photon from a uniform point of the face in a cosine-distributed outward direction,
+    /// carrying the radiance the interior sends that way (as [`volume_le`] gives it to
+    /// camera paths) times the face's area and pi.
+    pub fn emit(&self, ctx: &LightContext, u: [Vec2; 2]) -> (Option<EmittedRay>, u64) {
+        let (q, ng, ns) = ctx.geometry.surface_point(self.tri, uniform_triangle(u[0]));
+        emit_outward(ctx, self.volume, q, ng, ns, self.n, self.area, u[1])
+    }
+}
+
+/// A photon leaving a VolumeLight's surface point `q` (normals `ng`, `ns` as hits have them;
+/// `out` its outward normal) in a cosine-distributed outward direction.
+#[allow(clippy::too_many_arguments)]
+fn emit_outward(
+    ctx: &LightContext,
+    volume: u32,
+    q: Vec3A,
+    ng: Vec3A,
+    ns: Vec3A,
+    out: Vec3A,
+    area: f32,
+    u: Vec2,
+) -> (Option<EmittedRay>, u64) {
+    let dir = Frame::from_z(out).to_world(cosine_hemisphere(u));
+    let (le, rays) = volume_le(ctx, volume, q, ng, ns, dir);
+    let ray = (le != Color::ZERO).then(|| EmittedRay {
+        origin: q,
+        dir,
+        n: out,
+        flux: le * (area * PI),
+    });
+    (ray, rays)
 }
 
 impl VolumeSphereLight {
@@ -87,6 +119,22 @@ impl VolumeSphereLight {
 
     pub fn pdf(&self, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
         sphere_pdf(self.center, self.radius, p, wi, q, n)
+    }
+
+    /// A photon as [`VolumeTriangleLight::emit`] gives one, from a uniform point of the sphere.
+    pub fn emit(&self, ctx: &LightContext, u: [Vec2; 2]) -> (Option<EmittedRay>, u64) {
+        let n = uniform_sphere(u[0]);
+        let area = 4.0 * PI * self.radius * self.radius;
+        emit_outward(
+            ctx,
+            self.volume,
+            self.center + n * self.radius,
+            n,
+            n,
+            n,
+            area,
+            u[1],
+        )
     }
 }
 

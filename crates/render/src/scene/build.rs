@@ -916,7 +916,13 @@ impl Scene {
         let (lo, hi) = geometry.bounds();
         let radius = ((hi - lo).length() / 2.0).max(1e-3);
         let mut lights = b.lights;
-        lights.extend(desc.lights.iter().map(|l| Light::from_description(&l.kind)));
+        let mut light_media = b.light_media;
+        light_media.resize(lights.len(), None);
+        for l in &desc.lights {
+            lights.push(Light::from_description(&l.kind));
+            // A light in space starts its photons in the medium it was declared in.
+            light_media.push(l.medium.filter(|_| b.use_media).map(|m| [m.0, m.0]));
+        }
         let infinite_lights = lights
             .iter()
             .enumerate()
@@ -972,7 +978,7 @@ impl Scene {
                 .collect(),
             camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
             medium_lights: Vec::new(),
-            light_media: b.light_media,
+            light_media,
         };
         scene.light_media.resize(scene.lights.len(), None);
         // Each emissive grid medium is a light, sampled by its emission distribution.

@@ -445,43 +445,43 @@ impl Geometry {
     /// True when nothing blocks the segment from `origin` along `dir` up to `tmax`.
     pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, tmax: f32, time: f32) -> bool {
         let bray = bvh_ray(origin, dir, 0.0, tmax);
-        if let Some(bvh) = &self.triangle_bvh {
-            if !bvh.ray_traverse_miss(bray, |r, id| self.triangle_t(r, id)) {
-                return false;
-            }
+        if let Some(bvh) = &self.triangle_bvh
+            && !bvh.ray_traverse_miss(bray, |r, id| self.triangle_t(r, id))
+        {
+            return false;
         }
-        if let Some(bvh) = &self.sphere_bvh {
-            if !bvh.ray_traverse_miss(bray, |r, id| {
+        if let Some(bvh) = &self.sphere_bvh
+            && !bvh.ray_traverse_miss(bray, |r, id| {
                 self.sphere_t(r, bvh.primitive_indices[id], 1e-7)
-            }) {
-                return false;
-            }
+            })
+        {
+            return false;
         }
-        if let Some(bvh) = &self.quadric_bvh {
-            if !bvh.ray_traverse_miss(bray, |r, id| {
+        if let Some(bvh) = &self.quadric_bvh
+            && !bvh.ray_traverse_miss(bray, |r, id| {
                 self.quadric_t(r, bvh.primitive_indices[id], 1e-7)
-            }) {
-                return false;
-            }
+            })
+        {
+            return false;
         }
-        if let Some(bvh) = &self.curve_bvh {
-            if !bvh.ray_traverse_miss(bray, |r, id| {
+        if let Some(bvh) = &self.curve_bvh
+            && !bvh.ray_traverse_miss(bray, |r, id| {
                 self.curve_t(r.origin, r.direction, bvh.primitive_indices[id], r.tmax)
-            }) {
-                return false;
-            }
+            })
+        {
+            return false;
         }
-        if let Some(bvh) = &self.mover_bvh {
-            if !bvh.ray_traverse_miss(bray, |r, id| {
+        if let Some(bvh) = &self.mover_bvh
+            && !bvh.ray_traverse_miss(bray, |r, id| {
                 self.prims.movers[bvh.primitive_indices[id] as usize].hit_t(
                     r.origin,
                     r.direction,
                     r.tmax,
                     time,
                 )
-            }) {
-                return false;
-            }
+            })
+        {
+            return false;
         }
         true
     }

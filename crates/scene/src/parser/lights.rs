@@ -271,8 +271,10 @@ impl Parser {
             }
         };
         self.check_unused(params, &format!("LightSource '{ty}'"), &[])?;
+        let medium = self.medium_id(&self.gs.media.1);
         self.lights.push(LightDesc {
             kind,
+            medium,
             loc: loc.clone(),
         });
         Ok(())

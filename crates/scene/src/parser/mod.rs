@@ -479,13 +479,14 @@ impl Parser {
     fn finish(mut self, file: &Arc<PathBuf>) -> Result<SceneDescription> {
         let end = Loc::new(file, 0);
         if let Some(i) = &self.integrator
-            && i.kind == IntegratorKind::Path
+            && matches!(i.kind, IntegratorKind::Path | IntegratorKind::Sppm)
             && !self.media.is_empty()
         {
             let loc = i.loc.clone();
+            let name = i.name.clone();
             self.warn(
                 &loc,
-                "Integrator 'path' ignores participating media, as pbrt-v4's does; 'volpath' renders them",
+                format!("Integrator '{name}' ignores participating media, as pbrt-v4's does; 'volpath' renders them"),
             );
         }
         if let Some((_, loc, _)) = self.stack.last() {
@@ -546,8 +547,9 @@ impl Parser {
                 light_sampler: LightSamplerKind::Bvh,
                 regularize: false,
                 max_radiance: 0.0,
-                caustic_photons: 0,
-                caustic_radius: 0.0,
+                photons: PhotonDesc::NONE,
+                sppm_photons: None,
+                sppm_radius: 1.0,
                 loc: Loc::synthetic("default integrator"),
             }),
             materials: self.materials,

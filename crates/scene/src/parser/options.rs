@@ -194,13 +194,13 @@ impl Parser {
                 ));
             }
         };
-        if let Projection::Perspective { fov_degrees } = projection {
-            if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
-                return Err(SceneError::at(
-                    loc,
-                    format!("Camera: fov {fov_degrees} is not between 0 and 180 degrees"),
-                ));
-            }
+        if let Projection::Perspective { fov_degrees } = projection
+            && !(fov_degrees > 0.0 && fov_degrees < 180.0)
+        {
+            return Err(SceneError::at(
+                loc,
+                format!("Camera: fov {fov_degrees} is not between 0 and 180 degrees"),
+            ));
         }
         let screen_window = match params.floats("screenwindow")? {
             // pbrt-v4 derives the screen window from "frameaspectratio" where it is given
@@ -552,9 +552,9 @@ impl Parser {
     pub(super) fn integrator(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_options(loc, "Integrator")?;
         match ty {
-            "path" | "volpath" => {}
-            "bdpt" | "mlt" | "sppm" | "lightpath" | "simplepath" | "simplevolpath"
-            | "randomwalk" | "ambientocclusion" | "aov" => {
+            "path" | "volpath" | "photonmap" | "sppm" => {}
+            "bdpt" | "mlt" | "lightpath" | "simplepath" | "simplevolpath" | "randomwalk"
+            | "ambientocclusion" | "aov" => {
                 self.warn(loc, format!("Integrator '{ty}' is not in Kiln; using its path tracer ('path'), which converges to the same image for the features Kiln supports"));
                 for p in [
                     "radius",
@@ -623,24 +623,20 @@ impl Parser {
                 ));
             }
         };
-        // Kiln's caustic photon maps (seeds 003 and 004), off unless asked for.
-        let caustic_photons = params.int("causticphotons", 0)?;
-        let caustic_radius = params.float("causticradius", 0.0)? as f32;
-        // Each stored photon takes 64 bytes: 5 * 10^7 of them is at most 3.2 GB.
-        if !(0..=50_000_000).contains(&caustic_photons) || caustic_radius < 0.0 {
-            return Err(SceneError::at(
-                loc,
-                "Integrator: causticphotons must be 0 to 5*10^7 (each stored photon takes 64 bytes) and causticradius not negative",
-            ));
-        }
+        let photons = self.photon_params(ty, params, loc)?;
+        let (sppm_photons, sppm_radius) = if ty == "sppm" {
+            self.sppm_params(params, loc)?
+        } else {
+            (None, 1.0)
+        };
         let regularize = params.bool("regularize", false)?;
         self.check_unused(params, "Integrator", &[])?;
         self.integrator = Some(IntegratorDesc {
             name: ty.to_string(),
-            kind: if ty == "path" {
-                IntegratorKind::Path
-            } else {
-                IntegratorKind::VolPath
+            kind: match ty {
+                "path" => IntegratorKind::Path,
+                "sppm" => IntegratorKind::Sppm,
+                _ => IntegratorKind::VolPath,
             },
             max_depth: max_depth as u32,
             rr_depth: rr_depth as u32,
@@ -648,11 +644,106 @@ impl Parser {
             light_sampler,
             regularize,
             max_radiance,
-            caustic_photons: caustic_photons as u64,
-            caustic_radius,
+            photons,
+            sppm_photons,
+            sppm_radius,
             loc: loc.clone(),
         });
         Ok(())
+    }
+
+    /// pbrt-v4's SPPM parameters: photons per iteration (-1, the default: one per pixel
+    /// rendered) and the initial radius. Its "seed" is read and not used: Kiln's photons
+    /// are seeded by the sampler's seed.
+    fn sppm_params(&mut self, params: &ParamSet, loc: &Loc) -> Result<(Option<u64>, f32)> {
+        let photons = params.int("photonsperiteration", -1)?;
+        if !(photons == -1 || (1..=50_000_000).contains(&photons)) {
+            return Err(SceneError::at(
+                &params
+                    .loc_of("photonsperiteration")
+                    .unwrap_or_else(|| loc.clone()),
+                format!(
+                    "Integrator 'sppm': photonsperiteration must be -1 (one per pixel) or 1 to 5*10^7, not {photons}"
+                ),
+            ));
+        }
+        let radius = params.float("radius", 1.0)?;
+        if !(radius > 0.0 && radius.is_finite()) {
+            return Err(SceneError::at(
+                &params.loc_of("radius").unwrap_or_else(|| loc.clone()),
+                format!("Integrator 'sppm': radius must be a positive distance, not {radius}"),
+            ));
+        }
+        if params.int("seed", 0).is_ok() && params.loc_of("seed").is_some() {
+            self.warn(
+                loc,
+                "Integrator 'sppm': \"seed\" is not used; Kiln seeds photons from the Sampler's seed (or --seed)",
+            );
+        }
+        params.mark_used("seed");
+        Ok(((photons > 0).then_some(photons as u64), radius as f32))
+    }
+
+    /// Kiln's photon-map parameters; "photonmap" turns both maps on by default (seed 003:
+    /// 100,000 volume photons, the 100 nearest gathered).
+    fn photon_params(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<PhotonDesc> {
+        let on = ty == "photonmap";
+        let count = |name: &str, default: i64| -> Result<u64> {
+            let n = params.int(name, default)?;
+            // Each stored photon takes 64 bytes: 5 * 10^7 of them is at most 3.2 GB.
+            if !(0..=50_000_000).contains(&n) {
+                return Err(SceneError::at(
+                    &params.loc_of(name).unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "Integrator: {name} must be 0 to 5*10^7 (each stored photon takes 64 bytes), not {n}"
+                    ),
+                ));
+            }
+            Ok(n as u64)
+        };
+        let radius = |name: &str| -> Result<f32> {
+            let r = params.float(name, 0.0)?;
+            if !(r >= 0.0 && r.is_finite()) {
+                return Err(SceneError::at(
+                    &params.loc_of(name).unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "Integrator: {name} must be 0 (automatic) or a positive distance, not {r}"
+                    ),
+                ));
+            }
+            Ok(r as f32)
+        };
+        let nearest = |name: &str, default: i64| -> Result<u32> {
+            let k = params.int(name, default)?;
+            if !(0..=10_000).contains(&k) {
+                return Err(SceneError::at(
+                    &params.loc_of(name).unwrap_or_else(|| loc.clone()),
+                    format!("Integrator: {name} must be 0 (a fixed radius) to 10000, not {k}"),
+                ));
+            }
+            Ok(k as u32)
+        };
+        let roulette = match params.string("photonroulette")?.as_deref() {
+            None | Some("weight") => true,
+            Some("none") => false,
+            Some(other) => {
+                return Err(SceneError::at(
+                    &params
+                        .loc_of("photonroulette")
+                        .unwrap_or_else(|| loc.clone()),
+                    format!("Integrator: photonroulette '{other}' is unknown (weight or none)"),
+                ));
+            }
+        };
+        Ok(PhotonDesc {
+            caustic_photons: count("causticphotons", if on { 200_000 } else { 0 })?,
+            caustic_radius: radius("causticradius")?,
+            caustic_nearest: nearest("causticnearest", 0)?,
+            volume_photons: count("volumephotons", if on { 100_000 } else { 0 })?,
+            volume_radius: radius("volumeradius")?,
+            volume_nearest: nearest("volumenearest", if on { 100 } else { 0 })?,
+            roulette,
+        })
     }
 }
 

@@ -419,7 +419,7 @@ fn validate_mesh(
     what: &str,
     loc: &Loc,
 ) -> Result<TriangleMeshData> {
-    if indices.len() % stride != 0 {
+    if !indices.len().is_multiple_of(stride) {
         return Err(SceneError::at(
             loc,
             format!(

@@ -1,0 +1,437 @@
+//! Photon maps (seeds 003 and 004). Light that reaches a diffuse surface or a medium only
+//! through specular surfaces (a glass lens focusing a small light) is nearly impossible for
+//! a path tracer to find from the camera and easy to find from the lights; light scattered
+//! many times in a medium is slow to converge either way. Photons are traced from every
+//! light, chosen in proportion to its power ([`Light::emit`]), and stored in three maps:
+//!
+//! - the **caustic surface map**: where a photon first meets a non-specular surface after
+//!   one or more specular bounces and nothing else (paths L S+ D);
+//! - the **caustic volume map**: where such a photon first scatters in a medium, when no
+//!   volume map is built;
+//! - the **volume map**: every scattering event in a medium after the photon's first event
+//!   of any kind (light scattered once or more before; direct light is left to next-event
+//!   estimation so that it is not counted twice). These photons go on after scattering.
+//!
+//! Free flights through media use the path tracer's own sampling (delta and ratio tracking
+//! for grids), so interaction points are unbiased by construction. With weight-aware
+//! Russian roulette ([`Roulette::WeightAware`]) a photon survives each event with a
+//! probability that is its throughput over its starting power, and carries its power
+//! divided by that: stored photons carry nearly equal power, with no bright outliers.
+//!
+//! The maps are built once per render, before any tile, from a fixed number of photons
+//! with seeds that depend only on the photon's index, in batches whose results are joined
+//! in order: every worker builds the same maps whatever its thread count.
+//!
+//! [`Light::emit`]: crate::lights::Light::emit
+
+pub mod map;
+
+pub use map::{Gather, Index, Photon, PhotonMap};
+
+use crate::lights::{EmittedRay, Light, SceneSphere};
+use crate::math::{Color, Frame, Ray, luminance, offset_origin};
+use crate::media::MediumEvent;
+use crate::sampling::{AliasTable, TrackingRng};
+use crate::scene::Scene;
+use crate::shapes::NO_MEDIUM;
+use glam::{Vec2, Vec3A};
+use rayon::prelude::*;
+use std::f32::consts::PI;
+
+/// How photons end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Roulette {
+    /// Only at the depth limit (what Kiln did first): stored powers spread widely.
+    Off,
+    /// Survival in proportion to throughput over starting power (seed 004).
+    WeightAware,
+}
+
+/// What to trace and how to gather it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhotonSettings {
+    /// Photons traced for the caustic maps (0: none).
+    pub caustic_photons: u64,
+    pub caustic_gather: Gather,
+    /// Photons traced for the volume map (0: none).
+    pub volume_photons: u64,
+    pub volume_gather: Gather,
+    /// Events (bounces and scatterings) a photon may have.
+    pub max_depth: u32,
+    pub roulette: Roulette,
+    /// Which index answers fixed-radius gathers (None: the faster one).
+    pub index: Option<Index>,
+}
+
+/// The photon maps of a scene.
+#[derive(Debug, Clone, Default)]
+pub struct PhotonMaps {
+    /// Whether caustic photons were traced: camera paths then gather them at every
+    /// non-specular vertex and stop counting the light they hold.
+    pub caustics: bool,
+    pub caustic_surface: PhotonMap,
+    pub caustic_volume: PhotonMap,
+    /// Whether volume photons were traced: medium vertices then take all their indirect
+    /// light from `volume` and end the path.
+    pub volume_pass: bool,
+    pub volume: PhotonMap,
+}
+
+/// Photons per parallel batch: the batches, not the threads, fix the order of the result.
+const BATCH: u64 = 4096;
+
+/// Which maps a pass fills.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pass {
+    /// Caustic photons; with `volume` also their first scattering in media.
+    Caustic {
+        volume: bool,
+    },
+    Volume,
+}
+
+/// Where a pass puts photons.
+#[derive(Default)]
+struct Stored {
+    surface: Vec<Photon>,
+    volume: Vec<Photon>,
+}
+
+impl PhotonMaps {
+    /// Traces the photons `settings` asks for.
+    pub fn build(scene: &Scene, settings: &PhotonSettings) -> PhotonMaps {
+        let mut maps = PhotonMaps::default();
+        let Some(shooter) = Shooter::new(scene, settings) else {
+            return maps;
+        };
+        if settings.caustic_photons > 0 {
+            let pass = Pass::Caustic {
+                volume: settings.volume_photons == 0,
+            };
+            let s = shooter.shoot(pass, settings.caustic_photons);
+            maps.caustics = true;
+            maps.caustic_surface =
+                PhotonMap::new(s.surface, settings.caustic_gather, settings.index);
+            maps.caustic_volume = PhotonMap::new(s.volume, settings.caustic_gather, settings.index);
+        }
+        if settings.volume_photons > 0 {
+            let s = shooter.shoot(Pass::Volume, settings.volume_photons);
+            maps.volume_pass = true;
+            maps.volume = PhotonMap::new(s.volume, settings.volume_gather, settings.index);
+        }
+        maps
+    }
+
+    /// Whether no pass ran (no light emits).
+    pub fn is_empty(&self) -> bool {
+        !self.caustics && !self.volume_pass
+    }
+
+    /// Caustic radiance leaving surface point `p` (normal `n` on the side looked at) towards
+    /// the viewer, given the BSDF for each photon's direction (`f(wi)`; the photon's flux
+    /// already holds its cosine).
+    pub fn surface_radiance(&self, p: Vec3A, n: Vec3A, f: impl Fn(Vec3A) -> Color) -> Color {
+        let (sum, r) = self.caustic_surface.sum(p, |ph| {
+            if ph.n.dot(n) > 0.9 {
+                f(ph.wi)
+            } else {
+                Color::ZERO
+            }
+        });
+        if r > 0.0 { sum / (PI * r * r) } else { sum }
+    }
+
+    /// Radiance scattered at medium point `p` towards `wo`, times sigma_s there, from the
+    /// volume map if there is one (all light but the direct), else from the caustic volume
+    /// map: the sum of phase * flux over the gathered photons over the ball's volume.
+    /// `phase(wo, wi)`.
+    pub fn medium_radiance(
+        &self,
+        p: Vec3A,
+        wo: Vec3A,
+        phase: impl Fn(Vec3A, Vec3A) -> f32,
+    ) -> Color {
+        let map = if self.volume_pass {
+            &self.volume
+        } else {
+            &self.caustic_volume
+        };
+        let (sum, r) = map.sum(p, |ph| Color::splat(phase(wo, ph.wi)));
+        if r > 0.0 {
+            sum / (4.0 / 3.0 * PI * r * r * r)
+        } else {
+            sum
+        }
+    }
+
+    /// Whether medium vertices take all their indirect light from the volume map (and end
+    /// the path there).
+    pub fn has_volume_map(&self) -> bool {
+        self.volume_pass
+    }
+}
+
+/// The coefficient of variation (standard deviation over mean) of the stored photons'
+/// luminance: how unequal their powers are.
+pub fn power_spread(photons: &[Photon]) -> f64 {
+    let n = photons.len() as f64;
+    if n < 2.0 {
+        return 0.0;
+    }
+    let y: Vec<f64> = photons.iter().map(|p| luminance(p.power) as f64).collect();
+    let mean = y.iter().sum::<f64>() / n;
+    let var = y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0);
+    if mean > 0.0 { var.sqrt() / mean } else { 0.0 }
+}
+
+/// Chooses lights by power and traces photons from them.
+struct Shooter<'a> {
+    scene: &'a Scene,
+    table: AliasTable,
+    sphere: SceneSphere,
+    max_depth: u32,
+    roulette: Roulette,
+}
+
+impl<'a> Shooter<'a> {
+    fn new(scene: &'a Scene, settings: &PhotonSettings) -> Option<Shooter<'a>> {
+        let powers: Vec<f64> = scene
+            .lights
+            .iter()
+            .map(|l| l.power(scene.radius).max(0.0) as f64)
+            .collect();
+        if powers.iter().all(|p| *p <= 0.0) {
+            return None;
+        }
+        let (lo, hi) = scene.geometry.bounds();
+        Some(Shooter {
+            scene,
+            table: AliasTable::new(&powers),
+            sphere: SceneSphere {
+                center: (lo + hi) * 0.5,
+                radius: scene.radius,
+            },
+            max_depth: settings.max_depth,
+            roulette: settings.roulette,
+        })
+    }
+
+    /// Traces `count` photons of `pass`.
+    fn shoot(&self, pass: Pass, count: u64) -> Stored {
+        let batches: Vec<Stored> = (0..count.div_ceil(BATCH))
+            .into_par_iter()
+            .map(|b| {
+                let mut stored = Stored::default();
+                for i in b * BATCH..((b + 1) * BATCH).min(count) {
+                    self.trace(pass, i, count, &mut stored);
+                }
+                stored
+            })
+            .collect();
+        let mut all = Stored::default();
+        for s in batches {
+            all.surface.extend(s.surface);
+            all.volume.extend(s.volume);
+        }
+        all
+    }
+
+    /// The medium a photon leaving light `light` along `ray` starts in: for area lights the
+    /// one on the side it leaves by, for lights in space the medium they were declared in,
+    /// for lights at infinity the camera's (the medium outside everything).
+    fn start_medium(&self, light: usize, ray: &EmittedRay) -> Option<u32> {
+        let scene = self.scene;
+        match scene.light_media.get(light).copied().flatten() {
+            Some([inside, outside]) => {
+                let m = if ray.n == Vec3A::ZERO || ray.dir.dot(ray.n) > 0.0 {
+                    outside
+                } else {
+                    inside
+                };
+                (m != NO_MEDIUM).then_some(m)
+            }
+            None => match &scene.lights[light] {
+                Light::Distant(_)
+                | Light::UniformInfinite(_)
+                | Light::ImageInfinite(_)
+                | Light::Dome(_) => scene.camera_medium,
+                Light::Medium(l) => Some(l.medium),
+                _ => None,
+            },
+        }
+    }
+
+    /// Traces photon `index` of `count` for `pass`.
+    fn trace(&self, pass: Pass, index: u64, count: u64, stored: &mut Stored) {
+        let scene = self.scene;
+        let salt = match pass {
+            Pass::Caustic { .. } => 0xc0ff_ee00,
+            Pass::Volume => 0x5ca7_7e12,
+        };
+        let mut rng = TrackingRng::new(index.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ salt);
+        let Some((light_index, pmf)) = self.table.sample(rng.next_f32()) else {
+            return;
+        };
+        let u = [
+            Vec2::new(rng.next_f32(), rng.next_f32()),
+            Vec2::new(rng.next_f32(), rng.next_f32()),
+        ];
+        let uc = rng.next_f32();
+        let light = &scene.lights[light_index];
+        let (Some(emitted), _) = light.emit(&scene.light_context(), self.sphere, u, uc) else {
+            return;
+        };
+        let mut beta = emitted.flux / (pmf * count as f32);
+        let start = luminance(beta);
+        if !(start > 0.0 && start.is_finite()) {
+            return;
+        }
+        let mut medium = self.start_medium(light_index, &emitted);
+        // A photon flies at one instant of the shutter, as a camera path does.
+        let time = if scene.has_motion {
+            scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32()
+        } else {
+            0.0
+        };
+        let origin = if emitted.n == Vec3A::ZERO {
+            emitted.origin
+        } else {
+            offset_origin(emitted.origin, emitted.n, emitted.dir)
+        };
+        let mut ray = Ray::at_time(origin, emitted.dir, time);
+        // Events so far, and whether all were specular.
+        let mut events = 0u32;
+        let mut only_specular = true;
+        let mut pass_throughs = 0u32;
+        loop {
+            let found = scene.geometry.intersect(&ray, f32::INFINITY);
+            if let Some(m) = medium {
+                let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
+                // Photons carry no medium emission: the lights that are media shoot their own.
+                match scene.media[m as usize].sample_interaction(
+                    &ray,
+                    t_max,
+                    &mut rng,
+                    &mut beta,
+                    |_| {},
+                ) {
+                    MediumEvent::Crossed => {}
+                    // A photon whose walk is cut off is lost (the camera paths report theirs).
+                    MediumEvent::Absorbed | MediumEvent::CutOff => return,
+                    MediumEvent::Scattered(t) => {
+                        let p = ray.at(t);
+                        let photon = Photon {
+                            p,
+                            wi: -ray.dir,
+                            n: Vec3A::ZERO,
+                            power: beta,
+                        };
+                        match pass {
+                            Pass::Caustic { volume } => {
+                                if volume && events > 0 && only_specular {
+                                    stored.volume.push(photon);
+                                }
+                                return;
+                            }
+                            Pass::Volume if events > 0 => stored.volume.push(photon),
+                            Pass::Volume => {}
+                        }
+                        events += 1;
+                        if events >= self.max_depth {
+                            return;
+                        }
+                        let phase = scene.media[m as usize].phase();
+                        // Phase functions are sampled exactly: the throughput is unchanged.
+                        let (wi, _) =
+                            phase.sample(-ray.dir, Vec2::new(rng.next_f32(), rng.next_f32()));
+                        only_specular = false;
+                        if !self.survives(&mut beta, start, &mut rng) {
+                            return;
+                        }
+                        ray = ray.spawn(p, wi);
+                        continue;
+                    }
+                }
+            }
+            let Some(mut hit) = found else { return };
+            let Some(bsdf) = scene.bsdf(&mut hit, 1.0) else {
+                // An interface: straight on, into the medium on the other side.
+                pass_throughs += 1;
+                if pass_throughs > 256 {
+                    return;
+                }
+                if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
+                    medium = next;
+                }
+                ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+                continue;
+            };
+            let specular = bsdf.is_specular();
+            if let Pass::Caustic { .. } = pass
+                && !specular
+            {
+                if events > 0 && only_specular {
+                    // The side the photon arrived on.
+                    let n = if ray.dir.dot(hit.ns) < 0.0 {
+                        hit.ns
+                    } else {
+                        -hit.ns
+                    };
+                    stored.surface.push(Photon {
+                        p: hit.p,
+                        wi: -ray.dir,
+                        n,
+                        power: beta,
+                    });
+                }
+                return;
+            }
+            if events >= self.max_depth {
+                return;
+            }
+            let frame = Frame::new(hit.ns, hit.dpdu);
+            let wo_world = -ray.dir;
+            let wo = frame.to_local(wo_world);
+            let uc = rng.next_f32();
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            let Some(bs) = bsdf.sample(wo, uc, u) else {
+                return;
+            };
+            if bs.pdf <= 0.0 {
+                return;
+            }
+            let wi = frame.to_world(bs.wi);
+            // Flux, not radiance, crosses the boundary: undo the BSDF's 1/eta^2. Shading
+            // normals make light transport asymmetric: pbrt's correction for importance.
+            let shading = (wo_world.dot(hit.ns) * wi.dot(hit.ng)).abs()
+                / (wo_world.dot(hit.ng) * wi.dot(hit.ns)).abs().max(1e-8);
+            beta *= bs.f * wi.dot(hit.ns).abs() / bs.pdf * (bs.eta * bs.eta) * shading.min(10.0);
+            if !beta.is_finite() || beta == Color::ZERO {
+                return;
+            }
+            events += 1;
+            only_specular &= bs.specular;
+            if !self.survives(&mut beta, start, &mut rng) {
+                return;
+            }
+            if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
+                medium = next;
+            }
+            ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+        }
+    }
+
+    /// Russian roulette after an event: with weight-aware roulette a photon survives with
+    /// probability min(1, throughput / starting power) and carries its power divided by it.
+    fn survives(&self, beta: &mut Color, start: f32, rng: &mut TrackingRng) -> bool {
+        if self.roulette == Roulette::Off {
+            return true;
+        }
+        let q = (luminance(*beta) / start).min(1.0);
+        if q <= 0.0 || rng.next_f32() >= q {
+            return false;
+        }
+        *beta /= q;
+        true
+    }
+}

@@ -1,0 +1,363 @@
+//! Stochastic progressive photon mapping, as pbrt-v4's "sppm" integrator defines it
+//! (Hachisuka and Jensen 2009): each iteration traces one camera path per pixel to its
+//! first non-specular surface (a *visible point*), adding emission met through specular
+//! bounces and light-sampled direct light on the way; then traces a pass of photons and
+//! adds, to each visible point, the photons that land within the pixel's radius after their
+//! first bounce. Each pixel's radius shrinks as it gathers (alpha 2/3), so the estimate is
+//! consistent: its bias goes to zero as iterations grow.
+//!
+//! Iterations run outermost over every pixel being rendered, so each pass of photons is
+//! traced once for all of them. A pixel's value depends only on its own camera samples and
+//! on the photon passes, which are seeded by (seed, iteration, photon index) and traced in
+//! fixed batches: the image is the same for any tile split and thread count.
+//!
+//! As in pbrt-v4, SPPM renders surfaces only (participating media are ignored).
+
+use super::direct::{Vertex, sample_direct};
+use super::photons::{Gather, Index, Photon, PhotonMap};
+use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings};
+use crate::bsdfs::Bsdf;
+use crate::lights::SceneSphere;
+use crate::math::{Color, Frame, Ray, luminance, offset_origin};
+use crate::sampling::{AliasTable, PixelSampler, TrackingRng};
+use crate::scene::Scene;
+use crate::work::Work;
+use glam::{Vec2, Vec3A};
+use kiln_scene::{LightStrategy, PhotonDesc};
+use rayon::prelude::*;
+use std::f32::consts::PI;
+
+/// pbrt-v4's SPPM parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SppmSettings {
+    /// The longest camera path and photon path, in bounces.
+    pub max_depth: u32,
+    /// Photons per iteration (pbrt-v4's default: the pixels of the image).
+    pub photons_per_iteration: u64,
+    /// Every pixel's initial search radius.
+    pub radius: f32,
+}
+
+impl SppmSettings {
+    /// The path-tracer settings the camera pass shares: light sampling alone for direct
+    /// light, as pbrt-v4's SPPM does (emission reached by scattering counts only through
+    /// specular bounces).
+    fn camera_path(&self) -> PathSettings {
+        PathSettings {
+            max_depth: self.max_depth,
+            rr_depth: u32::MAX,
+            strategy: LightStrategy::LightOnly,
+            photons: PhotonDesc::NONE,
+            regularize: false,
+        }
+    }
+}
+
+/// What a pixel carries from one iteration to the next.
+#[derive(Debug, Clone, Copy)]
+pub struct PixelState {
+    /// Direct light and emission found by the camera paths (summed over iterations).
+    ld: Color,
+    /// Accumulated photon flux times BSDF (pbrt's tau), for the current radius.
+    tau: Color,
+    /// Photons counted so far (pbrt's N) and the current radius.
+    n: f32,
+    radius: f32,
+}
+
+impl PixelState {
+    pub fn new(radius: f32) -> PixelState {
+        PixelState {
+            ld: Color::ZERO,
+            tau: Color::ZERO,
+            n: 0.0,
+            radius,
+        }
+    }
+
+    /// The pixel's radiance after `iterations` iterations of `photons` photons each.
+    pub fn radiance(&self, iterations: u32, photons: u64) -> Color {
+        let it = iterations.max(1) as f32;
+        let np = (iterations as f64 * photons as f64).max(1.0) as f32;
+        self.ld / it + self.tau / (np * PI * self.radius * self.radius)
+    }
+}
+
+/// A camera path's first non-specular surface: where it gathers photons.
+struct VisiblePoint<'a> {
+    p: Vec3A,
+    wo: Vec3A,
+    frame: Frame,
+    bsdf: Bsdf<'a>,
+    beta: Color,
+}
+
+/// The camera pass of one iteration for one pixel: its direct light (added to `state`) and
+/// its visible point. `ray` is the camera ray (None if the lens stopped it), `weight` the
+/// camera's and the filter's weight.
+pub fn camera_pass<'a>(
+    scene: &'a Scene,
+    settings: &SppmSettings,
+    ray: Option<Ray>,
+    weight: f32,
+    sampler: &mut PixelSampler,
+    work: &mut Work,
+    state: &mut PixelState,
+) -> Option<VisiblePointHandle<'a>> {
+    let mut ray = ray?;
+    let path = settings.camera_path();
+    let mut beta = Color::splat(weight);
+    let mut specular = true;
+    let mut medium = None;
+    let mut depth = 0u32;
+    let mut pass_throughs = 0u32;
+    while depth < settings.max_depth {
+        work.rays += 1;
+        let Some(hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
+            if specular {
+                for &i in &scene.infinite_lights {
+                    state.ld += beta * scene.lights[i as usize].infinite_le(ray.origin, ray.dir);
+                }
+            }
+            return None;
+        };
+        if specular && let Some(light) = hit.light {
+            let (le, traced) = scene.lights[light as usize].le(
+                &scene.light_context(),
+                hit.p,
+                hit.ng,
+                hit.ns,
+                -ray.dir,
+            );
+            work.rays += traced;
+            state.ld += beta * le;
+        }
+        let mut shaded = hit;
+        let Some(bsdf) = scene.bsdf(&mut shaded, 1.0) else {
+            // An interface: straight on, without counting a bounce.
+            pass_throughs += 1;
+            if pass_throughs > 256 {
+                return None;
+            }
+            if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
+                medium = next;
+            }
+            ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+            continue;
+        };
+        let hit = &shaded;
+        let frame = Frame::new(hit.ns, hit.dpdu);
+        let wo_world = -ray.dir;
+        let wo = frame.to_local(wo_world);
+        sampler.set_dimension(CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * depth);
+        if !bsdf.is_specular() {
+            if scene.light_sampler.is_empty() {
+                return Some(VisiblePointHandle(VisiblePoint {
+                    p: hit.p,
+                    wo,
+                    frame,
+                    bsdf,
+                    beta,
+                }));
+            }
+            let v = Vertex {
+                p: hit.p,
+                surface: Some(hit),
+                medium,
+                time: ray.time,
+                last: false,
+            };
+            let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
+            let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
+            state.ld += beta * sample_direct(scene, &path, &v, f, pdf, sampler, work);
+            return Some(VisiblePointHandle(VisiblePoint {
+                p: hit.p,
+                wo,
+                frame,
+                bsdf,
+                beta,
+            }));
+        }
+        if bsdf.is_black() || depth + 1 >= settings.max_depth {
+            return None;
+        }
+        sampler.set_dimension(CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * depth + 3);
+        let uc = sampler.get_1d();
+        let u = sampler.get_2d();
+        let bs = bsdf.sample(wo, uc, u)?;
+        if bs.pdf <= 0.0 {
+            return None;
+        }
+        let wi = frame.to_world(bs.wi);
+        beta *= bs.f * wi.dot(hit.ns).abs() / bs.pdf;
+        if !beta.is_finite() || beta == Color::ZERO {
+            return None;
+        }
+        specular = bs.specular;
+        if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
+            medium = next;
+        }
+        ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+        depth += 1;
+    }
+    None
+}
+
+/// A visible point, opaque outside this module.
+pub struct VisiblePointHandle<'a>(VisiblePoint<'a>);
+
+/// Adds the photons of `map` within the pixel's radius of its visible point and shrinks the
+/// radius as pbrt-v4 does: N' = N + 2/3 M, R' = R sqrt(N' / (N + M)), tau' = (tau + Phi)
+/// R'^2 / R^2.
+pub fn gather(map: &PhotonMap, vp: Option<&VisiblePointHandle>, state: &mut PixelState) {
+    let Some(VisiblePointHandle(vp)) = vp else {
+        return;
+    };
+    let mut phi = Color::ZERO;
+    let mut m = 0u32;
+    map.gather_within(vp.p, state.radius, |ph| {
+        phi += ph.power * vp.bsdf.f(vp.wo, vp.frame.to_local(ph.wi));
+        m += 1;
+    });
+    if m == 0 {
+        return;
+    }
+    const GAMMA: f32 = 2.0 / 3.0;
+    let n_new = state.n + GAMMA * m as f32;
+    let r_new = state.radius * (n_new / (state.n + m as f32)).sqrt();
+    let shrink = (r_new * r_new) / (state.radius * state.radius);
+    state.tau = (state.tau + vp.beta * phi) * shrink;
+    state.n = n_new;
+    state.radius = r_new;
+}
+
+/// Photons per parallel batch: the batches, not the threads, fix the order of the result.
+const BATCH: u64 = 4096;
+
+/// Traces iteration `iteration`'s photons and returns them as a map for gathers within
+/// radii up to `max_radius` (every pixel's radius only shrinks from the initial one).
+pub fn photon_pass(scene: &Scene, settings: &SppmSettings, seed: u32, iteration: u32) -> PhotonMap {
+    let powers: Vec<f64> = scene
+        .lights
+        .iter()
+        .map(|l| l.power(scene.radius).max(0.0) as f64)
+        .collect();
+    if powers.iter().all(|p| *p <= 0.0) {
+        return PhotonMap::default();
+    }
+    let table = AliasTable::new(&powers);
+    let (lo, hi) = scene.geometry.bounds();
+    let sphere = SceneSphere {
+        center: (lo + hi) * 0.5,
+        radius: scene.radius,
+    };
+    let n = settings.photons_per_iteration;
+    let batches: Vec<Vec<Photon>> = (0..n.div_ceil(BATCH))
+        .into_par_iter()
+        .map(|b| {
+            let mut stored = Vec::new();
+            for i in b * BATCH..((b + 1) * BATCH).min(n) {
+                let key = ((seed as u64) << 32 | iteration as u64)
+                    .wrapping_mul(0xd605_bbb5_8c8a_bbb7)
+                    ^ i.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                trace_photon(scene, settings, &table, sphere, key, &mut stored);
+            }
+            stored
+        })
+        .collect();
+    let photons: Vec<Photon> = batches.into_iter().flatten().collect();
+    PhotonMap::new(
+        photons,
+        Gather::Radius(settings.radius),
+        Some(Index::HashGrid),
+    )
+}
+
+/// One SPPM photon: stored at every non-specular surface after its first bounce, ended by
+/// pbrt-v4's roulette (survival in proportion to what a bounce keeps of its throughput).
+fn trace_photon(
+    scene: &Scene,
+    settings: &SppmSettings,
+    table: &AliasTable,
+    sphere: SceneSphere,
+    key: u64,
+    stored: &mut Vec<Photon>,
+) {
+    let mut rng = TrackingRng::new(key);
+    let Some((light, pmf)) = table.sample(rng.next_f32()) else {
+        return;
+    };
+    let u = [
+        Vec2::new(rng.next_f32(), rng.next_f32()),
+        Vec2::new(rng.next_f32(), rng.next_f32()),
+    ];
+    let uc = rng.next_f32();
+    let (Some(emitted), _) = scene.lights[light].emit(&scene.light_context(), sphere, u, uc) else {
+        return;
+    };
+    let mut beta = emitted.flux / pmf;
+    if !(luminance(beta) > 0.0 && beta.is_finite()) {
+        return;
+    }
+    let time = if scene.has_motion {
+        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32()
+    } else {
+        0.0
+    };
+    let origin = if emitted.n == Vec3A::ZERO {
+        emitted.origin
+    } else {
+        offset_origin(emitted.origin, emitted.n, emitted.dir)
+    };
+    let mut ray = Ray::at_time(origin, emitted.dir, time);
+    let mut depth = 0u32;
+    let mut pass_throughs = 0u32;
+    while depth < settings.max_depth {
+        let Some(mut hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
+            return;
+        };
+        let Some(bsdf) = scene.bsdf(&mut hit, 1.0) else {
+            pass_throughs += 1;
+            if pass_throughs > 256 {
+                return;
+            }
+            ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+            continue;
+        };
+        if depth > 0 && !bsdf.is_specular() {
+            stored.push(Photon {
+                p: hit.p,
+                wi: -ray.dir,
+                n: hit.ns,
+                power: beta,
+            });
+        }
+        let frame = Frame::new(hit.ns, hit.dpdu);
+        let wo_world = -ray.dir;
+        let uc = rng.next_f32();
+        let u = Vec2::new(rng.next_f32(), rng.next_f32());
+        let Some(bs) = bsdf.sample(frame.to_local(wo_world), uc, u) else {
+            return;
+        };
+        if bs.pdf <= 0.0 {
+            return;
+        }
+        let wi = frame.to_world(bs.wi);
+        // Flux, not radiance, crosses a refraction (undo the BSDF's 1/eta^2), and shading
+        // normals make transport asymmetric (pbrt's correction for importance).
+        let shading = (wo_world.dot(hit.ns) * wi.dot(hit.ng)).abs()
+            / (wo_world.dot(hit.ng) * wi.dot(hit.ns)).abs().max(1e-8);
+        let bnew =
+            beta * bs.f * wi.dot(hit.ns).abs() / bs.pdf * (bs.eta * bs.eta) * shading.min(10.0);
+        let q = (1.0 - bnew.max_element() / beta.max_element()).max(0.0);
+        if rng.next_f32() < q {
+            return;
+        }
+        beta = bnew / (1.0 - q);
+        if !beta.is_finite() || beta == Color::ZERO {
+            return;
+        }
+        ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+        depth += 1;
+    }
+}
