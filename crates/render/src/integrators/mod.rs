@@ -150,7 +150,6 @@ impl Integrator {
             } else {
                 Roulette::Off
             },
-            index: None,
         })
     }
 

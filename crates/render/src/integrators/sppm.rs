@@ -14,7 +14,7 @@
 //! As in pbrt-v4, SPPM renders surfaces only (participating media are ignored).
 
 use super::direct::{Vertex, sample_direct};
-use super::photons::{Gather, Index, Photon, PhotonMap};
+use super::photons::{Gather, Photon, PhotonMap};
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings};
 use crate::bsdfs::Bsdf;
 use crate::lights::SceneSphere;
@@ -266,11 +266,7 @@ pub fn photon_pass(scene: &Scene, settings: &SppmSettings, seed: u32, iteration:
         })
         .collect();
     let photons: Vec<Photon> = batches.into_iter().flatten().collect();
-    PhotonMap::new(
-        photons,
-        Gather::Radius(settings.radius),
-        Some(Index::HashGrid),
-    )
+    PhotonMap::new(photons, Gather::Radius(settings.radius))
 }
 
 /// One SPPM photon: stored at every non-specular surface after its first bounce, ended by

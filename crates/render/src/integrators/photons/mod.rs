@@ -26,7 +26,7 @@
 
 pub mod map;
 
-pub use map::{Gather, Index, Photon, PhotonMap};
+pub use map::{Gather, Photon, PhotonMap};
 
 use crate::lights::{EmittedRay, Light, SceneSphere};
 use crate::math::{Color, Frame, Ray, luminance, offset_origin};
@@ -59,8 +59,6 @@ pub struct PhotonSettings {
     /// Events (bounces and scatterings) a photon may have.
     pub max_depth: u32,
     pub roulette: Roulette,
-    /// Which index answers fixed-radius gathers (None: the faster one).
-    pub index: Option<Index>,
 }
 
 /// The photon maps of a scene.
@@ -110,14 +108,13 @@ impl PhotonMaps {
             };
             let s = shooter.shoot(pass, settings.caustic_photons);
             maps.caustics = true;
-            maps.caustic_surface =
-                PhotonMap::new(s.surface, settings.caustic_gather, settings.index);
-            maps.caustic_volume = PhotonMap::new(s.volume, settings.caustic_gather, settings.index);
+            maps.caustic_surface = PhotonMap::new(s.surface, settings.caustic_gather);
+            maps.caustic_volume = PhotonMap::new(s.volume, settings.caustic_gather);
         }
         if settings.volume_photons > 0 {
             let s = shooter.shoot(Pass::Volume, settings.volume_photons);
             maps.volume_pass = true;
-            maps.volume = PhotonMap::new(s.volume, settings.volume_gather, settings.index);
+            maps.volume = PhotonMap::new(s.volume, settings.volume_gather);
         }
         maps
     }
