@@ -406,3 +406,215 @@ fn sppm_converges_to_path_tracing() {
     eprintln!("ball: largest block z-score, SPPM against path tracing, {z:.2}");
     assert!(z < 4.0, "a block differs by {z} standard errors");
 }
+
+/// Writes a PFM image (rows top to bottom; PFM stores them bottom up).
+fn write_pfm(path: &std::path::Path, width: usize, height: usize, rgb: &[[f32; 3]]) {
+    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    for y in (0..height).rev() {
+        for p in &rgb[y * width..(y + 1) * width] {
+            for c in p {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// The luminance of the power leaving a glass VolumeLight sphere of `radius` whose interior
+/// glows uniformly: over its area 4 pi R^2, the radiance arriving from inside along chords of
+/// length 2 R cos(theta), times the Fresnel transmittance out, times cos(theta) dw, inside the
+/// critical angle (the 1/eta^2 of radiance leaving glass and the wider solid angle outside
+/// cancel).
+fn volume_sphere_exitant_power(interior: &kiln_render::lights::VolumeInterior, radius: f32) -> f64 {
+    use kiln_render::bsdfs::fresnel_dielectric;
+    let eta = interior.eta as f64;
+    let steps = 20_000;
+    let mut sum = [0.0f64; 3];
+    for i in 0..steps {
+        let theta = (i as f64 + 0.5) / steps as f64 * std::f64::consts::FRAC_PI_2;
+        let (sin_i, cos_i) = theta.sin_cos();
+        let sin_o = eta * sin_i;
+        if sin_o >= 1.0 {
+            break;
+        }
+        let cos_o = (1.0 - sin_o * sin_o).sqrt();
+        let t = 1.0 - fresnel_dielectric(cos_o as f32, eta as f32) as f64;
+        let chord = 2.0 * radius as f64 * cos_i;
+        for (c, total) in sum.iter_mut().enumerate() {
+            let (le, sigma) = (interior.le[c] as f64, interior.sigma_a[c] as f64);
+            let along = if sigma > 0.0 {
+                le * (1.0 - (-sigma * chord).exp()) / sigma
+            } else {
+                le * chord
+            };
+            *total += t * along * cos_i * sin_i * (std::f64::consts::FRAC_PI_2 / steps as f64);
+        }
+    }
+    let scale = 4.0 * std::f64::consts::PI * (radius as f64).powi(2) * 2.0 * std::f64::consts::PI;
+    let rgb = sum.map(|v| v * scale);
+    luminance_f64(rgb)
+}
+
+/// 4 pi times the integral of a grid medium's source term (sigma_a Le) over its box, in
+/// luminance, by the midpoint rule on a 96^3 lattice (the box is axis-aligned here).
+fn grid_emitted_power(medium: &kiln_render::media::Medium) -> f64 {
+    let kiln_render::media::Medium::Grid(g) = medium else {
+        panic!("an emissive grid");
+    };
+    let (lo, hi) = medium.bounds().expect("a grid has a box");
+    let n = 96;
+    let mut sum = 0.0f64;
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let f = glam::Vec3A::new(x as f32, y as f32, z as f32) + 0.5;
+                let p = lo + (hi - lo) * f / n as f32;
+                sum += kiln_render::math::luminance(g.source(g.to_box(p))) as f64;
+            }
+        }
+    }
+    let volume = ((hi - lo).x * (hi - lo).y * (hi - lo).z) as f64;
+    4.0 * std::f64::consts::PI * sum * volume / (n * n * n) as f64
+}
+
+/// Kiln's luminance of linear sRGB.
+fn luminance_f64(rgb: [f64; 3]) -> f64 {
+    let c = kiln_render::math::Color::new(rgb[0] as f32, rgb[1] as f32, rgb[2] as f32);
+    kiln_render::math::luminance(c) as f64
+}
+
+/// Every kind of light shoots photons that carry its power: the mean luminance of the flux
+/// its emitted rays carry is the power the light sampler chooses it by, within 2% (for a
+/// VolumeLight, the power that leaves its surface, in closed form). Point, spot, goniometric,
+/// projection, distant, uniform, image and dome lights at infinity, triangle, sphere and
+/// disk area lights (one- and two-sided), a VolumeLight sphere and an emissive grid.
+#[test]
+fn every_light_kind_emits_photons_carrying_its_power() {
+    use kiln_render::lights::SceneSphere;
+    use kiln_render::math::luminance;
+    use kiln_render::sampling::TrackingRng;
+    let dir = tempfile::tempdir().unwrap();
+    let n = 16;
+    let gradient: Vec<[f32; 3]> = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32 / n as f32, (i / n) as f32 / n as f32);
+            [0.2 + x, 0.5 + y * y, 1.0 - 0.5 * x * y]
+        })
+        .collect();
+    write_pfm(&dir.path().join("image.pfm"), n, n, &gradient);
+    let text = r#"LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective"
+Film "rgb" "integer xresolution" [ 4 ] "integer yresolution" [ 4 ]
+WorldBegin
+LightSource "point" "point3 from" [ 0 1 0 ] "rgb I" [ 1 2 3 ]
+LightSource "spot" "point3 from" [ 0 2 0 ] "point3 to" [ 0 0 0 ] "rgb I" [ 3 2 1 ] "float coneangle" [ 40 ] "float conedeltaangle" [ 15 ]
+AttributeBegin
+    Translate 0.5 0.5 0
+    Rotate 30 1 0 0
+    LightSource "goniometric" "string filename" "image.pfm" "rgb I" [ 2 1.5 1 ]
+AttributeEnd
+AttributeBegin
+    Translate 0 0 3
+    Rotate 180 1 0 0
+    LightSource "projection" "string filename" "image.pfm" "float fov" [ 50 ] "float scale" [ 2 ]
+AttributeEnd
+LightSource "distant" "point3 from" [ 1 3 2 ] "point3 to" [ 0 0 0 ] "rgb L" [ 0.5 0.6 0.7 ]
+LightSource "infinite" "rgb L" [ 0.1 0.2 0.3 ]
+LightSource "infinite" "string filename" "image.pfm" "float scale" [ 0.3 ]
+LightSource "dome" "rgb L" [ 0.2 0.2 0.1 ]
+AttributeBegin
+    AreaLightSource "diffuse" "rgb L" [ 4 3 2 ]
+    Shape "trianglemesh" "point3 P" [ -1 -1 -1  1 -1 -1  0 -1 1 ] "integer indices" [ 0 1 2 ]
+AttributeEnd
+AttributeBegin
+    AreaLightSource "diffuse" "rgb L" [ 1 2 1 ] "bool twosided" true
+    Translate 1 0 0
+    Shape "sphere" "float radius" [ 0.2 ]
+AttributeEnd
+AttributeBegin
+    AreaLightSource "diffuse" "rgb L" [ 2 2 5 ]
+    Translate -1 0 0
+    Rotate 70 0 1 0
+    Shape "disk" "float radius" [ 0.3 ]
+AttributeEnd
+AttributeBegin
+    AreaLightSource "volume" "rgb Le" [ 4 1.6 0.4 ]
+    Material "dielectric" "float eta" [ 1.5 ]
+    Translate 0 -0.5 1
+    Shape "sphere" "float radius" [ 0.4 ]
+AttributeEnd
+MakeNamedMedium "glow" "string type" "uniformgrid" "integer nx" [ 2 ] "integer ny" [ 2 ] "integer nz" [ 2 ]
+    "float density" [ 1 2 3 4 1 2 3 4 ] "rgb Le" [ 1 0.5 0.2 ] "float Lescale" [ 3 ]
+    "rgb sigma_a" [ 1 1 1 ] "rgb sigma_s" [ 0 0 0 ] "point3 p0" [ -0.5 0.5 -0.5 ] "point3 p1" [ 0.5 1.5 0.5 ]
+AttributeBegin
+    MediumInterface "glow" ""
+    Material "interface"
+    Translate 0 1 0
+    Shape "sphere" "float radius" [ 0.45 ]
+AttributeEnd
+"#;
+    let path = write_scene(dir.path(), "lights.pbrt", text);
+    let desc = kiln_scene::load_file(&path).expect("scene loads");
+    let scene = Scene::build(&desc, MediaPolicy::Render).expect("scene builds");
+    let (lo, hi) = scene.geometry.bounds();
+    let sphere = SceneSphere {
+        center: (lo + hi) * 0.5,
+        radius: scene.radius,
+    };
+    let ctx = scene.light_context();
+    let mut kinds = std::collections::BTreeMap::new();
+    for light in &scene.lights {
+        let kind = format!("{light:?}");
+        let kind = kind.split('(').next().unwrap().to_string();
+        let power = match light {
+            // A VolumeLight chooses itself by the emission that reaches its surface from
+            // inside; what leaves is less (total internal reflection, Fresnel): the exitant
+            // power in closed form for a uniformly glowing sphere.
+            Light::VolumeSphere(v) => {
+                volume_sphere_exitant_power(&scene.volumes[v.volume as usize], v.radius)
+            }
+            // An emissive grid chooses itself by a coarse estimate (each voxel's source from
+            // nine lookups); its photons carry the integral of the source over the grid's
+            // box, here by the midpoint rule.
+            Light::Medium(m) => grid_emitted_power(&scene.media[m.medium as usize]),
+            _ => light.power(scene.radius) as f64,
+        };
+        let count = 200_000;
+        let mut rng = TrackingRng::new(17);
+        let mut sum = 0.0f64;
+        for _ in 0..count {
+            let u = [
+                glam::Vec2::new(rng.next_f32(), rng.next_f32()),
+                glam::Vec2::new(rng.next_f32(), rng.next_f32()),
+            ];
+            if let (Some(ray), _) = light.emit(&ctx, sphere, u, rng.next_f32()) {
+                sum += luminance(ray.flux) as f64;
+            }
+        }
+        let mean = sum / count as f64;
+        eprintln!("{kind}: photons carry {mean:.5}, power {power:.5}");
+        assert!(
+            (mean / power - 1.0).abs() < 0.02,
+            "{kind}: photons carry {mean} on average, its power is {power}"
+        );
+        *kinds.entry(kind).or_insert(0) += 1;
+    }
+    // Every kind was there (a triangle light per face of the mesh).
+    for kind in [
+        "Point",
+        "Spot",
+        "Goniometric",
+        "Projection",
+        "Distant",
+        "UniformInfinite",
+        "ImageInfinite",
+        "Dome",
+        "Triangle",
+        "Sphere",
+        "Quadric",
+        "VolumeSphere",
+        "Medium",
+    ] {
+        assert!(kinds.contains_key(kind), "no {kind} light in {kinds:?}");
+    }
+}
