@@ -3,6 +3,7 @@
 //! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
 use crate::gbuffer::{GBufferLayout, GBufferPixel, VisibleSurface};
+use crate::integrators::photons::PhotonMap;
 use crate::integrators::{Integrator, Prepass};
 use crate::math::Color;
 use crate::sampling::PixelSampler;
@@ -10,6 +11,8 @@ use crate::scene::{BuildError, MediaPolicy, Scene};
 use crate::work::Work;
 use glam::Vec2;
 use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 
 /// A rectangle of pixels inside the frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -95,6 +98,41 @@ pub struct Renderer {
     scene: Scene,
     settings: RenderSettings,
     prepass: Prepass,
+    /// SPPM's photon passes kept between tiles rendered one at a time (a farm worker's
+    /// leases), so a worker traces each pass once per job, not once per tile.
+    sppm_passes: SppmPasses,
+}
+
+/// SPPM photon passes by iteration, kept up to [`SppmPasses::BUDGET`] bytes (the first
+/// passes a job needs; later ones are traced again for every tile). A pass is a pure
+/// function of (scene, settings, iteration), so keeping one changes no pixel.
+#[derive(Default)]
+struct SppmPasses {
+    /// The bytes kept, and the passes by iteration.
+    kept: Mutex<(usize, HashMap<u32, Arc<PhotonMap>>)>,
+}
+
+impl SppmPasses {
+    const BUDGET: usize = 1 << 30;
+
+    /// Pass `iteration`, from the cache or traced by `trace` (and kept if it fits).
+    fn get(&self, iteration: u32, trace: impl FnOnce() -> PhotonMap) -> Arc<PhotonMap> {
+        if let Some(map) = self.lock().1.get(&iteration) {
+            return map.clone();
+        }
+        let map = Arc::new(trace());
+        let mut kept = self.lock();
+        if kept.0 + map.bytes() <= Self::BUDGET {
+            kept.0 += map.bytes();
+            kept.1.insert(iteration, map.clone());
+        }
+        map
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, (usize, HashMap<u32, Arc<PhotonMap>>)> {
+        // A panic elsewhere cannot leave the cache half-written: entries go in whole.
+        self.kept.lock().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 impl Renderer {
@@ -125,6 +163,7 @@ impl Renderer {
             scene,
             settings,
             prepass,
+            sppm_passes: SppmPasses::default(),
         }
     }
 
@@ -233,7 +272,7 @@ pub fn render_tile_until(
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<TileResult> {
     if let Integrator::Sppm(sppm) = &renderer.settings.integrator {
-        return render_sppm(renderer, sppm, &[rect], stop, &|| {})?.pop();
+        return render_sppm(renderer, sppm, &[rect], stop, &|| {}, true)?.pop();
     }
     let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
     let channels = layout.as_ref().map_or(0, |l| l.channels());
@@ -279,7 +318,8 @@ pub fn render_tiles(
     progress: &(dyn Fn() + Sync),
 ) -> Vec<TileResult> {
     if let Integrator::Sppm(sppm) = &renderer.settings.integrator {
-        return render_sppm(renderer, sppm, rects, &|| false, progress).expect("never stopped");
+        return render_sppm(renderer, sppm, rects, &|| false, progress, false)
+            .expect("never stopped");
     }
     rects
         .par_iter()
@@ -301,13 +341,15 @@ pub fn progress_units(renderer: &Renderer, tiles: usize) -> u64 {
 
 /// SPPM over the pixels of `rects`: iterations outermost (a camera pass, a photon pass, the
 /// gathers), then each pixel's radiance. Every pixel's value depends only on its own
-/// samples and the photon passes, so any split gives the same bytes.
+/// samples and the photon passes, so any split gives the same bytes. With `keep`, the
+/// passes are kept for the renderer's next tiles.
 fn render_sppm(
     renderer: &Renderer,
     sppm: &crate::integrators::SppmSettings,
     rects: &[TileRect],
     stop: &(dyn Fn() -> bool + Sync),
     progress: &(dyn Fn() + Sync),
+    keep: bool,
 ) -> Option<Vec<TileResult>> {
     use crate::integrators::sppm::{PixelState, camera_pass, gather, photon_pass};
     let (scene, settings) = (&renderer.scene, &renderer.settings);
@@ -340,7 +382,12 @@ fn render_sppm(
                 vp
             })
             .collect();
-        let map = photon_pass(scene, sppm, settings.seed, it);
+        let trace = || photon_pass(scene, sppm, settings.seed, it);
+        let map = if keep {
+            renderer.sppm_passes.get(it, trace)
+        } else {
+            Arc::new(trace())
+        };
         vps.par_iter()
             .zip(states.par_iter_mut())
             .for_each(|(vp, (state, _))| gather(&map, vp.as_ref(), state));

@@ -76,6 +76,12 @@ impl PhotonMap {
         self.photons.is_empty()
     }
 
+    /// About how much memory the map holds: its photons and its tree's copy of their
+    /// positions with their indices.
+    pub fn bytes(&self) -> usize {
+        self.photons.len() * (std::mem::size_of::<Photon>() + 16)
+    }
+
     pub fn photons(&self) -> &[Photon] {
         &self.photons
     }
