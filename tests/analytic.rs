@@ -1,6 +1,6 @@
 //! Scenes whose answer is known exactly.
 
-use crate::util::{assert_matches_pbrt, render, scene, write_scene};
+use crate::util::{assert_matches_pbrt, render, scene, write_pfm, write_scene};
 
 /// Inside a closed surface of albedo 0.5 that emits 0.5, radiance is 1 everywhere.
 fn check_furnace(file: &str) {
@@ -398,19 +398,6 @@ fn assert_quadrants_match(
             );
         }
     }
-}
-
-/// Writes a PFM image (rows given top to bottom; PFM stores them bottom up).
-fn write_pfm(path: &std::path::Path, width: usize, height: usize, rgb: &[[f32; 3]]) {
-    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
-    for y in (0..height).rev() {
-        for p in &rgb[y * width..(y + 1) * width] {
-            for c in p {
-                bytes.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-    }
-    std::fs::write(path, bytes).unwrap();
 }
 
 /// pbrt-v4's goniometric and projection lights, against its renders of the same files (a

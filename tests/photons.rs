@@ -3,7 +3,7 @@
 //! tracing (converging as photons grow), a point light's caustic against path tracing of a
 //! small sphere light of the same power, and weight-aware Russian roulette against none.
 
-use crate::util::{mean_and_error, render, scene, write_scene};
+use crate::util::{mean_and_error, render, scene, write_pfm, write_scene};
 use kiln_image::RgbBuffer;
 use kiln_render::integrators::photons::{PhotonMaps, Roulette, power_spread};
 use kiln_render::lights::Light;
@@ -405,19 +405,6 @@ fn sppm_converges_to_path_tracing() {
     let z = crate::util::max_z_score(&pt, &sppm, 8, 8);
     eprintln!("ball: largest block z-score, SPPM against path tracing, {z:.2}");
     assert!(z < 4.0, "a block differs by {z} standard errors");
-}
-
-/// Writes a PFM image (rows top to bottom; PFM stores them bottom up).
-fn write_pfm(path: &std::path::Path, width: usize, height: usize, rgb: &[[f32; 3]]) {
-    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
-    for y in (0..height).rev() {
-        for p in &rgb[y * width..(y + 1) * width] {
-            for c in p {
-                bytes.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-    }
-    std::fs::write(path, bytes).unwrap();
 }
 
 /// The luminance of the power leaving a glass VolumeLight sphere of `radius` whose interior

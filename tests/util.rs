@@ -354,3 +354,16 @@ pub fn assert_matches_pbrt(
         );
     }
 }
+
+/// Writes a PFM image (rows given top to bottom; PFM stores them bottom up).
+pub fn write_pfm(path: &std::path::Path, width: usize, height: usize, rgb: &[[f32; 3]]) {
+    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    for y in (0..height).rev() {
+        for p in &rgb[y * width..(y + 1) * width] {
+            for c in p {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}

@@ -14,15 +14,15 @@
 //! As in pbrt-v4, SPPM renders surfaces only (participating media are ignored).
 
 use super::direct::{Vertex, sample_direct};
-use super::photons::{Gather, Photon, PhotonMap};
+use super::photons::{BATCH, Gather, Launch, Photon, PhotonMap, emitters, launch, scatter};
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings};
 use crate::bsdfs::Bsdf;
 use crate::lights::SceneSphere;
-use crate::math::{Color, Frame, Ray, luminance, offset_origin};
+use crate::math::{Color, Frame, Ray, offset_origin};
 use crate::sampling::{AliasTable, PixelSampler, TrackingRng};
 use crate::scene::Scene;
 use crate::work::Work;
-use glam::{Vec2, Vec3A};
+use glam::Vec3A;
 use kiln_scene::{LightStrategy, PhotonDesc};
 use rayon::prelude::*;
 use std::f32::consts::PI;
@@ -151,25 +151,18 @@ pub fn camera_pass<'a>(
         let wo = frame.to_local(wo_world);
         sampler.set_dimension(CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * depth);
         if !bsdf.is_specular() {
-            if scene.light_sampler.is_empty() {
-                return Some(VisiblePointHandle(VisiblePoint {
+            if !scene.light_sampler.is_empty() {
+                let v = Vertex {
                     p: hit.p,
-                    wo,
-                    frame,
-                    bsdf,
-                    beta,
-                }));
+                    surface: Some(hit),
+                    medium,
+                    time: ray.time,
+                    last: false,
+                };
+                let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
+                let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
+                state.ld += beta * sample_direct(scene, &path, &v, f, pdf, sampler, work);
             }
-            let v = Vertex {
-                p: hit.p,
-                surface: Some(hit),
-                medium,
-                time: ray.time,
-                last: false,
-            };
-            let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
-            let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
-            state.ld += beta * sample_direct(scene, &path, &v, f, pdf, sampler, work);
             return Some(VisiblePointHandle(VisiblePoint {
                 p: hit.p,
                 wo,
@@ -231,25 +224,11 @@ pub fn gather(map: &PhotonMap, vp: Option<&VisiblePointHandle>, state: &mut Pixe
     state.radius = r_new;
 }
 
-/// Photons per parallel batch: the batches, not the threads, fix the order of the result.
-const BATCH: u64 = 4096;
-
 /// Traces iteration `iteration`'s photons and returns them as a map for gathers within
-/// radii up to `max_radius` (every pixel's radius only shrinks from the initial one).
+/// every pixel's radius (which only shrinks from the initial one).
 pub fn photon_pass(scene: &Scene, settings: &SppmSettings, seed: u32, iteration: u32) -> PhotonMap {
-    let powers: Vec<f64> = scene
-        .lights
-        .iter()
-        .map(|l| l.power(scene.radius).max(0.0) as f64)
-        .collect();
-    if powers.iter().all(|p| *p <= 0.0) {
+    let Some((table, sphere)) = emitters(scene) else {
         return PhotonMap::default();
-    }
-    let table = AliasTable::new(&powers);
-    let (lo, hi) = scene.geometry.bounds();
-    let sphere = SceneSphere {
-        center: (lo + hi) * 0.5,
-        radius: scene.radius,
     };
     let n = settings.photons_per_iteration;
     let batches: Vec<Vec<Photon>> = (0..n.div_ceil(BATCH))
@@ -280,32 +259,12 @@ fn trace_photon(
     stored: &mut Vec<Photon>,
 ) {
     let mut rng = TrackingRng::new(key);
-    let Some((light, pmf)) = table.sample(rng.next_f32()) else {
+    let Some(Launch {
+        mut beta, mut ray, ..
+    }) = launch(scene, table, sphere, 1, &mut rng)
+    else {
         return;
     };
-    let u = [
-        Vec2::new(rng.next_f32(), rng.next_f32()),
-        Vec2::new(rng.next_f32(), rng.next_f32()),
-    ];
-    let uc = rng.next_f32();
-    let (Some(emitted), _) = scene.lights[light].emit(&scene.light_context(), sphere, u, uc) else {
-        return;
-    };
-    let mut beta = emitted.flux / pmf;
-    if !(luminance(beta) > 0.0 && beta.is_finite()) {
-        return;
-    }
-    let time = if scene.has_motion {
-        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32()
-    } else {
-        0.0
-    };
-    let origin = if emitted.n == Vec3A::ZERO {
-        emitted.origin
-    } else {
-        offset_origin(emitted.origin, emitted.n, emitted.dir)
-    };
-    let mut ray = Ray::at_time(origin, emitted.dir, time);
     let mut depth = 0u32;
     let mut pass_throughs = 0u32;
     while depth < settings.max_depth {
@@ -328,23 +287,11 @@ fn trace_photon(
                 power: beta,
             });
         }
-        let frame = Frame::new(hit.ns, hit.dpdu);
-        let wo_world = -ray.dir;
-        let uc = rng.next_f32();
-        let u = Vec2::new(rng.next_f32(), rng.next_f32());
-        let Some(bs) = bsdf.sample(frame.to_local(wo_world), uc, u) else {
+        let Some(bounce) = scatter(&bsdf, &hit, ray.dir, &mut rng) else {
             return;
         };
-        if bs.pdf <= 0.0 {
-            return;
-        }
-        let wi = frame.to_world(bs.wi);
-        // Flux, not radiance, crosses a refraction (undo the BSDF's 1/eta^2), and shading
-        // normals make transport asymmetric (pbrt's correction for importance).
-        let shading = (wo_world.dot(hit.ns) * wi.dot(hit.ng)).abs()
-            / (wo_world.dot(hit.ng) * wi.dot(hit.ns)).abs().max(1e-8);
-        let bnew =
-            beta * bs.f * wi.dot(hit.ns).abs() / bs.pdf * (bs.eta * bs.eta) * shading.min(10.0);
+        let wi = bounce.wi;
+        let bnew = beta * bounce.weight;
         let q = (1.0 - bnew.max_element() / beta.max_element()).max(0.0);
         if rng.next_f32() < q {
             return;

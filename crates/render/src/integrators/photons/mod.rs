@@ -76,7 +76,7 @@ pub struct PhotonMaps {
 }
 
 /// Photons per parallel batch: the batches, not the threads, fix the order of the result.
-const BATCH: u64 = 4096;
+pub(super) const BATCH: u64 = 4096;
 
 /// Which maps a pass fills.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -181,6 +181,111 @@ pub fn power_spread(photons: &[Photon]) -> f64 {
     if mean > 0.0 { var.sqrt() / mean } else { 0.0 }
 }
 
+/// The lights' powers to choose them by, and the scene's bounding sphere that lights at
+/// infinity shine onto; None where no light emits.
+pub(super) fn emitters(scene: &Scene) -> Option<(AliasTable, SceneSphere)> {
+    let powers: Vec<f64> = scene
+        .lights
+        .iter()
+        .map(|l| l.power(scene.radius).max(0.0) as f64)
+        .collect();
+    if powers.iter().all(|p| *p <= 0.0) {
+        return None;
+    }
+    let (lo, hi) = scene.geometry.bounds();
+    let sphere = SceneSphere {
+        center: (lo + hi) * 0.5,
+        radius: scene.radius,
+    };
+    Some((AliasTable::new(&powers), sphere))
+}
+
+/// A photon leaving a light.
+pub(super) struct Launch {
+    /// The light's index.
+    pub light: usize,
+    pub emitted: EmittedRay,
+    /// Its flux over the light's probability and the photon count.
+    pub beta: Color,
+    /// Its first ray, at an instant of the shutter, off the light's surface.
+    pub ray: Ray,
+}
+
+/// Chooses a light by `table` (its powers) and a ray leaving it, from `rng`'s next numbers;
+/// None where it emits nothing that way.
+pub(super) fn launch(
+    scene: &Scene,
+    table: &AliasTable,
+    sphere: SceneSphere,
+    count: u64,
+    rng: &mut TrackingRng,
+) -> Option<Launch> {
+    let (light, pmf) = table.sample(rng.next_f32())?;
+    let u = [
+        Vec2::new(rng.next_f32(), rng.next_f32()),
+        Vec2::new(rng.next_f32(), rng.next_f32()),
+    ];
+    let uc = rng.next_f32();
+    let (emitted, _) = scene.lights[light].emit(&scene.light_context(), sphere, u, uc);
+    let emitted = emitted?;
+    let beta = emitted.flux / (pmf * count as f32);
+    if !(luminance(beta) > 0.0 && beta.is_finite()) {
+        return None;
+    }
+    // A photon flies at one instant of the shutter, as a camera path does.
+    let time = if scene.has_motion {
+        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32()
+    } else {
+        0.0
+    };
+    let origin = if emitted.n == Vec3A::ZERO {
+        emitted.origin
+    } else {
+        offset_origin(emitted.origin, emitted.n, emitted.dir)
+    };
+    Some(Launch {
+        light,
+        emitted,
+        beta,
+        ray: Ray::at_time(origin, emitted.dir, time),
+    })
+}
+
+/// A photon's bounce off a surface.
+pub(super) struct Bounce {
+    pub wi: Vec3A,
+    /// What the photon's flux is multiplied by.
+    pub weight: Color,
+    pub specular: bool,
+}
+
+/// Samples the direction a photon arriving along `dir` leaves `hit` in, by its BSDF.
+pub(super) fn scatter(
+    bsdf: &crate::bsdfs::Bsdf,
+    hit: &crate::shapes::SurfaceHit,
+    dir: Vec3A,
+    rng: &mut TrackingRng,
+) -> Option<Bounce> {
+    let frame = Frame::new(hit.ns, hit.dpdu);
+    let wo = -dir;
+    let uc = rng.next_f32();
+    let u = Vec2::new(rng.next_f32(), rng.next_f32());
+    let bs = bsdf.sample(frame.to_local(wo), uc, u)?;
+    if bs.pdf <= 0.0 {
+        return None;
+    }
+    let wi = frame.to_world(bs.wi);
+    // Flux, not radiance, crosses a refraction: undo the BSDF's 1/eta^2. Shading normals
+    // make light transport asymmetric: pbrt's correction for importance, bounded.
+    let shading =
+        (wo.dot(hit.ns) * wi.dot(hit.ng)).abs() / (wo.dot(hit.ng) * wi.dot(hit.ns)).abs().max(1e-8);
+    Some(Bounce {
+        wi,
+        weight: bs.f * (wi.dot(hit.ns).abs() / bs.pdf * (bs.eta * bs.eta) * shading.min(10.0)),
+        specular: bs.specular,
+    })
+}
+
 /// Chooses lights by power and traces photons from them.
 struct Shooter<'a> {
     scene: &'a Scene,
@@ -192,22 +297,11 @@ struct Shooter<'a> {
 
 impl<'a> Shooter<'a> {
     fn new(scene: &'a Scene, settings: &PhotonSettings) -> Option<Shooter<'a>> {
-        let powers: Vec<f64> = scene
-            .lights
-            .iter()
-            .map(|l| l.power(scene.radius).max(0.0) as f64)
-            .collect();
-        if powers.iter().all(|p| *p <= 0.0) {
-            return None;
-        }
-        let (lo, hi) = scene.geometry.bounds();
+        let (table, sphere) = emitters(scene)?;
         Some(Shooter {
             scene,
-            table: AliasTable::new(&powers),
-            sphere: SceneSphere {
-                center: (lo + hi) * 0.5,
-                radius: scene.radius,
-            },
+            table,
+            sphere,
             max_depth: settings.max_depth,
             roulette: settings.roulette,
         })
@@ -266,36 +360,17 @@ impl<'a> Shooter<'a> {
             Pass::Volume => 0x5ca7_7e12,
         };
         let mut rng = TrackingRng::new(index.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ salt);
-        let Some((light_index, pmf)) = self.table.sample(rng.next_f32()) else {
+        let Some(Launch {
+            light,
+            emitted,
+            mut beta,
+            mut ray,
+        }) = launch(scene, &self.table, self.sphere, count, &mut rng)
+        else {
             return;
         };
-        let u = [
-            Vec2::new(rng.next_f32(), rng.next_f32()),
-            Vec2::new(rng.next_f32(), rng.next_f32()),
-        ];
-        let uc = rng.next_f32();
-        let light = &scene.lights[light_index];
-        let (Some(emitted), _) = light.emit(&scene.light_context(), self.sphere, u, uc) else {
-            return;
-        };
-        let mut beta = emitted.flux / (pmf * count as f32);
         let start = luminance(beta);
-        if !(start > 0.0 && start.is_finite()) {
-            return;
-        }
-        let mut medium = self.start_medium(light_index, &emitted);
-        // A photon flies at one instant of the shutter, as a camera path does.
-        let time = if scene.has_motion {
-            scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * rng.next_f32()
-        } else {
-            0.0
-        };
-        let origin = if emitted.n == Vec3A::ZERO {
-            emitted.origin
-        } else {
-            offset_origin(emitted.origin, emitted.n, emitted.dir)
-        };
-        let mut ray = Ray::at_time(origin, emitted.dir, time);
+        let mut medium = self.start_medium(light, &emitted);
         // Events so far, and whether all were specular.
         let mut events = 0u32;
         let mut only_specular = true;
@@ -386,28 +461,16 @@ impl<'a> Shooter<'a> {
             if events >= self.max_depth {
                 return;
             }
-            let frame = Frame::new(hit.ns, hit.dpdu);
-            let wo_world = -ray.dir;
-            let wo = frame.to_local(wo_world);
-            let uc = rng.next_f32();
-            let u = Vec2::new(rng.next_f32(), rng.next_f32());
-            let Some(bs) = bsdf.sample(wo, uc, u) else {
+            let Some(bounce) = scatter(&bsdf, &hit, ray.dir, &mut rng) else {
                 return;
             };
-            if bs.pdf <= 0.0 {
-                return;
-            }
-            let wi = frame.to_world(bs.wi);
-            // Flux, not radiance, crosses the boundary: undo the BSDF's 1/eta^2. Shading
-            // normals make light transport asymmetric: pbrt's correction for importance.
-            let shading = (wo_world.dot(hit.ns) * wi.dot(hit.ng)).abs()
-                / (wo_world.dot(hit.ng) * wi.dot(hit.ns)).abs().max(1e-8);
-            beta *= bs.f * wi.dot(hit.ns).abs() / bs.pdf * (bs.eta * bs.eta) * shading.min(10.0);
+            let wi = bounce.wi;
+            beta *= bounce.weight;
             if !beta.is_finite() || beta == Color::ZERO {
                 return;
             }
             events += 1;
-            only_specular &= bs.specular;
+            only_specular &= bounce.specular;
             if !self.survives(&mut beta, start, &mut rng) {
                 return;
             }
