@@ -203,3 +203,89 @@ fn kiln_render_writes_the_same_bytes_as_render_tile_for_any_split() {
         "kiln render's pixels differ from render_tile's"
     );
 }
+
+/// A farm's store of shared pre-passes, in memory: the first to ask for a name that is not
+/// there claims it; what is published stays.
+#[derive(Default)]
+struct MemoryShare {
+    published: std::sync::Mutex<std::collections::HashMap<String, Vec<u8>>>,
+    claimed: std::sync::Mutex<std::collections::HashSet<String>>,
+    publishes: std::sync::atomic::AtomicUsize,
+}
+
+impl kiln_render::shared::SharedPrepass for MemoryShare {
+    fn fetch(&self, name: &str) -> kiln_render::shared::Shared {
+        use kiln_render::shared::Shared;
+        if let Some(bytes) = self.published.lock().unwrap().get(name) {
+            return Shared::Ready(bytes.clone());
+        }
+        if self.claimed.lock().unwrap().insert(name.to_string()) {
+            Shared::Yours
+        } else {
+            Shared::Theirs
+        }
+    }
+
+    fn publish(&self, name: &str, bytes: &[u8]) {
+        self.publishes
+            .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        self.published
+            .lock()
+            .unwrap()
+            .insert(name.to_string(), bytes.to_vec());
+    }
+}
+
+/// Workers that share a job's photon maps and SPPM passes (one computes each, the others
+/// decode it) render the same bits as a worker that computes everything itself; each map
+/// or pass is computed once, however many workers render.
+#[test]
+fn shared_photon_maps_and_sppm_passes_give_the_same_bits_computed_once() {
+    for (name, spp, resolution, published) in [
+        ("media/haze.pbrt", 2, (24, 24), 1),
+        ("photons/ball.pbrt", 6, (24, 24), 6),
+    ] {
+        let mut desc = kiln_scene::load_file(&scene(name)).unwrap();
+        desc.apply_overrides(&Overrides {
+            resolution: Some(resolution),
+            spp: Some(spp),
+            seed: None,
+        })
+        .unwrap();
+        let alone = render_split(&Renderer::build(&desc).unwrap(), 8, 2);
+        let share = std::sync::Arc::new(MemoryShare::default());
+        // Three workers, one after another and then two at once, each rendering tiles.
+        for _ in 0..3 {
+            let worker = Renderer::build_sharing(&desc, Some(share.clone())).unwrap();
+            assert!(
+                render_split(&worker, 8, 2) == alone,
+                "{name}: a sharing worker's pixels differ"
+            );
+        }
+        let (a, b) = rayon::join(
+            || {
+                render_split(
+                    &Renderer::build_sharing(&desc, Some(share.clone())).unwrap(),
+                    8,
+                    1,
+                )
+            },
+            || {
+                render_split(
+                    &Renderer::build_sharing(&desc, Some(share.clone())).unwrap(),
+                    8,
+                    1,
+                )
+            },
+        );
+        assert!(
+            a == alone && b == alone,
+            "{name}: concurrent sharing workers differ"
+        );
+        assert_eq!(
+            share.publishes.load(std::sync::atomic::Ordering::SeqCst),
+            published,
+            "{name}: each map or pass is computed once"
+        );
+    }
+}

@@ -377,6 +377,69 @@ fn corrupt_uploads_are_rejected_and_the_tile_is_issued_again() {
     assert!(s.error.unwrap().contains("failed 3 times"));
 }
 
+/// Shared pre-passes (photon maps, SPPM passes): the first worker to claim a missing one
+/// computes it and the others are told to wait; an upload must carry its bytes' SHA-256;
+/// once stored, a claim says it is ready and a download gives the bytes back with their
+/// digest. Bad names and unknown scenes are refused; no pre-pass is stored for them.
+#[test]
+fn shared_prepasses_are_claimed_once_verified_and_served() {
+    use kiln_farm::api::PrepassClaim;
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), None);
+    let client = Client::new(&url, None);
+    let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let name = "0123456789abcdef-sppm-pass-0";
+    assert_eq!(rt.block_on(client.prepass(&digest, name)).unwrap(), None);
+    assert_eq!(
+        rt.block_on(client.claim_prepass(&digest, name)).unwrap(),
+        PrepassClaim::Yours
+    );
+    assert_eq!(
+        rt.block_on(client.claim_prepass(&digest, name)).unwrap(),
+        PrepassClaim::Theirs,
+        "a second worker waits for the first"
+    );
+    // Bytes damaged on the way (not the digest given) are refused and not kept.
+    let bytes = b"photons".to_vec();
+    let put = |body: Vec<u8>, sha: String| {
+        rt.block_on(
+            reqwest::Client::new()
+                .put(format!("{url}/v1/scenes/{digest}/prepass/{name}"))
+                .header("x-kiln-prepass-sha256", sha)
+                .body(body)
+                .send(),
+        )
+        .unwrap()
+        .status()
+    };
+    let sha = kiln_farm::bundle::digest_of(&bytes);
+    assert_eq!(put(b"photonz".to_vec(), sha.clone()), 400);
+    assert_eq!(rt.block_on(client.prepass(&digest, name)).unwrap(), None);
+    assert_eq!(put(bytes.clone(), sha), 204);
+    assert_eq!(
+        rt.block_on(client.claim_prepass(&digest, name)).unwrap(),
+        PrepassClaim::Ready
+    );
+    assert_eq!(
+        rt.block_on(client.prepass(&digest, name)).unwrap(),
+        Some(bytes.clone())
+    );
+    // Names that are not file-safe, and scenes that were never uploaded.
+    for bad in ["../../etc", "Photon", "a b", &"x".repeat(129)] {
+        let err = rt.block_on(client.claim_prepass(&digest, bad)).unwrap_err();
+        assert!(
+            matches!(err.status(), Some(s) if s == 400 || s == 404),
+            "{bad}: {err}"
+        );
+    }
+    let err = rt
+        .block_on(client.upload_prepass(&"ab".repeat(32), name, bytes))
+        .unwrap_err();
+    assert_eq!(err.status(), Some(reqwest::StatusCode::NOT_FOUND), "{err}");
+}
+
 #[test]
 fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
     let dir = tempfile::tempdir().unwrap();

@@ -175,6 +175,27 @@ pub struct ApiError {
 /// merged.
 pub const TILE_DIGEST_HEADER: &str = "x-kiln-tile-sha256";
 
+/// The header carrying the SHA-256 (hex) of a shared pre-pass's bytes, on upload and
+/// download.
+pub const PREPASS_DIGEST_HEADER: &str = "x-kiln-prepass-sha256";
+
+/// Who computes a job's shared pre-pass (photon maps, an SPPM pass) that is not stored yet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PrepassClaim {
+    /// It is stored: download it.
+    Ready,
+    /// The asking worker holds the claim: compute it and upload it.
+    Yours,
+    /// Another worker holds the claim (for at most the claim's time to live).
+    Theirs,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PrepassClaimAnswer {
+    pub claim: PrepassClaim,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

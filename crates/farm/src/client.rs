@@ -49,6 +49,11 @@ impl Client {
     /// Sends and turns non-2xx answers into `ClientError::Api` with the server's message.
     async fn send(&self, r: RequestBuilder) -> Result<reqwest::Response> {
         let resp = r.send().await?;
+        self.check(resp).await
+    }
+
+    /// An answer, or its non-2xx status as `ClientError::Api` with the server's message.
+    async fn check(&self, resp: reqwest::Response) -> Result<reqwest::Response> {
         let status = resp.status();
         if status.is_success() {
             return Ok(resp);
@@ -132,6 +137,46 @@ impl Client {
             self.req(Method::PUT, &format!("/v1/leases/{lease}/tile"))
                 .header(TILE_DIGEST_HEADER, crate::bundle::digest_of(&exr))
                 .body(exr),
+        )
+        .await
+        .map(|_| ())
+    }
+
+    /// A job's shared pre-pass, if stored; its bytes are checked against the SHA-256 the
+    /// coordinator gives (None for bytes damaged on the way: compute it instead).
+    pub async fn prepass(&self, scene: &str, name: &str) -> Result<Option<Vec<u8>>> {
+        let r = self
+            .req(Method::GET, &format!("/v1/scenes/{scene}/prepass/{name}"))
+            .send()
+            .await?;
+        if r.status() == StatusCode::NOT_FOUND {
+            return Ok(None);
+        }
+        let r = self.check(r).await?;
+        let sha = r
+            .headers()
+            .get(PREPASS_DIGEST_HEADER)
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_ascii_lowercase);
+        let bytes = r.bytes().await?.to_vec();
+        Ok((sha.as_deref() == Some(crate::bundle::digest_of(&bytes).as_str())).then_some(bytes))
+    }
+
+    pub async fn claim_prepass(&self, scene: &str, name: &str) -> Result<PrepassClaim> {
+        let r = self
+            .send(self.req(
+                Method::POST,
+                &format!("/v1/scenes/{scene}/prepass/{name}/claim"),
+            ))
+            .await?;
+        Ok(r.json::<PrepassClaimAnswer>().await?.claim)
+    }
+
+    pub async fn upload_prepass(&self, scene: &str, name: &str, bytes: Vec<u8>) -> Result<()> {
+        self.send(
+            self.req(Method::PUT, &format!("/v1/scenes/{scene}/prepass/{name}"))
+                .header(PREPASS_DIGEST_HEADER, crate::bundle::digest_of(&bytes))
+                .body(bytes),
         )
         .await
         .map(|_| ())

@@ -1,8 +1,9 @@
 //! A worker: leases tiles, renders them with `kiln_render::render_tile`, returns EXRs.
 
-use crate::api::{JobSpec, Lease};
+use crate::api::{JobSpec, Lease, PrepassClaim};
 use crate::bundle;
 use crate::client::{Client, ClientError};
+use kiln_render::shared::{Shared, SharedPrepass};
 use kiln_render::{Renderer, TileRect, render_tile_until};
 use reqwest::StatusCode;
 use std::collections::HashMap;
@@ -207,12 +208,18 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
     };
     let overrides = spec.overrides();
     let root = config.cache_dir.join(&spec.scene);
+    let share: Arc<dyn SharedPrepass> = Arc::new(CoordinatorShare {
+        client: client.clone(),
+        runtime: tokio::runtime::Handle::current(),
+        scene: spec.scene.clone(),
+        prefix: prepass_prefix(&overrides),
+    });
     tokio::task::spawn_blocking(move || {
         let mut desc = kiln_scene::load_file_within(&scene_path, &root)
             .map_err(|e| LoadError::Scene(bundle::relative_message(&e, &root)))?;
         desc.apply_overrides(&overrides)
             .map_err(LoadError::Overrides)?;
-        let renderer = Renderer::build(&desc).map_err(LoadError::Build)?;
+        let renderer = Renderer::build_sharing(&desc, Some(share)).map_err(LoadError::Build)?;
         Ok(Loaded {
             renderer,
             frame: (desc.film.xresolution, desc.film.yresolution),
@@ -220,6 +227,64 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
     })
     .await
     .map_err(LoadError::Task)?
+}
+
+/// The part of a shared pre-pass's name that its job's inputs decide beyond the scene
+/// bundle (resolution, samples, seed), and the layout's version: a digest's first 16 hex
+/// digits.
+fn prepass_prefix(o: &kiln_scene::Overrides) -> String {
+    let inputs = format!("photons-v1 {:?} {:?} {:?}", o.resolution, o.spp, o.seed);
+    bundle::digest_of(inputs.as_bytes())[..16].to_string()
+}
+
+/// A job's shared pre-passes (photon maps, SPPM's passes) through the coordinator. The
+/// renderer calls it from its own threads, outside the runtime, so each call blocks on the
+/// runtime's handle. A coordinator that cannot be reached makes this worker compute what it
+/// needs itself (the bytes are the same).
+struct CoordinatorShare {
+    client: Client,
+    runtime: tokio::runtime::Handle,
+    scene: String,
+    prefix: String,
+}
+
+impl SharedPrepass for CoordinatorShare {
+    fn fetch(&self, name: &str) -> Shared {
+        let name = format!("{}-{name}", self.prefix);
+        let (client, scene) = (&self.client, &self.scene);
+        self.runtime.block_on(async {
+            match client.prepass(scene, &name).await {
+                Ok(Some(bytes)) => return Shared::Ready(bytes),
+                Ok(None) => {}
+                Err(e) => {
+                    tracing::warn!("pre-pass {name}: {e}; computing it here");
+                    return Shared::Yours;
+                }
+            }
+            match client.claim_prepass(scene, &name).await {
+                Ok(PrepassClaim::Theirs) => Shared::Theirs,
+                Ok(PrepassClaim::Ready) => match client.prepass(scene, &name).await {
+                    Ok(Some(bytes)) => Shared::Ready(bytes),
+                    _ => Shared::Yours,
+                },
+                Ok(PrepassClaim::Yours) => Shared::Yours,
+                Err(e) => {
+                    tracing::warn!("pre-pass {name}: {e}; computing it here");
+                    Shared::Yours
+                }
+            }
+        })
+    }
+
+    fn publish(&self, name: &str, bytes: &[u8]) {
+        let name = format!("{}-{name}", self.prefix);
+        let upload = self
+            .client
+            .upload_prepass(&self.scene, &name, bytes.to_vec());
+        if let Err(e) = self.runtime.block_on(upload) {
+            tracing::warn!("pre-pass {name}: cannot upload it: {e}");
+        }
+    }
 }
 
 /// What became of a leased tile.

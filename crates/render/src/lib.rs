@@ -43,6 +43,7 @@ pub mod sampling;
 pub mod scene;
 pub mod sensor;
 pub mod shapes;
+pub mod shared;
 pub mod textures;
 pub mod tile;
 pub mod work;

@@ -3,11 +3,13 @@
 //! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
 use crate::gbuffer::{GBufferLayout, GBufferPixel, VisibleSurface};
-use crate::integrators::photons::PhotonMap;
+use crate::integrators::photons::map::{decode, encode};
+use crate::integrators::photons::{Gather, PhotonMap};
 use crate::integrators::{Integrator, Prepass};
 use crate::math::Color;
 use crate::sampling::PixelSampler;
 use crate::scene::{BuildError, MediaPolicy, Scene};
+use crate::shared::{Shared, SharedPrepass, shared_or_built};
 use crate::work::Work;
 use glam::Vec2;
 use rayon::prelude::*;
@@ -101,6 +103,8 @@ pub struct Renderer {
     /// SPPM's photon passes kept between tiles rendered one at a time (a farm worker's
     /// leases), so a worker traces each pass once per job, not once per tile.
     sppm_passes: SppmPasses,
+    /// Where a farm's workers share the job's pre-passes and SPPM passes.
+    shared: Option<Arc<dyn SharedPrepass>>,
 }
 
 /// SPPM photon passes by iteration, kept up to [`SppmPasses::BUDGET`] bytes (the first
@@ -110,17 +114,100 @@ pub struct Renderer {
 struct SppmPasses {
     /// The bytes kept, and the passes by iteration.
     kept: Mutex<(usize, HashMap<u32, Arc<PhotonMap>>)>,
+    /// Passes this renderer has claimed in the shared store and is tracing. Another thread
+    /// of the same renderer must not wait for one: rayon may have run that thread's tile
+    /// inside the very trace it would wait for (a thread waiting for its own stack).
+    tracing: Mutex<std::collections::HashSet<u32>>,
 }
 
 impl SppmPasses {
     const BUDGET: usize = 1 << 30;
 
-    /// Pass `iteration`, from the cache or traced by `trace` (and kept if it fits).
-    fn get(&self, iteration: u32, trace: impl FnOnce() -> PhotonMap) -> Arc<PhotonMap> {
+    /// How many passes ahead a worker waiting for another's pass claims and traces.
+    const AHEAD: u32 = 8;
+
+    /// Pass `iteration` of `iterations`: from the cache, from `shared` (where another
+    /// worker published it), or traced by `trace` (published when shared, and kept if it
+    /// fits). While another worker traces it, this one traces passes ahead that nobody has
+    /// claimed. None if `stop` says so while waiting.
+    fn get(
+        &self,
+        iteration: u32,
+        iterations: u32,
+        shared: Option<&dyn SharedPrepass>,
+        trace: &(dyn Fn(u32) -> PhotonMap + Sync),
+        gather: Gather,
+        stop: &dyn Fn() -> bool,
+    ) -> Option<Arc<PhotonMap>> {
         if let Some(map) = self.lock().1.get(&iteration) {
-            return map.clone();
+            return Some(map.clone());
         }
-        let map = Arc::new(trace());
+        let Some(shared) = shared else {
+            return Some(self.keep(iteration, trace(iteration)));
+        };
+        let name = |it: u32| format!("sppm-pass-{it}");
+        let decode_pass = |b: &[u8]| -> Result<PhotonMap, String> {
+            let [photons]: [Vec<_>; 1] = decode(b)?
+                .try_into()
+                .map_err(|_| "not one photon list".to_string())?;
+            Ok(PhotonMap::new(photons, gather))
+        };
+        // Traces a pass this renderer holds the claim to (its other threads trace it again
+        // rather than wait for it: rayon may have run their tile inside this very trace).
+        let trace_claimed = |it: u32| {
+            self.claims().insert(it);
+            let map = trace(it);
+            self.claims().remove(&it);
+            map
+        };
+        // While another worker traces this pass: a pass ahead that is published (keep it)
+        // or that nobody has claimed (trace and publish it). One answer per pass: a claim
+        // is asked for once.
+        let mut ahead = || {
+            for it in iteration + 1..(iteration + 1 + Self::AHEAD).min(iterations) {
+                if self.lock().1.contains_key(&it) || self.lock().0 >= Self::BUDGET {
+                    continue;
+                }
+                match shared.fetch(&name(it)) {
+                    Shared::Theirs => continue,
+                    Shared::Ready(bytes) => {
+                        if let Ok(map) = decode_pass(&bytes) {
+                            self.keep(it, map);
+                            return true;
+                        }
+                    }
+                    Shared::Yours => {
+                        let map = trace_claimed(it);
+                        shared.publish(&name(it), &encode(&[map.photons()]));
+                        self.keep(it, map);
+                        return true;
+                    }
+                }
+            }
+            false
+        };
+        if self.claims().contains(&iteration) {
+            return Some(self.keep(iteration, trace(iteration)));
+        }
+        let map = shared_or_built(
+            shared,
+            &name(iteration),
+            || trace_claimed(iteration),
+            |m: &PhotonMap| encode(&[m.photons()]),
+            decode_pass,
+            &mut ahead,
+            stop,
+        )?;
+        Some(self.keep(iteration, map))
+    }
+
+    fn claims(&self) -> std::sync::MutexGuard<'_, std::collections::HashSet<u32>> {
+        self.tracing.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Keeps pass `iteration` if it fits in the budget.
+    fn keep(&self, iteration: u32, map: PhotonMap) -> Arc<PhotonMap> {
+        let map = Arc::new(map);
         let mut kept = self.lock();
         if kept.0 + map.bytes() <= Self::BUDGET {
             kept.0 += map.bytes();
@@ -139,6 +226,14 @@ impl Renderer {
     /// Builds the scene a description gives, with the settings it gives, and runs the
     /// integrator's pre-passes.
     pub fn build(desc: &kiln_scene::SceneDescription) -> Result<Renderer, BuildError> {
+        Renderer::build_sharing(desc, None)
+    }
+
+    /// [`Renderer::build`] sharing the job's pre-passes (see [`Renderer::new_sharing`]).
+    pub fn build_sharing(
+        desc: &kiln_scene::SceneDescription,
+        shared: Option<Arc<dyn SharedPrepass>>,
+    ) -> Result<Renderer, BuildError> {
         let settings = RenderSettings::from_description(desc);
         let media = if settings.integrator.renders_media() {
             MediaPolicy::Render
@@ -152,22 +247,36 @@ impl Renderer {
             });
         }
         let scene = Scene::build(desc, media)?;
-        Ok(Renderer::new(scene, settings))
+        Ok(Renderer::new_sharing(scene, settings, shared))
     }
 
     /// Runs the integrator's pre-passes on `scene`. The scene should have been built with
     /// the media policy the integrator asks for (see [`Integrator::renders_media`]).
     pub fn new(scene: Scene, settings: RenderSettings) -> Renderer {
-        let prepass = settings.integrator.prepare(&scene);
+        Renderer::new_sharing(scene, settings, None)
+    }
+
+    /// [`Renderer::new`] for one of a farm's workers: the pre-passes, and SPPM's photon
+    /// passes, are computed once for the job by whichever worker claims each first, and
+    /// shared through `shared`. The pixels are the same bytes as without it.
+    pub fn new_sharing(
+        scene: Scene,
+        settings: RenderSettings,
+        shared: Option<Arc<dyn SharedPrepass>>,
+    ) -> Renderer {
+        let prepass = settings
+            .integrator
+            .prepare_sharing(&scene, shared.as_deref());
         Renderer {
             scene,
             settings,
             prepass,
             sppm_passes: SppmPasses::default(),
+            shared,
         }
     }
 
-    /// The same scene with other settings (pre-passes run again).
+    /// The same scene with other settings (pre-passes run again, not shared).
     pub fn with_settings(self, settings: RenderSettings) -> Renderer {
         Renderer::new(self.scene, settings)
     }
@@ -382,11 +491,18 @@ fn render_sppm(
                 vp
             })
             .collect();
-        let trace = || photon_pass(scene, sppm, settings.seed, it);
+        let trace = |i: u32| photon_pass(scene, sppm, settings.seed, i);
         let map = if keep {
-            renderer.sppm_passes.get(it, trace)
+            renderer.sppm_passes.get(
+                it,
+                iterations,
+                renderer.shared.as_deref(),
+                &trace,
+                Gather::Radius(sppm.radius),
+                stop,
+            )?
         } else {
-            Arc::new(trace())
+            Arc::new(trace(it))
         };
         vps.par_iter()
             .zip(states.par_iter_mut())

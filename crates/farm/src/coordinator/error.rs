@@ -57,6 +57,14 @@ pub enum Error {
     NoTileDigest,
     #[error("rejected tile: {0}")]
     RejectedTile(TileRejected),
+    #[error("a pre-pass name is 1 to 128 of a-z, 0-9 and '-'")]
+    BadPrepassName,
+    #[error("no pre-pass '{0}' is stored for this scene")]
+    UnknownPrepass(String),
+    #[error(
+        "a pre-pass upload must give the SHA-256 of its bytes in the X-Kiln-Prepass-SHA256 header, and its bytes must have it"
+    )]
+    PrepassDigest,
 
     // Internal failures: logged, never shown.
     #[error("job store: {0}")]

@@ -22,10 +22,21 @@ use tokio::sync::broadcast;
 /// The coordinator's HTTP routes.
 pub fn app(c: Coordinator) -> Router {
     let max_tile = c.config().max_tile_bytes;
+    let max_prepass = c.config().max_scene_bytes;
     let api = Router::new()
         // Streamed to disk, and limited as it streams (save_scene_stream).
         .route("/v1/scenes", post(upload_scene))
         .route("/v1/scenes/{digest}", get(download_scene))
+        .route(
+            "/v1/scenes/{digest}/prepass/{name}",
+            get(download_prepass)
+                .put(upload_prepass)
+                .layer(DefaultBodyLimit::max(max_prepass)),
+        )
+        .route(
+            "/v1/scenes/{digest}/prepass/{name}/claim",
+            post(claim_prepass),
+        )
         .route("/v1/jobs", post(create_job).get(list_jobs))
         .route("/v1/jobs/{id}", get(get_job))
         .route("/v1/jobs/{id}/events", get(job_events))
@@ -87,13 +98,18 @@ impl Error {
         match self {
             Error::Unauthorized => StatusCode::UNAUTHORIZED,
             Error::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
-            Error::NoRoute | Error::UnknownScene(_) | Error::UnknownJob(_) => StatusCode::NOT_FOUND,
+            Error::NoRoute
+            | Error::UnknownScene(_)
+            | Error::UnknownJob(_)
+            | Error::UnknownPrepass(_) => StatusCode::NOT_FOUND,
             Error::BadId(_)
             | Error::BadBody(_)
             | Error::BadJob(_)
             | Error::BadBundle(_)
             | Error::BadDigest
             | Error::NoTileDigest
+            | Error::BadPrepassName
+            | Error::PrepassDigest
             | Error::BrokenUpload(_)
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
             Error::Unplannable(_) => StatusCode::UNPROCESSABLE_ENTITY,
@@ -168,6 +184,48 @@ async fn download_scene(
 ) -> Result<Response, Error> {
     let bytes = c.scene_bundle(&digest).await?;
     Ok(([(header::CONTENT_TYPE, "application/octet-stream")], bytes).into_response())
+}
+
+/// A job's shared pre-pass (photon maps, an SPPM pass), as a worker uploaded it, with the
+/// SHA-256 of its bytes.
+async fn download_prepass(
+    State(c): State<Coordinator>,
+    UrlPath((digest, name)): UrlPath<(String, String)>,
+) -> Result<Response, Error> {
+    let bytes = c.prepass(&digest, &name).await?;
+    let sha = crate::bundle::digest_of(&bytes);
+    Ok((
+        [
+            (header::CONTENT_TYPE, "application/octet-stream".to_string()),
+            (header::HeaderName::from_static(PREPASS_DIGEST_HEADER), sha),
+        ],
+        bytes,
+    )
+        .into_response())
+}
+
+async fn upload_prepass(
+    State(c): State<Coordinator>,
+    UrlPath((digest, name)): UrlPath<(String, String)>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Result<StatusCode, Error> {
+    let sha = headers
+        .get(PREPASS_DIGEST_HEADER)
+        .and_then(|v| v.to_str().ok())
+        .ok_or(Error::PrepassDigest)?
+        .to_string();
+    c.save_prepass(&digest, &name, body, &sha).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+async fn claim_prepass(
+    State(c): State<Coordinator>,
+    UrlPath((digest, name)): UrlPath<(String, String)>,
+) -> Result<Json<PrepassClaimAnswer>, Error> {
+    Ok(Json(PrepassClaimAnswer {
+        claim: c.claim_prepass(&digest, &name)?,
+    }))
 }
 
 async fn create_job(

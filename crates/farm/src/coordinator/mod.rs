@@ -6,6 +6,8 @@
 //!   and `lending.rs` (leases, heartbeats, uploads, failures: the workers' side).
 //! - `http.rs` turns requests into those calls and errors into JSON responses.
 //! - `merge.rs` writes a finished job's frame without holding the lock.
+//! - `prepass.rs` keeps what workers compute once per job and share (photon maps, SPPM
+//!   passes) beside the scene bundle, and who is computing what.
 //! - `job.rs` (one job's tiles and frame), `leases.rs` (the lease table and worker records)
 //!   and `metrics.rs` (counters) are plain state; `store.rs` is SQLite and the data
 //!   directory's files; `error.rs` names the failures.
@@ -18,6 +20,7 @@ mod leases;
 mod lending;
 mod merge;
 mod metrics;
+mod prepass;
 #[cfg(test)]
 mod proptests;
 mod store;
@@ -87,6 +90,9 @@ struct Shared {
     state: Mutex<State>,
     /// Job ids whose status changed, for progress events.
     events: broadcast::Sender<u64>,
+    /// Who is computing which shared pre-pass, and since when (`prepass.rs`). Apart from
+    /// the state lock: claims touch nothing else.
+    prepass_claims: Mutex<prepass::Claims>,
     /// Tests hold a merge here to watch what other requests do meanwhile.
     #[cfg(test)]
     merge_hook: Mutex<Option<Box<dyn FnOnce() + Send>>>,
@@ -134,6 +140,7 @@ impl Coordinator {
                 files,
                 config,
                 events,
+                prepass_claims: Mutex::new(prepass::Claims::default()),
                 #[cfg(test)]
                 merge_hook: Mutex::new(None),
             }),

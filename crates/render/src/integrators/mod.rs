@@ -108,10 +108,33 @@ impl Integrator {
 
     /// Runs the pre-passes this integrator needs on `scene`.
     pub fn prepare(&self, scene: &Scene) -> Prepass {
+        self.prepare_sharing(scene, None)
+    }
+
+    /// [`Integrator::prepare`], taking the photon maps from `shared` when another worker
+    /// of the job has built them (and publishing them when this one builds them).
+    pub fn prepare_sharing(
+        &self,
+        scene: &Scene,
+        shared: Option<&dyn crate::shared::SharedPrepass>,
+    ) -> Prepass {
         let Some(settings) = self.photon_settings(scene) else {
             return Prepass::default();
         };
-        let maps = PhotonMaps::build(scene, &settings);
+        let build = || PhotonMaps::build(scene, &settings);
+        let maps = match shared {
+            None => build(),
+            Some(shared) => crate::shared::shared_or_built(
+                shared,
+                "photon-maps",
+                build,
+                PhotonMaps::to_bytes,
+                |b| PhotonMaps::from_bytes(b, &settings),
+                || false,
+                &|| false,
+            )
+            .expect("never stopped"),
+        };
         Prepass {
             photons: (!maps.is_empty()).then_some(maps),
         }

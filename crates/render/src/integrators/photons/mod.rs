@@ -119,6 +119,34 @@ impl PhotonMaps {
         maps
     }
 
+    /// The maps as bytes (see [`map::encode`]): which passes ran, then the three maps'
+    /// photons.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = vec![u8::from(self.caustics) | (u8::from(self.volume_pass) << 1)];
+        out.extend(map::encode(&[
+            self.caustic_surface.photons(),
+            self.caustic_volume.photons(),
+            self.volume.photons(),
+        ]));
+        out
+    }
+
+    /// Maps from [`PhotonMaps::to_bytes`], gathered as `settings` says.
+    pub fn from_bytes(bytes: &[u8], settings: &PhotonSettings) -> Result<PhotonMaps, String> {
+        let (&flags, rest) = bytes.split_first().ok_or("no photon maps")?;
+        let lists: [Vec<Photon>; 3] = map::decode(rest)?
+            .try_into()
+            .map_err(|l: Vec<_>| format!("{} photon lists, not 3", l.len()))?;
+        let [surface, caustic_volume, volume] = lists;
+        Ok(PhotonMaps {
+            caustics: flags & 1 != 0,
+            caustic_surface: PhotonMap::new(surface, settings.caustic_gather),
+            caustic_volume: PhotonMap::new(caustic_volume, settings.caustic_gather),
+            volume_pass: flags & 2 != 0,
+            volume: PhotonMap::new(volume, settings.volume_gather),
+        })
+    }
+
     /// Whether no pass ran (no light emits).
     pub fn is_empty(&self) -> bool {
         !self.caustics && !self.volume_pass
