@@ -93,7 +93,13 @@ pub async fn run(config: WorkerConfig, stop: Arc<Stop>) -> Result<u64, WorkerErr
         let Some(lease) = next_lease(&client, &config, &mut unreachable_since).await? else {
             continue;
         };
-        let loaded = match scenes.get(&client, &config, &lease.spec).await {
+        // Loading may take a while (a big scene, photon maps built or waited for): the
+        // lease is kept alive meanwhile, and one lost on the way is not rendered.
+        let (beat, lost) = keep_alive(&client, &lease);
+        let loaded = scenes.get(&client, &config, &lease.spec).await;
+        beat.abort();
+        let loaded = match loaded {
+            Ok(_) if lost.load(Ordering::SeqCst) => continue,
             Ok(l) => l,
             Err(e) => {
                 let _ = client.fail(lease.lease, &e.to_string()).await;
@@ -287,6 +293,31 @@ impl SharedPrepass for CoordinatorShare {
     }
 }
 
+/// Heartbeats for `lease` until the task is aborted; the flag turns true when the
+/// coordinator refuses one (the job was cancelled or has ended, the lease expired).
+fn keep_alive(client: &Client, lease: &Lease) -> (tokio::task::JoinHandle<()>, Arc<AtomicBool>) {
+    let lost = Arc::new(AtomicBool::new(false));
+    let client = client.clone();
+    let id = lease.lease;
+    let flag = lost.clone();
+    let every = Duration::from_millis((lease.ttl_ms / 3).max(10));
+    let beat = tokio::spawn(async move {
+        loop {
+            tokio::time::sleep(every).await;
+            match client.heartbeat(id).await {
+                Ok(()) => {}
+                Err(e) if e.status().is_some_and(|s| s.is_client_error()) => {
+                    flag.store(true, Ordering::SeqCst);
+                    break;
+                }
+                // The coordinator may be restarting: the lease may still be good.
+                Err(_) => {}
+            }
+        }
+    });
+    (beat, lost)
+}
+
 /// What became of a leased tile.
 enum Outcome {
     Uploaded,
@@ -305,27 +336,7 @@ async fn render_and_upload(
 ) -> Result<Outcome, ClientError> {
     // Heartbeats keep the lease while the tile renders; one the coordinator refuses (the
     // job was cancelled or has ended, the lease expired) stops the render between pixels.
-    let lost = Arc::new(AtomicBool::new(false));
-    let beat = {
-        let client = client.clone();
-        let id = lease.lease;
-        let lost = lost.clone();
-        let every = Duration::from_millis((lease.ttl_ms / 3).max(10));
-        tokio::spawn(async move {
-            loop {
-                tokio::time::sleep(every).await;
-                match client.heartbeat(id).await {
-                    Ok(()) => {}
-                    Err(e) if e.status().is_some_and(|s| s.is_client_error()) => {
-                        lost.store(true, Ordering::SeqCst);
-                        break;
-                    }
-                    // The coordinator may be restarting: the lease may still be good.
-                    Err(_) => {}
-                }
-            }
-        })
-    };
+    let (beat, lost) = keep_alive(client, lease);
     let rect = TileRect::from(lease.tile);
     let (pool, loaded2, lost2, stop2) = (pool.clone(), loaded.clone(), lost.clone(), stop.clone());
     let exr = tokio::task::spawn_blocking(move || {
