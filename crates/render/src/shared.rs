@@ -56,7 +56,7 @@ pub fn shared_or_built<T>(
                     return None;
                 }
                 if !idle() {
-                    std::thread::sleep(std::time::Duration::from_millis(20));
+                    std::thread::sleep(std::time::Duration::from_millis(50));
                 }
             }
         }
