@@ -99,6 +99,10 @@ impl Coordinator {
         }
         let mut claims = self.claims();
         let now = self.now();
+        // Lapsed claims go, so that names asked for and never uploaded do not pile up.
+        claims
+            .0
+            .retain(|_, since| now.duration_since(*since) < CLAIM_TTL);
         let key = (scene.to_string(), name.to_string());
         match claims.0.get(&key) {
             Some(since) if now.duration_since(*since) < CLAIM_TTL => Ok(PrepassClaim::Theirs),
