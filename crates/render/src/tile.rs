@@ -3,18 +3,17 @@
 //! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
 use crate::gbuffer::{GBufferLayout, GBufferPixel, VisibleSurface};
-use crate::integrators::photons::map::{decode, encode};
-use crate::integrators::photons::{Gather, PhotonMap};
+use crate::integrators::photons::Gather;
+use crate::integrators::sppm::PassCache;
 use crate::integrators::{Integrator, Prepass};
 use crate::math::Color;
 use crate::sampling::PixelSampler;
 use crate::scene::{BuildError, MediaPolicy, Scene};
-use crate::shared::{Shared, SharedPrepass, shared_or_built};
+use crate::shared::SharedPrepass;
 use crate::work::Work;
 use glam::Vec2;
 use rayon::prelude::*;
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// A rectangle of pixels inside the frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -102,124 +101,9 @@ pub struct Renderer {
     prepass: Prepass,
     /// SPPM's photon passes kept between tiles rendered one at a time (a farm worker's
     /// leases), so a worker traces each pass once per job, not once per tile.
-    sppm_passes: SppmPasses,
+    sppm_passes: PassCache,
     /// Where a farm's workers share the job's pre-passes and SPPM passes.
     shared: Option<Arc<dyn SharedPrepass>>,
-}
-
-/// SPPM photon passes by iteration, kept up to [`SppmPasses::BUDGET`] bytes (the first
-/// passes a job needs; later ones are traced again for every tile). A pass is a pure
-/// function of (scene, settings, iteration), so keeping one changes no pixel.
-#[derive(Default)]
-struct SppmPasses {
-    /// The bytes kept, and the passes by iteration.
-    kept: Mutex<(usize, HashMap<u32, Arc<PhotonMap>>)>,
-    /// Passes this renderer has claimed in the shared store and is tracing. Another thread
-    /// of the same renderer must not wait for one: rayon may have run that thread's tile
-    /// inside the very trace it would wait for (a thread waiting for its own stack).
-    tracing: Mutex<std::collections::HashSet<u32>>,
-}
-
-impl SppmPasses {
-    const BUDGET: usize = 1 << 30;
-
-    /// How many passes ahead a worker waiting for another's pass claims and traces.
-    const AHEAD: u32 = 8;
-
-    /// Pass `iteration` of `iterations`: from the cache, from `shared` (where another
-    /// worker published it), or traced by `trace` (published when shared, and kept if it
-    /// fits). While another worker traces it, this one traces passes ahead that nobody has
-    /// claimed. None if `stop` says so while waiting.
-    fn get(
-        &self,
-        iteration: u32,
-        iterations: u32,
-        shared: Option<&dyn SharedPrepass>,
-        trace: &(dyn Fn(u32) -> PhotonMap + Sync),
-        gather: Gather,
-        stop: &dyn Fn() -> bool,
-    ) -> Option<Arc<PhotonMap>> {
-        if let Some(map) = self.lock().1.get(&iteration) {
-            return Some(map.clone());
-        }
-        let Some(shared) = shared else {
-            return Some(self.keep(iteration, trace(iteration)));
-        };
-        let name = |it: u32| format!("sppm-pass-{it}");
-        let decode_pass = |b: &[u8]| -> Result<PhotonMap, String> {
-            let [photons]: [Vec<_>; 1] = decode(b)?
-                .try_into()
-                .map_err(|_| "not one photon list".to_string())?;
-            Ok(PhotonMap::new(photons, gather))
-        };
-        // Traces a pass this renderer holds the claim to (its other threads trace it again
-        // rather than wait for it: rayon may have run their tile inside this very trace).
-        let trace_claimed = |it: u32| {
-            self.claims().insert(it);
-            let map = trace(it);
-            self.claims().remove(&it);
-            map
-        };
-        // While another worker traces this pass: a pass ahead that is published (keep it)
-        // or that nobody has claimed (trace and publish it). One answer per pass: a claim
-        // is asked for once.
-        let mut ahead = || {
-            for it in iteration + 1..(iteration + 1 + Self::AHEAD).min(iterations) {
-                if self.lock().1.contains_key(&it) || self.lock().0 >= Self::BUDGET {
-                    continue;
-                }
-                match shared.fetch(&name(it)) {
-                    Shared::Theirs => continue,
-                    Shared::Ready(bytes) => {
-                        if let Ok(map) = decode_pass(&bytes) {
-                            self.keep(it, map);
-                            return true;
-                        }
-                    }
-                    Shared::Yours => {
-                        let map = trace_claimed(it);
-                        shared.publish(&name(it), &encode(&[map.photons()]));
-                        self.keep(it, map);
-                        return true;
-                    }
-                }
-            }
-            false
-        };
-        if self.claims().contains(&iteration) {
-            return Some(self.keep(iteration, trace(iteration)));
-        }
-        let map = shared_or_built(
-            shared,
-            &name(iteration),
-            || trace_claimed(iteration),
-            |m: &PhotonMap| encode(&[m.photons()]),
-            decode_pass,
-            &mut ahead,
-            stop,
-        )?;
-        Some(self.keep(iteration, map))
-    }
-
-    fn claims(&self) -> std::sync::MutexGuard<'_, std::collections::HashSet<u32>> {
-        self.tracing.lock().unwrap_or_else(|e| e.into_inner())
-    }
-
-    /// Keeps pass `iteration` if it fits in the budget.
-    fn keep(&self, iteration: u32, map: PhotonMap) -> Arc<PhotonMap> {
-        let map = Arc::new(map);
-        let mut kept = self.lock();
-        if kept.0 + map.bytes() <= Self::BUDGET {
-            kept.0 += map.bytes();
-            kept.1.insert(iteration, map.clone());
-        }
-        map
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, (usize, HashMap<u32, Arc<PhotonMap>>)> {
-        // A panic elsewhere cannot leave the cache half-written: entries go in whole.
-        self.kept.lock().unwrap_or_else(|e| e.into_inner())
-    }
 }
 
 impl Renderer {
@@ -271,7 +155,7 @@ impl Renderer {
             scene,
             settings,
             prepass,
-            sppm_passes: SppmPasses::default(),
+            sppm_passes: PassCache::default(),
             shared,
         }
     }

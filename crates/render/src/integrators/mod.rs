@@ -26,6 +26,30 @@ use kiln_scene::{IntegratorDesc, LightStrategy, PhotonDesc};
 const CAMERA_DIMENSIONS: u32 = 4;
 const DIMENSIONS_PER_BOUNCE: u32 = 8;
 
+/// The most interface surfaces a path (or photon) crosses without scattering before it is
+/// given up: a ray caught between coincident interfaces would otherwise never end.
+const MAX_PASS_THROUGHS: u32 = 256;
+
+/// Crosses the interface surface (one without a BSDF) at `hit` straight on: counts it in
+/// `crossed`, moves `medium` to the one on its other side and `ray` past it. False when the
+/// path has crossed [`MAX_PASS_THROUGHS`] already and should end.
+fn pass_through(
+    hit: &crate::shapes::SurfaceHit,
+    ray: &mut Ray,
+    medium: &mut Option<u32>,
+    crossed: &mut u32,
+) -> bool {
+    *crossed += 1;
+    if *crossed > MAX_PASS_THROUGHS {
+        return false;
+    }
+    if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
+        *medium = next;
+    }
+    *ray = ray.spawn(crate::math::offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+    true
+}
+
 /// Settings of the path tracers that change the image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PathSettings {

@@ -8,7 +8,7 @@
 //! infinity ([`escape`]).
 
 use super::direct::{Vertex, emission_weight, sample_direct, survives_roulette};
-use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, Prepass};
+use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, Prepass, pass_through};
 use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
 use crate::math::{Color, Frame, Ray, offset_origin};
 use crate::media::{Emitted, MediumEvent};
@@ -411,15 +411,11 @@ fn surface_step(
     let hit = &mut hit.clone();
     let Some(mut bsdf) = scene.bsdf(hit, ctx.footprint) else {
         // An interface: continue straight through without counting a bounce.
-        state.pass_throughs += 1;
-        if state.pass_throughs > 256 {
-            return Next::Stop;
-        }
-        if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
-            state.medium = next;
-        }
-        *ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
-        return Next::Continue;
+        return if pass_through(hit, ray, &mut state.medium, &mut state.pass_throughs) {
+            Next::Continue
+        } else {
+            Next::Stop
+        };
     };
     if state.ending {
         return Next::Stop;

@@ -456,14 +456,9 @@ impl<'a> Shooter<'a> {
             let Some(mut hit) = found else { return };
             let Some(bsdf) = scene.bsdf(&mut hit, 1.0) else {
                 // An interface: straight on, into the medium on the other side.
-                pass_throughs += 1;
-                if pass_throughs > 256 {
+                if !super::pass_through(&hit, &mut ray, &mut medium, &mut pass_throughs) {
                     return;
                 }
-                if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
-                    medium = next;
-                }
-                ray = ray.spawn(offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
                 continue;
             };
             let specular = bsdf.is_specular();
