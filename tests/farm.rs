@@ -401,6 +401,12 @@ fn shared_prepasses_are_claimed_once_verified_and_served() {
         PrepassClaim::Theirs,
         "a second worker waits for the first"
     );
+    // A claim given up (its upload failed) goes to the next worker that asks.
+    rt.block_on(client.release_prepass(&digest, name)).unwrap();
+    assert_eq!(
+        rt.block_on(client.claim_prepass(&digest, name)).unwrap(),
+        PrepassClaim::Yours
+    );
     // Bytes damaged on the way (not the digest given) are refused and not kept.
     let bytes = b"photons".to_vec();
     let put = |body: Vec<u8>, sha: String| {

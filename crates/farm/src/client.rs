@@ -172,6 +172,15 @@ impl Client {
         Ok(r.json::<PrepassClaimAnswer>().await?.claim)
     }
 
+    pub async fn release_prepass(&self, scene: &str, name: &str) -> Result<()> {
+        self.send(self.req(
+            Method::DELETE,
+            &format!("/v1/scenes/{scene}/prepass/{name}/claim"),
+        ))
+        .await
+        .map(|_| ())
+    }
+
     pub async fn upload_prepass(&self, scene: &str, name: &str, bytes: Vec<u8>) -> Result<()> {
         self.send(
             self.req(Method::PUT, &format!("/v1/scenes/{scene}/prepass/{name}"))

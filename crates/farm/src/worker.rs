@@ -288,7 +288,11 @@ impl SharedPrepass for CoordinatorShare {
             .client
             .upload_prepass(&self.scene, &name, bytes.to_vec());
         if let Err(e) = self.runtime.block_on(upload) {
+            // The others would wait for the claim to lapse: give it up, so the next to ask
+            // computes it.
             tracing::warn!("pre-pass {name}: cannot upload it: {e}");
+            let release = self.client.release_prepass(&self.scene, &name);
+            let _ = self.runtime.block_on(release);
         }
     }
 }

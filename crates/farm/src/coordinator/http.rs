@@ -35,7 +35,7 @@ pub fn app(c: Coordinator) -> Router {
         )
         .route(
             "/v1/scenes/{digest}/prepass/{name}/claim",
-            post(claim_prepass),
+            post(claim_prepass).delete(release_prepass),
         )
         .route("/v1/jobs", post(create_job).get(list_jobs))
         .route("/v1/jobs/{id}", get(get_job))
@@ -226,6 +226,14 @@ async fn claim_prepass(
     Ok(Json(PrepassClaimAnswer {
         claim: c.claim_prepass(&digest, &name)?,
     }))
+}
+
+async fn release_prepass(
+    State(c): State<Coordinator>,
+    UrlPath((digest, name)): UrlPath<(String, String)>,
+) -> Result<StatusCode, Error> {
+    c.release_prepass(&digest, &name)?;
+    Ok(StatusCode::NO_CONTENT)
 }
 
 async fn create_job(

@@ -7,7 +7,8 @@
 //! A claim says who is computing what is not stored yet, so the others wait for it (or
 //! compute the passes nobody has claimed) instead of computing it too. Claims live in
 //! memory only: after a restart, or [`CLAIM_TTL`] after a claim whose worker went quiet,
-//! the next worker to ask computes it.
+//! the next worker to ask computes it; a worker that cannot upload what it computed gives
+//! its claim up.
 
 use super::{Coordinator, Error};
 use crate::api::PrepassClaim;
@@ -111,6 +112,17 @@ impl Coordinator {
                 Ok(PrepassClaim::Yours)
             }
         }
+    }
+
+    /// Gives a claim up (its worker could not upload what it computed, say larger than
+    /// this coordinator accepts): the next worker to ask computes it, without waiting for
+    /// the claim to lapse.
+    pub fn release_prepass(&self, scene: &str, name: &str) -> Result<(), Error> {
+        self.prepass_path(scene, name)?;
+        self.claims()
+            .0
+            .remove(&(scene.to_string(), name.to_string()));
+        Ok(())
     }
 
     fn claims(&self) -> std::sync::MutexGuard<'_, Claims> {
