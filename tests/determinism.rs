@@ -289,3 +289,17 @@ fn shared_photon_maps_and_sppm_passes_give_the_same_bits_computed_once() {
         );
     }
 }
+
+/// `render_pixel` gives an SPPM pixel the value its tile gives (not a single camera sample's,
+/// which SPPM has no estimate for).
+#[test]
+fn an_sppm_pixel_alone_is_its_tiles_pixel() {
+    let renderer = load(&scene("photons/ball.pbrt"), 3, Some((12, 12)));
+    let frame = render_split(&renderer, 5, 1);
+    let mut stats = kiln_render::TileStats::default();
+    for (x, y) in [(0, 0), (6, 7), (11, 11)] {
+        let alone = kiln_render::render_pixel(&renderer, x, y, &mut stats).map(f32::to_bits);
+        assert_eq!(alone, frame[(y * 12 + x) as usize], "pixel {x}, {y}");
+    }
+    assert_eq!(stats.samples, 9, "three pixels of three iterations");
+}

@@ -462,8 +462,20 @@ fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) -> CameraSamp
     }
 }
 
-/// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean.
+/// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean
+/// (for SPPM, the pixel's estimate after all its iterations: the same value its tile gives).
 pub fn render_pixel(renderer: &Renderer, x: u32, y: u32, stats: &mut TileStats) -> [f32; 3] {
+    if let Integrator::Sppm(_) = &renderer.settings.integrator {
+        let rect = TileRect {
+            x0: x,
+            y0: y,
+            width: 1,
+            height: 1,
+        };
+        let tile = render_tile(renderer, rect);
+        stats.merge(&tile.stats);
+        return tile.pixels[0];
+    }
     render_pixel_with(renderer, x, y, stats, None)
 }
 
@@ -501,7 +513,8 @@ fn render_pixel_with(
 /// The sampler dimension a camera sample's time comes from: far from the path's own.
 const TIME_DIMENSION: u32 = 0x4000_0000;
 
-/// One camera sample: its radiance (zeroed if not finite) and filter weight.
+/// One camera sample: its radiance (zeroed if not finite) and filter weight. (SPPM has no
+/// estimate from one camera sample: it gives black; its pixels come from [`render_tile`].)
 pub fn render_sample(
     renderer: &Renderer,
     x: u32,
