@@ -354,6 +354,7 @@ fn render_sppm(
         .collect();
     let mut states = vec![(PixelState::new(sppm.radius), 0u64); pixels.len()];
     let iterations = settings.samples_per_pixel;
+    let emitters = crate::integrators::photons::Emitters::of(scene);
     for it in 0..iterations {
         if stop() {
             return None;
@@ -375,7 +376,7 @@ fn render_sppm(
                 vp
             })
             .collect();
-        let trace = |i: u32| photon_pass(scene, sppm, settings.seed, i);
+        let trace = |i: u32| photon_pass(scene, sppm, emitters.as_ref(), settings.seed, i);
         let map = if keep {
             renderer.sppm_passes.get(
                 it,

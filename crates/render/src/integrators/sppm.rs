@@ -15,7 +15,7 @@
 
 use super::direct::{Vertex, sample_direct};
 use super::photons::map::{decode, encode};
-use super::photons::{BATCH, Gather, Launch, Photon, PhotonMap, emitters, launch, scatter};
+use super::photons::{BATCH, Emitters, Gather, Launch, Photon, PhotonMap, launch, scatter};
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, pass_through};
 use crate::bsdfs::Bsdf;
 use crate::lights::SceneSphere;
@@ -223,12 +223,20 @@ pub fn gather(map: &PhotonMap, vp: Option<&VisiblePointHandle>, state: &mut Pixe
     state.radius = r_new;
 }
 
-/// Traces iteration `iteration`'s photons and returns them as a map for gathers within
-/// every pixel's radius (which only shrinks from the initial one).
-pub fn photon_pass(scene: &Scene, settings: &SppmSettings, seed: u32, iteration: u32) -> PhotonMap {
-    let Some((table, sphere)) = emitters(scene) else {
+/// Traces iteration `iteration`'s photons from `emitters` (None: no light emits) and returns
+/// them as a map for gathers within every pixel's radius (which only shrinks from the
+/// initial one).
+pub fn photon_pass(
+    scene: &Scene,
+    settings: &SppmSettings,
+    emitters: Option<&Emitters>,
+    seed: u32,
+    iteration: u32,
+) -> PhotonMap {
+    let Some(emitters) = emitters else {
         return PhotonMap::default();
     };
+    let (table, sphere) = (&emitters.table, emitters.sphere);
     let n = settings.photons_per_iteration;
     let batches: Vec<Vec<Photon>> = (0..n.div_ceil(BATCH))
         .into_par_iter()
@@ -238,7 +246,7 @@ pub fn photon_pass(scene: &Scene, settings: &SppmSettings, seed: u32, iteration:
                 let key = ((seed as u64) << 32 | iteration as u64)
                     .wrapping_mul(0xd605_bbb5_8c8a_bbb7)
                     ^ i.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-                trace_photon(scene, settings, &table, sphere, key, &mut stored);
+                trace_photon(scene, settings, table, sphere, key, &mut stored);
             }
             stored
         })

@@ -209,23 +209,34 @@ pub fn power_spread(photons: &[Photon]) -> f64 {
     if mean > 0.0 { var.sqrt() / mean } else { 0.0 }
 }
 
-/// The lights' powers to choose them by, and the scene's bounding sphere that lights at
-/// infinity shine onto; None where no light emits.
-pub(super) fn emitters(scene: &Scene) -> Option<(AliasTable, SceneSphere)> {
-    let powers: Vec<f64> = scene
-        .lights
-        .iter()
-        .map(|l| l.power(scene.radius).max(0.0) as f64)
-        .collect();
-    if powers.iter().all(|p| *p <= 0.0) {
-        return None;
+/// What photons leave from: the lights' powers to choose them by, and the scene's bounding
+/// sphere that lights at infinity shine onto. Made once per render.
+pub struct Emitters {
+    pub(super) table: AliasTable,
+    pub(super) sphere: SceneSphere,
+}
+
+impl Emitters {
+    /// None where no light emits.
+    pub fn of(scene: &Scene) -> Option<Emitters> {
+        let powers: Vec<f64> = scene
+            .lights
+            .iter()
+            .map(|l| l.power(scene.radius).max(0.0) as f64)
+            .collect();
+        if powers.iter().all(|p| *p <= 0.0) {
+            return None;
+        }
+        let (lo, hi) = scene.geometry.bounds();
+        let sphere = SceneSphere {
+            center: (lo + hi) * 0.5,
+            radius: scene.radius,
+        };
+        Some(Emitters {
+            table: AliasTable::new(&powers),
+            sphere,
+        })
     }
-    let (lo, hi) = scene.geometry.bounds();
-    let sphere = SceneSphere {
-        center: (lo + hi) * 0.5,
-        radius: scene.radius,
-    };
-    Some((AliasTable::new(&powers), sphere))
 }
 
 /// A photon leaving a light.
@@ -325,7 +336,7 @@ struct Shooter<'a> {
 
 impl<'a> Shooter<'a> {
     fn new(scene: &'a Scene, settings: &PhotonSettings) -> Option<Shooter<'a>> {
-        let (table, sphere) = emitters(scene)?;
+        let Emitters { table, sphere } = Emitters::of(scene)?;
         Some(Shooter {
             scene,
             table,
