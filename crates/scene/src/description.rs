@@ -580,6 +580,22 @@ pub enum ShapeKind {
         z_max: f64,
         phi_max: f64,
     },
+    /// Kiln's surface of revolution: a contour in the (r, z) half-plane turned about z.
+    Revolution(Arc<RevolutionDesc>),
+}
+
+/// `Shape "revolution"`: the contour `"point2 contour" [r z ...]` swept about the object's
+/// z axis through `phi_max` radians. Its normal faces to the right of the contour's
+/// direction of travel in the (r, z) plane; a contour whose last point is its first is closed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RevolutionDesc {
+    pub contour: Vec<[f32; 2]>,
+    /// `"vector2 normals"`: a shading normal (nr, nz) per point; without them, neighbouring
+    /// strips' normals are averaged where the contour turns by less than `crease`.
+    pub normals: Option<Vec<[f32; 2]>>,
+    /// `"float creaseangle"` (degrees in the file, radians here; 30° by default).
+    pub crease: f64,
+    pub phi_max: f64,
 }
 
 impl ShapeKind {

@@ -32,7 +32,7 @@ pub use point::PointLight;
 pub use projection::ProjectionLight;
 pub use sampler::{LightBounds, LightBvh, LightSampler};
 pub use spot::SpotLight;
-pub use volume::{VolumeInterior, VolumeSphereLight, VolumeTriangleLight};
+pub use volume::{VolumeInterior, VolumeQuadricLight, VolumeSphereLight, VolumeTriangleLight};
 
 use crate::math::{Color, Frame, rgb};
 use crate::media::Medium;
@@ -61,6 +61,7 @@ pub enum Light {
     Quadric(QuadricLight),
     VolumeTriangle(VolumeTriangleLight),
     VolumeSphere(VolumeSphereLight),
+    VolumeQuadric(VolumeQuadricLight),
     Medium(MediumLight),
     UniformInfinite(UniformInfiniteLight),
     ImageInfinite(Box<ImageInfiniteLight>),
@@ -261,6 +262,7 @@ impl Light {
             | Light::Quadric(_)
             | Light::VolumeTriangle(_)
             | Light::VolumeSphere(_)
+            | Light::VolumeQuadric(_)
             | Light::Medium(_) => false,
         }
     }
@@ -278,6 +280,7 @@ impl Light {
             Light::Quadric(l) => l.power(),
             Light::VolumeTriangle(l) => l.power,
             Light::VolumeSphere(l) => l.power,
+            Light::VolumeQuadric(l) => l.power,
             Light::Medium(l) => l.power,
             Light::UniformInfinite(l) => l.power(scene_radius),
             Light::ImageInfinite(l) => l.power(scene_radius),
@@ -305,6 +308,9 @@ impl Light {
                 l.p[0].max(l.p[1]).max(l.p[2]),
             )),
             Light::VolumeSphere(l) => in_box((l.center - l.radius, l.center + l.radius)),
+            Light::VolumeQuadric(l) => {
+                in_box(ctx.geometry.prims.quadrics[l.quadric as usize].bounds())
+            }
             // An unbounded medium is chosen as lights at infinity are.
             Light::Medium(l) => ctx.media[l.medium as usize].bounds().and_then(in_box),
             Light::Distant(_)
@@ -323,6 +329,7 @@ impl Light {
             Light::Quadric(l) => (l.le(ctx.geometry, p, ng, w), 0),
             Light::VolumeTriangle(l) => l.le(ctx, p, ng, ns, w),
             Light::VolumeSphere(l) => l.le(ctx, p, ng, ns, w),
+            Light::VolumeQuadric(l) => l.le(ctx, p, ng, ns, w),
             Light::Point(_)
             | Light::Spot(_)
             | Light::Goniometric(_)
@@ -351,6 +358,7 @@ impl Light {
             | Light::Quadric(_)
             | Light::VolumeTriangle(_)
             | Light::VolumeSphere(_)
+            | Light::VolumeQuadric(_)
             | Light::Medium(_) => Color::ZERO,
         }
     }
@@ -369,6 +377,7 @@ impl Light {
             Light::Quadric(l) => (l.sample(ctx.geometry, p, u), 0),
             Light::VolumeTriangle(l) => l.sample(ctx, p, u),
             Light::VolumeSphere(l) => l.sample(ctx, p, u),
+            Light::VolumeQuadric(l) => l.sample(ctx, p, u),
             Light::Medium(l) => (l.sample(ctx, p, u), 0),
             Light::UniformInfinite(l) => (l.sample(u), 0),
             Light::ImageInfinite(l) => (l.sample(p, u), 0),
@@ -400,6 +409,7 @@ impl Light {
             Light::Quadric(l) => pmf * l.pdf(ctx.geometry, p, wi, q),
             Light::VolumeTriangle(l) => pmf * l.pdf(p, wi, q, n),
             Light::VolumeSphere(l) => pmf * l.pdf(p, wi, q, n),
+            Light::VolumeQuadric(l) => pmf * l.pdf(ctx, p, wi, q),
             Light::Medium(l) => l.pdf(ctx, pmf, p, q),
             Light::UniformInfinite(l) => pmf * l.pdf(),
             Light::ImageInfinite(l) => pmf * l.pdf(p, wi),
@@ -430,6 +440,7 @@ impl Light {
             Light::Quadric(l) => (l.emission_point(ctx.geometry, u[0]).emit(u[1], uc), 0),
             Light::VolumeTriangle(l) => l.emit(ctx, u),
             Light::VolumeSphere(l) => l.emit(ctx, u),
+            Light::VolumeQuadric(l) => l.emit(ctx, u),
             Light::Medium(l) => (l.emit(ctx, u, uc), 0),
             Light::UniformInfinite(l) => (at_infinity(sphere, l.sample(u[0]), u[1]), 0),
             Light::ImageInfinite(l) => (at_infinity(sphere, l.sample_direction(u[0]), u[1]), 0),

@@ -46,6 +46,70 @@ pub struct VolumeSphereLight {
     pub power: f32,
 }
 
+/// A VolumeLight on a quadric piece (one sector of a surface of revolution's strip), sampled
+/// by the quadric's area.
+#[derive(Debug, Clone)]
+pub struct VolumeQuadricLight {
+    /// Index into the geometry's quadrics.
+    pub quadric: u32,
+    pub volume: u32,
+    /// World-space area.
+    pub area: f32,
+    pub power: f32,
+}
+
+impl VolumeQuadricLight {
+    pub fn le(&self, ctx: &LightContext, p: Vec3A, ng: Vec3A, ns: Vec3A, w: Vec3A) -> (Color, u64) {
+        volume_le(ctx, self.volume, p, ng, ns, w)
+    }
+
+    pub fn sample(&self, ctx: &LightContext, p: Vec3A, u: Vec2) -> (Option<LightSample>, u64) {
+        let quadric = &ctx.geometry.prims.quadrics[self.quadric as usize];
+        let (q, area_pdf) = quadric.sample(u);
+        let d = q.p - p;
+        let dist2 = d.length_squared();
+        if dist2 == 0.0 || area_pdf == 0.0 {
+            return (None, 0);
+        }
+        let dist = dist2.sqrt();
+        let wi = d / dist;
+        let cos = q.n.dot(wi).abs();
+        if cos == 0.0 {
+            return (None, 0);
+        }
+        let point = crate::shapes::ShapeSample {
+            wi,
+            pdf: area_pdf * dist2 / cos,
+            distance: dist,
+            n: q.n,
+        };
+        let (le, rays) = volume_le(ctx, self.volume, q.p, q.n, q.ns, -wi);
+        (
+            (le != Color::ZERO).then(|| LightSample::on_surface(point, le)),
+            rays,
+        )
+    }
+
+    pub fn pdf(&self, ctx: &LightContext, p: Vec3A, wi: Vec3A, q: Vec3A) -> f32 {
+        let quadric = &ctx.geometry.prims.quadrics[self.quadric as usize];
+        let at = quadric.point_at(q);
+        let cos = at.n.dot(wi).abs();
+        if cos == 0.0 {
+            return 0.0;
+        }
+        quadric.area_density(&at) * (q - p).length_squared() / cos
+    }
+
+    /// A photon as [`VolumeTriangleLight::emit`] gives one, from a point sampled by area.
+    pub fn emit(&self, ctx: &LightContext, u: [Vec2; 2]) -> (Option<EmittedRay>, u64) {
+        let (q, area_pdf) = ctx.geometry.prims.quadrics[self.quadric as usize].sample(u[0]);
+        if area_pdf <= 0.0 {
+            return (None, 0);
+        }
+        emit_outward(ctx, self.volume, q.p, q.n, q.ns, q.n, 1.0 / area_pdf, u[1])
+    }
+}
+
 impl VolumeTriangleLight {
     pub fn le(&self, ctx: &LightContext, p: Vec3A, ng: Vec3A, ns: Vec3A, w: Vec3A) -> (Color, u64) {
         volume_le(ctx, self.volume, p, ng, ns, w)
@@ -277,6 +341,13 @@ pub fn power_estimates(lights: &[super::Light], ctx: &LightContext, seed: u32) -
                 Some(face_power(ctx, i as u32, s.volume, seed, area, |u| {
                     let n = uniform_sphere(u);
                     (s.center + n * s.radius, n)
+                }))
+            }
+            super::Light::VolumeQuadric(l) => {
+                let quadric = &ctx.geometry.prims.quadrics[l.quadric as usize];
+                Some(face_power(ctx, i as u32, l.volume, seed, l.area, |u| {
+                    let (q, _) = quadric.sample(u);
+                    (q.p, q.n)
                 }))
             }
             super::Light::Point(_)

@@ -8,7 +8,7 @@ use crate::filter::Filter;
 use crate::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use crate::lights::{
     EmissionImage, Light, LightSampler, MediumLight, QuadricLight, SphereLight, TriangleLight,
-    VolumeInterior, VolumeSphereLight, VolumeTriangleLight,
+    VolumeInterior, VolumeQuadricLight, VolumeSphereLight, VolumeTriangleLight,
 };
 use crate::materials::{DielectricMaterial, Material, Model, Perturbation, RoughnessTexture};
 use crate::math::rgb;
@@ -68,6 +68,32 @@ fn power_scale(power: Option<f32>, area: f32, two_sided: bool, image_luminance: 
         }
         None => 1.0,
     }
+}
+
+/// Whether a surface of revolution encloses a volume: swept all the way round, and its
+/// contour either closed or running from the axis back to the axis.
+fn revolution_is_closed(r: &kiln_scene::RevolutionDesc) -> bool {
+    let (first, last) = (r.contour[0], r.contour[r.contour.len() - 1]);
+    r.phi_max >= std::f64::consts::TAU && (first == last || (first[0] == 0.0 && last[0] == 0.0))
+}
+
+/// The signed area of a contour in the (r, z) plane, closed along the axis where it is
+/// open: positive when it runs counterclockwise (up its outer side), so its normals face out.
+fn contour_area(contour: &[[f32; 2]]) -> f64 {
+    let mut pts: Vec<[f64; 2]> = contour.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
+    let (first, last) = (pts[0], pts[pts.len() - 1]);
+    if first != last {
+        pts.push([0.0, last[1]]);
+        pts.push([0.0, first[1]]);
+    }
+    let n = pts.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (pts[i], pts[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+        / 2.0
 }
 
 /// Whether a scene is built with its participating media. pbrt-v4's "path" integrator
@@ -136,6 +162,7 @@ impl Builder {
                 z_max,
                 phi_max,
             } => z_min <= -radius && z_max >= radius && phi_max >= std::f64::consts::TAU,
+            ShapeKind::Revolution(ref r) => revolution_is_closed(r),
             ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } | ShapeKind::Curve(_) => false,
         };
         if !closed {
@@ -184,6 +211,19 @@ impl Builder {
             ),
             ShapeKind::Sphere { radius, .. } => {
                 (glam::DVec3::splat(-radius), glam::DVec3::splat(*radius))
+            }
+            ShapeKind::Revolution(r) => {
+                let r_max = r.contour.iter().fold(0.0f32, |m, p| m.max(p[0])) as f64;
+                let (z_lo, z_hi) = r
+                    .contour
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                        (lo.min(p[1] as f64), hi.max(p[1] as f64))
+                    });
+                (
+                    glam::DVec3::new(-r_max, -r_max, z_lo),
+                    glam::DVec3::new(r_max, r_max, z_hi),
+                )
             }
             ShapeKind::Disk { .. } | ShapeKind::Cylinder { .. } | ShapeKind::Curve(_) => {
                 unreachable!("open shapes were refused above")
@@ -298,6 +338,7 @@ impl Builder {
                 surface,
             ),
             ShapeKind::Curve(curve) => self.add_curve(shape, curve, to_world, surface),
+            ShapeKind::Revolution(r) => self.add_revolution(shape, r, to_world, surface),
             &ShapeKind::Cylinder {
                 radius,
                 z_min,
@@ -449,13 +490,10 @@ impl Builder {
                 has_normals.then(|| [0, 1, 2, 3].map(|k| self.prims.normals[at(k)])),
                 has_uvs.then(|| [0, 1, 2, 3].map(|k| self.prims.uvs[at(k)])),
             );
-            self.add_oriented_quadric(
-                shape,
-                QuadricShape::Patch(Box::new(patch)),
-                DMat4::IDENTITY,
-                surface(None),
-                flip,
-            )?;
+            let kind = QuadricShape::Patch(Box::new(patch));
+            // pbrt-v4's "power" is per patch: each is a shape of its own.
+            let area = kind.area();
+            self.add_oriented_quadric(shape, kind, DMat4::IDENTITY, surface(None), flip, area)?;
         }
         self.prims.meshes.push(MeshInfo {
             surface: surface(light),
@@ -714,7 +752,57 @@ impl Builder {
         to_world: DMat4,
         surface: SurfaceInfo,
     ) -> Result<(), BuildError> {
-        self.add_oriented_quadric(shape, kind, to_world, surface, shape.reverse_orientation)
+        let area = kind.area();
+        self.add_oriented_quadric(
+            shape,
+            kind,
+            to_world,
+            surface,
+            shape.reverse_orientation,
+            area,
+        )
+    }
+
+    /// A surface of revolution: its strips' sectors, each a quadric (and, if the shape
+    /// emits, a light; pbrt-v4's "power" is spread over the whole shape's area).
+    fn add_revolution(
+        &mut self,
+        shape: &ShapeDesc,
+        r: &kiln_scene::RevolutionDesc,
+        to_world: DMat4,
+        surface: SurfaceInfo,
+    ) -> Result<(), BuildError> {
+        let strips = crate::shapes::revolution::strips(
+            &r.contour,
+            r.normals.as_deref(),
+            r.crease as f32,
+            r.phi_max as f32,
+        )
+        .map_err(|e| BuildError::Unsupported {
+            loc: shape.loc.clone(),
+            message: format!("revolution: {}", e.0),
+        })?;
+        if surface.volume.is_some() {
+            // A VolumeLight's surface must face out of its interior.
+            if shape.reverse_orientation || contour_area(&r.contour) <= 0.0 {
+                return Err(BuildError::Unsupported {
+                    loc: shape.loc.clone(),
+                    message: "a VolumeLight revolution must face outwards: list its contour counterclockwise in the (r, z) plane (up its outer side) and without ReverseOrientation".into(),
+                });
+            }
+        }
+        let area: f32 = strips.iter().map(|s| s.area()).sum();
+        for strip in strips {
+            self.add_oriented_quadric(
+                shape,
+                QuadricShape::Strip(strip),
+                to_world,
+                surface,
+                shape.reverse_orientation,
+                area,
+            )?;
+        }
+        Ok(())
     }
 
     /// As [`Self::add_quadric`], with the orientation given (a mesh's bilinear patches lie
@@ -726,9 +814,10 @@ impl Builder {
         to_world: DMat4,
         surface: SurfaceInfo,
         reverse_orientation: bool,
+        power_area: f32,
     ) -> Result<(), BuildError> {
         let object_area = kind.area();
-        if surface.volume.is_some() {
+        if surface.volume.is_some() && !matches!(kind, QuadricShape::Strip(_)) {
             return Err(BuildError::Unsupported {
                 loc: shape.loc.clone(),
                 message: "a VolumeLight (AreaLightSource \"volume\") on a partial sphere, or on a sphere under a non-uniform scale, is not supported yet".into(),
@@ -739,9 +828,10 @@ impl Builder {
             // nothing; so does Kiln.
             return Ok(());
         }
-        // The light this quadric will be: only a diffuse area light makes one.
-        let light = matches!(shape.area_light, Some(AreaLightDesc::Diffuse { .. }))
-            .then_some(self.lights.len() as u32);
+        // The light this quadric will be: a diffuse area light, or a VolumeLight's surface.
+        let light = (matches!(shape.area_light, Some(AreaLightDesc::Diffuse { .. }))
+            || surface.volume.is_some())
+        .then_some(self.lights.len() as u32);
         let quadric = Quadric::new(
             kind,
             to_world,
@@ -776,11 +866,19 @@ impl Builder {
             self.lights.push(Light::Quadric(QuadricLight {
                 quadric: self.prims.quadrics.len() as u32,
                 // pbrt-v4's "power" divides by the object-space area, whatever the transform.
-                radiance: rgb(*radiance) * power_scale(*power, object_area, *two_sided, luminance),
+                radiance: rgb(*radiance) * power_scale(*power, power_area, *two_sided, luminance),
                 two_sided: *two_sided,
                 area: quadric.world_area(),
                 alpha: surface.alpha,
                 image,
+            }));
+        }
+        if let Some(volume) = surface.volume {
+            self.lights.push(Light::VolumeQuadric(VolumeQuadricLight {
+                quadric: self.prims.quadrics.len() as u32,
+                volume,
+                area: quadric.world_area(),
+                power: 0.0,
             }));
         }
         self.prims.quadrics.push(quadric);
@@ -995,7 +1093,9 @@ impl Scene {
         let estimates = power_estimates(&scene.lights, &scene.light_context(), VOLUME_POWER_SEED);
         for (light, estimate) in scene.lights.iter_mut().zip(estimates) {
             if let (Light::VolumeTriangle(VolumeTriangleLight { power, .. }), Some(e))
-            | (Light::VolumeSphere(VolumeSphereLight { power, .. }), Some(e)) = (light, estimate)
+            | (Light::VolumeSphere(VolumeSphereLight { power, .. }), Some(e))
+            | (Light::VolumeQuadric(VolumeQuadricLight { power, .. }), Some(e)) =
+                (light, estimate)
             {
                 *power = e;
             }

@@ -17,6 +17,7 @@ pub mod disk;
 pub mod displace;
 pub mod mover;
 pub mod quadric;
+pub mod revolution;
 pub use alpha::hash_float;
 pub mod sphere;
 pub mod triangle;

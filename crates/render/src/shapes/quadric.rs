@@ -14,6 +14,7 @@
 use super::bilinear::BilinearPatch;
 use super::cylinder::Cylinder;
 use super::disk::Disk;
+use super::revolution::Strip;
 use super::sphere::PartialSphere;
 use super::{Geometry, SurfaceHit, SurfaceInfo};
 use crate::math::Ray;
@@ -71,6 +72,8 @@ pub enum QuadricShape {
     Sphere(PartialSphere),
     Disk(Disk),
     Cylinder(Cylinder),
+    /// One sector of one strip of a surface of revolution.
+    Strip(Strip),
     Patch(Box<BilinearPatch>),
 }
 
@@ -80,6 +83,7 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => s.intersect(o, d, tmin, tmax),
             QuadricShape::Disk(s) => s.intersect(o, d, tmin, tmax),
             QuadricShape::Cylinder(s) => s.intersect(o, d, tmin, tmax),
+            QuadricShape::Strip(s) => s.intersect(o, d, tmin, tmax),
             QuadricShape::Patch(s) => s.intersect(o, d, tmin, tmax),
         }
     }
@@ -94,6 +98,7 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => uniform(s.local(p)),
             QuadricShape::Disk(s) => uniform(s.local(p)),
             QuadricShape::Cylinder(s) => uniform(s.local(p)),
+            QuadricShape::Strip(s) => uniform(s.local(p)),
             QuadricShape::Patch(s) => s.local(p),
         }
     }
@@ -104,6 +109,7 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => s.area(),
             QuadricShape::Disk(s) => s.area(),
             QuadricShape::Cylinder(s) => s.area(),
+            QuadricShape::Strip(s) => s.area(),
             QuadricShape::Patch(s) => s.area(),
         }
     }
@@ -115,6 +121,7 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => s.sample(u),
             QuadricShape::Disk(s) => s.sample(u),
             QuadricShape::Cylinder(s) => s.sample(u),
+            QuadricShape::Strip(s) => s.sample(u),
             QuadricShape::Patch(s) => s.sample(u),
         }
     }
@@ -124,6 +131,7 @@ impl QuadricShape {
             QuadricShape::Sphere(s) => s.bounds(),
             QuadricShape::Disk(s) => s.bounds(),
             QuadricShape::Cylinder(s) => s.bounds(),
+            QuadricShape::Strip(s) => s.bounds(),
             QuadricShape::Patch(s) => s.bounds(),
         }
     }

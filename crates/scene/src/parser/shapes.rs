@@ -60,6 +60,7 @@ impl Parser {
                     phi_max: phi_max(params, loc)?,
                 }
             }
+            "revolution" => ShapeKind::Revolution(Arc::new(revolution_from_params(params, loc)?)),
             "curve" => ShapeKind::Curve(Arc::new(curve_from_params(params, loc)?)),
             "trianglemesh" => ShapeKind::Mesh(Arc::new(mesh_from_params(params, loc)?)),
             "loopsubdiv" => ShapeKind::Mesh(Arc::new(loop_subdiv_from_params(params, loc)?)),
@@ -90,7 +91,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, loopsubdiv, plymesh, objmesh, sphere, disk, cylinder, curve)"
+                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, loopsubdiv, plymesh, objmesh, sphere, disk, cylinder, curve, and its own revolution)"
                     ),
                 ));
             }
@@ -326,6 +327,75 @@ fn elevate(p: [glam::Vec3; 3]) -> [glam::Vec3; 4] {
 }
 
 /// A quadric's "phimax", in degrees, clamped to [0, 360] as pbrt-v4 does, in radians.
+/// Kiln's "revolution": `"point2 contour"` (required: two or more points (r, z), r ≥ 0),
+/// optional `"vector2 normals"` (one per point), `"float creaseangle"` (degrees, 30 by
+/// default) and `"float phimax"`.
+fn revolution_from_params(params: &ParamSet, loc: &Loc) -> Result<RevolutionDesc> {
+    let at = |name: &str| params.loc_of(name).unwrap_or_else(|| loc.clone());
+    let contour = params.point2s("contour")?.ok_or_else(|| {
+        SceneError::at(
+            loc,
+            "revolution: \"point2 contour\" [r z ...] is required (two or more points)",
+        )
+    })?;
+    if contour.len() < 2 {
+        return Err(SceneError::at(
+            &at("contour"),
+            format!(
+                "revolution: the contour has {} point(s); it needs two or more",
+                contour.len()
+            ),
+        ));
+    }
+    if let Some(i) = contour
+        .iter()
+        .position(|p| !(p[0] >= 0.0 && p[0].is_finite() && p[1].is_finite()))
+    {
+        return Err(SceneError::at(
+            &at("contour"),
+            format!(
+                "revolution: contour point {i} is ({}, {}); every point needs a finite radius r >= 0 and a finite height z",
+                contour[i][0], contour[i][1]
+            ),
+        ));
+    }
+    let normals = params.point2s("normals")?;
+    if let Some(n) = &normals {
+        if n.len() != contour.len() {
+            return Err(SceneError::at(
+                &at("normals"),
+                format!(
+                    "revolution: {} normals for {} contour points; give one per point",
+                    n.len(),
+                    contour.len()
+                ),
+            ));
+        }
+        if let Some(i) = n
+            .iter()
+            .position(|v| !(v[0].is_finite() && v[1].is_finite() && (v[0] != 0.0 || v[1] != 0.0)))
+        {
+            return Err(SceneError::at(
+                &at("normals"),
+                format!("revolution: normal {i} must be a finite, non-zero vector"),
+            ));
+        }
+    }
+    let crease = params.float("creaseangle", 30.0)?;
+    if !(0.0..=180.0).contains(&crease) {
+        return Err(SceneError::at(
+            &at("creaseangle"),
+            format!("revolution: \"creaseangle\" is {crease}; it must be 0 to 180 degrees"),
+        ));
+    }
+    Ok(RevolutionDesc {
+        contour,
+        normals,
+        crease: crease.to_radians(),
+        phi_max: phi_max(params, loc)?,
+    })
+}
+
 fn phi_max(params: &ParamSet, loc: &Loc) -> Result<f64> {
     let degrees = params.float("phimax", 360.0)?;
     if degrees.is_nan() {
