@@ -11,6 +11,7 @@ mod farm;
 mod gbuffer;
 mod media;
 mod motion;
+mod nested;
 mod photons;
 mod reference;
 mod sensor;

@@ -23,8 +23,8 @@
 //! ```
 //!
 //! The modules, one concept each (ARCHITECTURE.md draws the map): [`shapes`] (geometry and
-//! its BVHs), [`lights`], [`materials`] and the [`bsdfs`] they make, [`textures`], [`media`],
-//! [`integrators`] (path tracing, photon maps), [`sampling`], [`camera`] and [`filter`], [`scene`] (the
+//! its BVHs), [`lights`], [`materials`] and the [`bsdfs`] they make, [`textures`], [`media`], [`nesting`] (nested
+//! dielectrics by priority), [`integrators`] (path tracing, photon maps), [`sampling`], [`camera`] and [`filter`], [`scene`] (the
 //! built scene) and [`tile`] (the tile function).
 
 pub mod bsdfs;
@@ -38,6 +38,7 @@ pub mod materials;
 pub mod math;
 pub mod media;
 pub mod motion;
+pub mod nesting;
 pub mod phase;
 pub mod sampling;
 pub mod scene;

@@ -678,6 +678,10 @@ pub struct ShapeDesc {
     /// pbrt-v4's plymesh "displacement": the mesh refined to edges shorter than
     /// `edge_length` (world space) and moved along its normals by the texture.
     pub displacement: Option<MeshDisplacement>,
+    /// Kiln's `"integer priority"` for nested dielectrics: 0 (the default) for a shape as
+    /// pbrt-v4 has it; 1 or more makes it a nested shape, whose boundary is ignored where it
+    /// lies inside a shape of higher priority.
+    pub priority: u32,
     pub loc: Loc,
 }
 

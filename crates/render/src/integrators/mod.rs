@@ -30,21 +30,21 @@ const DIMENSIONS_PER_BOUNCE: u32 = 8;
 /// given up: a ray caught between coincident interfaces would otherwise never end.
 const MAX_PASS_THROUGHS: u32 = 256;
 
-/// Crosses the interface surface (one without a BSDF) at `hit` straight on: counts it in
-/// `crossed`, moves `medium` to the one on its other side and `ray` past it. False when the
-/// path has crossed [`MAX_PASS_THROUGHS`] already and should end.
+/// Crosses the surface at `hit` straight on (an interface without a BSDF, or a nested
+/// shape's boundary that is hidden or joins equal indices): counts it in `crossed`, moves
+/// `medium` (and `nesting`) to the other side and `ray` past it. False when the path has
+/// crossed [`MAX_PASS_THROUGHS`] already, or is nested too deep, and should end.
 fn pass_through(
+    scene: &Scene,
     hit: &crate::shapes::SurfaceHit,
     ray: &mut Ray,
     medium: &mut Option<u32>,
+    nesting: &mut crate::nesting::Nesting,
     crossed: &mut u32,
 ) -> bool {
     *crossed += 1;
-    if *crossed > MAX_PASS_THROUGHS {
+    if *crossed > MAX_PASS_THROUGHS || !nesting.cross(scene, hit, ray.dir, ray.dir, medium) {
         return false;
-    }
-    if let Some(next) = hit.surface.medium_towards(ray.dir, hit.ng) {
-        *medium = next;
     }
     *ray = ray.spawn(crate::math::offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
     true

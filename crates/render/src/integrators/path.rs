@@ -12,6 +12,7 @@ use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, Prepass, pas
 use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
 use crate::math::{Color, Frame, Ray, offset_origin};
 use crate::media::{Emitted, MediumEvent};
+use crate::nesting::Nesting;
 use crate::sampling::{PixelSampler, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
@@ -57,6 +58,8 @@ struct PathState {
     /// The participating medium the ray travels in, and how many medium segments so far
     /// (each gets its own tracking numbers).
     medium: Option<u32>,
+    /// The nested dielectric shapes the ray is inside.
+    nesting: Nesting,
     segments: u32,
     /// With caustic photon maps: specular bounces since the last vertex that gathered
     /// photons (None before the first).
@@ -123,6 +126,7 @@ pub(super) fn path_li(
         pass_throughs: 0,
         inside: None,
         medium: ctx.scene.camera_medium,
+        nesting: Nesting::default(),
         segments: 0,
         specular_since_gather: None,
         ending: false,
@@ -409,9 +413,16 @@ fn surface_step(
     let (scene, settings) = (ctx.scene, ctx.settings);
     // Shading may perturb the normal (bump and normal maps): shade a copy of the hit.
     let hit = &mut hit.clone();
-    let Some(mut bsdf) = scene.bsdf(hit, ctx.footprint) else {
+    let Some(mut bsdf) = scene.bsdf_nested(hit, ctx.footprint, &state.nesting, ray.dir) else {
         // An interface: continue straight through without counting a bounce.
-        return if pass_through(hit, ray, &mut state.medium, &mut state.pass_throughs) {
+        return if pass_through(
+            scene,
+            hit,
+            ray,
+            &mut state.medium,
+            &mut state.nesting,
+            &mut state.pass_throughs,
+        ) {
             Next::Continue
         } else {
             Next::Stop
@@ -483,10 +494,13 @@ fn surface_step(
     if bs.eta != 1.0 {
         state.eta_scale *= bs.eta * bs.eta;
     }
-    *ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
-    if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
-        state.medium = next;
+    if !state
+        .nesting
+        .cross(scene, hit, ray.dir, wi, &mut state.medium)
+    {
+        return Next::Stop;
     }
+    *ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
     if let Some(volume) = hit.surface.volume {
         state.inside = if wi.dot(hit.ng) < 0.0 {
             // Entering (not counted again) or reflecting inside (counted).

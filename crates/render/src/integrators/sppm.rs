@@ -20,6 +20,7 @@ use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, pass_through
 use crate::bsdfs::Bsdf;
 use crate::lights::SceneSphere;
 use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::nesting::Nesting;
 use crate::sampling::{AliasTable, PixelSampler, TrackingRng};
 use crate::scene::Scene;
 use crate::shared::{Shared, SharedPrepass, shared_or_built};
@@ -113,6 +114,7 @@ pub fn camera_pass<'a>(
     let mut beta = Color::splat(weight);
     let mut specular = true;
     let mut medium = None;
+    let mut nesting = Nesting::default();
     let mut depth = 0u32;
     let mut pass_throughs = 0u32;
     while depth < settings.max_depth {
@@ -137,9 +139,16 @@ pub fn camera_pass<'a>(
             state.ld += beta * le;
         }
         let mut shaded = hit;
-        let Some(bsdf) = scene.bsdf(&mut shaded, 1.0) else {
+        let Some(bsdf) = scene.bsdf_nested(&mut shaded, 1.0, &nesting, ray.dir) else {
             // An interface: straight on, without counting a bounce.
-            if !pass_through(&hit, &mut ray, &mut medium, &mut pass_throughs) {
+            if !pass_through(
+                scene,
+                &hit,
+                &mut ray,
+                &mut medium,
+                &mut nesting,
+                &mut pass_throughs,
+            ) {
                 return None;
             }
             continue;
@@ -186,8 +195,8 @@ pub fn camera_pass<'a>(
             return None;
         }
         specular = bs.specular;
-        if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
-            medium = next;
+        if !nesting.cross(scene, hit, ray.dir, wi, &mut medium) {
+            return None;
         }
         ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
         depth += 1;
@@ -274,13 +283,21 @@ fn trace_photon(
     };
     let mut depth = 0u32;
     let mut pass_throughs = 0u32;
+    let mut nesting = Nesting::default();
     while depth < settings.max_depth {
         let Some(mut hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
             return;
         };
-        let Some(bsdf) = scene.bsdf(&mut hit, 1.0) else {
+        let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, &nesting, ray.dir) else {
             // SPPM renders no media: the medium an interface leads to is not followed.
-            if !pass_through(&hit, &mut ray, &mut None, &mut pass_throughs) {
+            if !pass_through(
+                scene,
+                &hit,
+                &mut ray,
+                &mut None,
+                &mut nesting,
+                &mut pass_throughs,
+            ) {
                 return;
             }
             continue;
@@ -304,6 +321,9 @@ fn trace_photon(
         }
         beta = bnew / (1.0 - q);
         if !beta.is_finite() || beta == Color::ZERO {
+            return;
+        }
+        if !nesting.cross(scene, &hit, ray.dir, wi, &mut None) {
             return;
         }
         ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);

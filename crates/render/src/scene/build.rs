@@ -14,6 +14,7 @@ use crate::materials::{DielectricMaterial, Material, Model, Perturbation, Roughn
 use crate::math::rgb;
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::motion::AnimatedTransform;
+use crate::nesting::NestedShape;
 use crate::shapes::bilinear::BilinearPatch;
 use crate::shapes::curve::{CurvePiece, CurveSegment};
 use crate::shapes::cylinder::Cylinder;
@@ -125,6 +126,7 @@ struct Builder {
     /// The media on either side of each area light's surface (by light index).
     light_media: Vec<Option<[u32; 2]>>,
     textures: Textures,
+    nested: Vec<NestedShape>,
 }
 
 impl Builder {
@@ -141,6 +143,41 @@ impl Builder {
             }
         }
         n
+    }
+
+    /// Registers a nested dielectric shape (one with a priority); returns its index.
+    fn add_nested(
+        &mut self,
+        shape: &ShapeDesc,
+        media: Option<kiln_scene::MediumInterfaceDesc>,
+    ) -> Result<Option<u32>, BuildError> {
+        if shape.priority == 0 {
+            return Ok(None);
+        }
+        let unsupported = |message: &str| BuildError::Unsupported {
+            loc: shape.loc.clone(),
+            message: message.to_string(),
+        };
+        if shape.area_light.is_some() {
+            return Err(unsupported(
+                "a shape with a \"priority\" (a nested dielectric) cannot also emit",
+            ));
+        }
+        let eta = match &self.materials[shape.material.0 as usize].model {
+            Model::Dielectric(d) => d.eta,
+            Model::Interface => 1.0,
+            _ => {
+                return Err(unsupported(
+                    "\"priority\" (nested dielectrics) applies to shapes with a \"dielectric\" or \"interface\" material",
+                ));
+            }
+        };
+        self.nested.push(NestedShape {
+            priority: shape.priority,
+            eta,
+            medium: media.and_then(|m| m.inside).map(|m| m.0),
+        });
+        Ok(Some((self.nested.len() - 1) as u32))
     }
 
     /// Registers a VolumeLight's interior; returns the material its surface uses and its index.
@@ -254,9 +291,15 @@ impl Builder {
         let is_interface = self.materials[material as usize].is_interface();
         // Without media an interface surface has no effect at all, unless it emits.
         let shape_media = shape.media.filter(|_| self.use_media);
-        if is_interface && shape.area_light.is_none() && shape_media.is_none() {
+        // (A nested interface still hides the boundaries of lower-priority shapes.)
+        if is_interface
+            && shape.area_light.is_none()
+            && shape_media.is_none()
+            && shape.priority == 0
+        {
             return Ok(());
         }
+        let nest = self.add_nested(shape, shape_media)?;
         let (material, volume) = match &shape.area_light {
             Some(AreaLightDesc::Volume(v)) => self.add_volume(shape, v, to_world)?,
             _ => (material, None),
@@ -273,6 +316,7 @@ impl Builder {
             volume,
             media,
             alpha,
+            nest,
         };
         match &shape.kind {
             ShapeKind::Mesh(mesh) => match &shape.displacement {
@@ -936,6 +980,7 @@ impl Scene {
             use_media: media == MediaPolicy::Render,
             light_media: Vec::new(),
             textures,
+            nested: Vec::new(),
         };
         let times = desc.transform_times;
         for shape in &desc.shapes {
@@ -1077,6 +1122,7 @@ impl Scene {
             camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
             medium_lights: Vec::new(),
             light_media,
+            nested: b.nested,
         };
         scene.light_media.resize(scene.lights.len(), None);
         // Each emissive grid medium is a light, sampled by its emission distribution.

@@ -52,6 +52,8 @@ pub struct Scene {
     /// The media on either side of each area light's surface (inside, outside), by light
     /// index; for photons leaving it.
     pub light_media: Vec<Option<[u32; 2]>>,
+    /// Nested dielectric shapes, referred to by `SurfaceInfo::nest`.
+    pub nested: Vec<crate::nesting::NestedShape>,
 }
 
 impl Scene {

@@ -47,6 +47,8 @@ pub struct SurfaceInfo {
     pub media: Option<[u32; 2]>,
     /// The alpha texture (index into `Primitives::alphas`) where rays may pass through.
     pub alpha: Option<u32>,
+    /// The nested dielectric shape (index into `Scene::nested`) this surface bounds.
+    pub nest: Option<u32>,
 }
 
 /// Which kind of primitive a hit is on.

@@ -100,6 +100,18 @@ impl Parser {
             FloatValue::Constant(a) if a >= 1.0 => None,
             a => Some(a),
         };
+        let priority = params.int("priority", 0)?;
+        let priority = u32::try_from(priority)
+            .ok()
+            .filter(|&p| p <= 1_000_000)
+            .ok_or_else(|| {
+                SceneError::at(
+                    &params.loc_of("priority").unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "\"priority\" is {priority}; nested dielectric priorities run from 0 (not nested) to 1000000"
+                    ),
+                )
+            })?;
         self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
         let (inside, outside) = (
             self.medium_id(&self.gs.media.0),
@@ -115,6 +127,7 @@ impl Parser {
             media: (inside != outside).then_some(MediumInterfaceDesc { inside, outside }),
             alpha,
             displacement,
+            priority,
             loc: loc.clone(),
         };
         match &mut self.current_object {

@@ -414,6 +414,7 @@ impl<'a> Shooter<'a> {
         let mut events = 0u32;
         let mut only_specular = true;
         let mut pass_throughs = 0u32;
+        let mut nesting = crate::nesting::Nesting::default();
         loop {
             let found = scene.geometry.intersect(&ray, f32::INFINITY);
             if let Some(m) = medium {
@@ -465,9 +466,16 @@ impl<'a> Shooter<'a> {
                 }
             }
             let Some(mut hit) = found else { return };
-            let Some(bsdf) = scene.bsdf(&mut hit, 1.0) else {
+            let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, &nesting, ray.dir) else {
                 // An interface: straight on, into the medium on the other side.
-                if !super::pass_through(&hit, &mut ray, &mut medium, &mut pass_throughs) {
+                if !super::pass_through(
+                    scene,
+                    &hit,
+                    &mut ray,
+                    &mut medium,
+                    &mut nesting,
+                    &mut pass_throughs,
+                ) {
                     return;
                 }
                 continue;
@@ -508,8 +516,8 @@ impl<'a> Shooter<'a> {
             if !self.survives(&mut beta, start, &mut rng) {
                 return;
             }
-            if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
-                medium = next;
+            if !nesting.cross(scene, &hit, ray.dir, wi, &mut medium) {
+                return;
             }
             ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
         }
