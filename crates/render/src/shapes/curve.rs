@@ -416,6 +416,7 @@ mod tests {
                 volume: None,
                 media: None,
                 alpha: None,
+                nest: None,
             },
             flip: false,
         }

@@ -541,6 +541,7 @@ mod tests {
             volume: None,
             media: None,
             alpha: None,
+            nest: None,
         };
         let meshes = vec![MeshInfo {
             surface,

@@ -331,6 +331,7 @@ mod tests {
             volume: None,
             media: None,
             alpha: None,
+            nest: None,
         }
     }
 
