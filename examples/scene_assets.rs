@@ -5,8 +5,8 @@
 //!   eye stalks, 120k+ triangles;
 //! - `scenes/fire/density.vol`, `scenes/fire/temperature.vol`: a flame for seed 001's
 //!   emissive medium, in Mitsuba's .vol format;
-//! - `scenes/martini/glass.ply`, `scenes/martini/liquid.ply`: a martini glass and its
-//!   drink, surfaces of revolution of 2D contours (seed 003).
+//! - `scenes/martini/glass.pbrt`: a martini glass and its drink, Kiln's surfaces of
+//!   revolution from seed 003's three 2D contours, sharing one boundary by priority.
 //!
 //! `cargo run --release --example scene_assets`
 
@@ -73,28 +73,6 @@ impl Mesh {
                 self.f.push(if flip { [c, a, b] } else { [c, b, a] });
             }
         }
-    }
-
-    /// A closed surface of revolution about +y: `profile` is (radius, height) from bottom to
-    /// top, its first and last radius 0 (the poles).
-    fn add_revolution(&mut self, profile: &[(f32, f32)], segments: usize) {
-        let rings: Vec<Vec<[f32; 3]>> = profile[1..profile.len() - 1]
-            .iter()
-            .map(|&(r, y)| {
-                (0..segments)
-                    .map(|j| {
-                        let a = 2.0 * PI * j as f32 / segments as f32;
-                        [r * a.cos(), y, -r * a.sin()]
-                    })
-                    .collect()
-            })
-            .collect();
-        let base = self.v.len() as u32;
-        self.add_tube(&rings);
-        // Move the fan centres onto the poles.
-        let n_ring = (rings.len() * segments) as u32;
-        self.v[(base + n_ring) as usize] = [0.0, profile[0].1, 0.0];
-        self.v[(base + n_ring + 1) as usize] = [0.0, profile[profile.len() - 1].1, 0.0];
     }
 
     fn write_ply(&self, path: &Path) {
@@ -253,57 +231,163 @@ fn snail() -> Mesh {
     mesh
 }
 
-/// A martini glass: foot, stem and a conical bowl with thickness; and the drink filling
-/// the bowl to 80% of its height, a hair inside the glass.
-fn martini() -> (Mesh, Mesh) {
-    let bowl_bottom = 1.1f32;
-    let bowl_top = 2.0f32;
-    let bowl_r = 0.95f32;
-    let wall = 0.03f32;
-    let mut profile = vec![(0.0, 0.0), (0.55, 0.0), (0.56, 0.02), (0.5, 0.04)];
-    for i in 0..=8 {
-        let u = i as f32 / 8.0;
-        profile.push((0.5 - 0.45 * u.powf(0.5), 0.04 + 0.06 * u));
-    }
-    profile.push((0.045, 0.2));
-    profile.push((0.04, 0.7));
-    profile.push((0.05, bowl_bottom - 0.05));
-    // Outer cone up to the rim, then back down the inner cone.
-    let n = 40;
-    for i in 0..=n {
-        let u = i as f32 / n as f32;
-        profile.push((
-            0.08 + (bowl_r - 0.08) * u,
-            bowl_bottom + (bowl_top - bowl_bottom) * u,
-        ));
-    }
-    profile.push((bowl_r - wall * 0.5, bowl_top + 0.01));
-    for i in (0..=n).rev() {
-        let u = i as f32 / n as f32;
-        profile.push((
-            (0.08 + (bowl_r - 0.08) * u - wall).max(0.001),
-            bowl_bottom + wall * 2.0 + (bowl_top - bowl_bottom - wall * 2.0) * u,
-        ));
-    }
-    profile.push((0.0, bowl_bottom + wall * 2.0));
-    let mut glass = Mesh::default();
-    glass.add_revolution(&profile, 128);
+/// Seed 003's martini glass as its three contours, points (r, z) about the glass's own
+/// vertical z axis, in order: glass-air (the foot from the axis out, the stem, the bowl's
+/// outside, the rim, the bowl's inside down to the drink's surface), glass-drink (the bowl's
+/// inside from the drink's surface down to the axis) and drink-air (the surface, from the
+/// glass in to the axis). `fill` is the drink's height as a fraction of the bowl's.
+struct MartiniContours {
+    glass_air: Vec<(f32, f32)>,
+    glass_drink: Vec<(f32, f32)>,
+    drink_air: Vec<(f32, f32)>,
+    /// The bowl's wall thickness (horizontal).
+    wall: f32,
+}
 
-    // The drink: the inner cone, shrunk by a hair, up to 80% of the bowl.
-    let mut liquid = Vec::new();
-    let y0 = bowl_bottom + wall * 2.0 + 0.002;
-    let y1 = bowl_bottom + 0.8 * (bowl_top - bowl_bottom);
-    liquid.push((0.0, y0));
-    for i in 0..=n {
-        let u = i as f32 / n as f32;
-        let y = y0 + (y1 - y0) * u;
-        let v = (y - bowl_bottom - wall * 2.0) / (bowl_top - bowl_bottom - wall * 2.0);
-        liquid.push(((0.08 + (bowl_r - 0.08) * v - wall - 0.003).max(0.002), y));
+fn martini_contours(fill: f32) -> MartiniContours {
+    let (joint, rim_z, rim_r, wall) = (1.05f32, 2.0f32, 1.0f32, 0.025f32);
+    let outer = |z: f32| 0.08 + (z - joint) * (rim_r - 0.08) / (rim_z - joint);
+    let inner = |z: f32| outer(z) - wall;
+    let mut glass_air = vec![(0.0, 0.0)];
+    // The foot: flat underneath, a rounded edge, rising to the stem.
+    let (foot_r, foot_t) = (0.62f32, 0.035f32);
+    glass_air.push((foot_r - foot_t / 2.0, 0.0));
+    for i in 1..8 {
+        let a = -PI / 2.0 + PI * i as f32 / 8.0;
+        glass_air.push((
+            foot_r - foot_t / 2.0 + foot_t / 2.0 * a.cos(),
+            foot_t / 2.0 + foot_t / 2.0 * a.sin(),
+        ));
     }
-    liquid.push((0.0, y1));
-    let mut drink = Mesh::default();
-    drink.add_revolution(&liquid, 128);
-    (glass, drink)
+    glass_air.extend([
+        (foot_r - foot_t / 2.0, foot_t),
+        (0.45, 0.045),
+        (0.25, 0.06),
+        (0.12, 0.085),
+        (0.065, 0.13),
+        (0.045, 0.2),
+        (0.038, 0.45),
+        (0.04, 0.75),
+        (0.05, 0.95),
+        (0.065, 1.01),
+    ]);
+    // The bowl's outside, a cone up to the rim.
+    let n = 24;
+    for i in 0..=n {
+        let z = joint + (rim_z - joint) * i as f32 / n as f32;
+        glass_air.push((outer(z), z));
+    }
+    // The rim: a half round over the wall.
+    for i in 1..8 {
+        let a = PI * i as f32 / 8.0;
+        glass_air.push((
+            rim_r - wall / 2.0 + wall / 2.0 * a.cos(),
+            rim_z + wall / 2.0 * a.sin(),
+        ));
+    }
+    // The inside, down to the drink.
+    let bottom = joint + 0.11;
+    let surface = bottom + fill * (rim_z - bottom);
+    for i in 0..=n {
+        let z = rim_z + (surface - rim_z) * i as f32 / n as f32;
+        glass_air.push((inner(z), z));
+    }
+    // Below the surface: the inside down to a rounded bottom on the axis.
+    let mut glass_drink = Vec::new();
+    for i in 0..=n {
+        let z = surface + (bottom + 0.04 - surface) * i as f32 / n as f32;
+        glass_drink.push((inner(z), z));
+    }
+    let last = inner(bottom + 0.04);
+    for i in 1..=6 {
+        let a = PI / 2.0 * i as f32 / 6.0;
+        glass_drink.push((last * a.cos(), bottom + 0.04 * (1.0 - a.sin()).powf(0.7)));
+    }
+    glass_drink.last_mut().unwrap().0 = 0.0;
+    let drink_air = vec![(inner(surface), surface), (0.0, surface)];
+    MartiniContours {
+        glass_air,
+        glass_drink,
+        drink_air,
+        wall,
+    }
+}
+
+/// The normal of a contour at each point: to the right of its direction of travel in the
+/// (r, z) plane, averaged over the point's two strips.
+fn contour_normals(c: &[(f32, f32)]) -> Vec<(f32, f32)> {
+    let strip = |i: usize| {
+        let (a, b) = (c[i], c[i + 1]);
+        let (tr, tz) = (b.0 - a.0, b.1 - a.1);
+        let l = tr.hypot(tz);
+        (tz / l, -tr / l)
+    };
+    (0..c.len())
+        .map(|i| {
+            let (p, q) = match i {
+                0 => (strip(0), strip(0)),
+                i if i == c.len() - 1 => (strip(i - 1), strip(i - 1)),
+                i => (strip(i - 1), strip(i)),
+            };
+            let (r, z) = (p.0 + q.0, p.1 + q.1);
+            let l = r.hypot(z);
+            (r / l, z / l)
+        })
+        .collect()
+}
+
+fn contour_text(c: &[(f32, f32)]) -> String {
+    let mut s = String::new();
+    for (i, (r, z)) in c.iter().enumerate() {
+        if i % 6 == 0 {
+            s.push_str("\n    ");
+        }
+        s.push_str(&format!("{r:.5} {z:.5}  "));
+    }
+    s
+}
+
+/// A martini glass and its drink in pbrt-v4's syntax with Kiln's nested dielectrics: the
+/// glass is the closed contour glass-air + glass-drink (priority 2); the drink is closed by
+/// glass-drink pushed half a wall into the glass and drink-air carried out to meet it
+/// (priority 1), so inside the glass the drink's own boundary is hidden and the glass-drink
+/// contour is the one boundary the two share. Uses the material "glass" and the medium
+/// "drink", which the including scene defines.
+fn martini_pbrt(c: &MartiniContours) -> String {
+    let mut glass = c.glass_air.clone();
+    glass.extend_from_slice(&c.glass_drink[1..]);
+    // The drink: from the axis under the glass's bottom, out and up inside the wall, and
+    // back along its surface.
+    let push = c.wall / 2.0;
+    let normals = contour_normals(&c.glass_drink);
+    let mut drink: Vec<(f32, f32)> = c
+        .glass_drink
+        .iter()
+        .zip(&normals)
+        .map(|(p, n)| ((p.0 - n.0 * push).max(0.0), p.1 - n.1 * push))
+        .rev()
+        .collect();
+    drink[0].0 = 0.0;
+    let top = drink.last().unwrap().1;
+    let surface = c.drink_air[0].1;
+    drink.last_mut().unwrap().1 = top.max(surface);
+    drink.push((0.0, surface));
+    format!(
+        "# A martini glass (seed 003), written by `cargo run --release --example scene_assets`:\n\
+         # three contours, glass-air, glass-drink and drink-air, made into two closed surfaces\n\
+         # of revolution that share the glass-drink boundary by priority.\n\
+         AttributeBegin\n\
+         \x20   NamedMaterial \"glass\"\n\
+         \x20   Shape \"revolution\" \"integer priority\" 2 \"point2 contour\" [{}\n    ]\n\
+         AttributeEnd\n\
+         AttributeBegin\n\
+         \x20   MediumInterface \"drink\" \"\"\n\
+         \x20   NamedMaterial \"drink\"\n\
+         \x20   Shape \"revolution\" \"integer priority\" 1 \"point2 contour\" [{}\n    ]\n\
+         AttributeEnd\n",
+        contour_text(&glass),
+        contour_text(&drink)
+    )
 }
 
 /// Seed 001's flame: density and temperature on a 40x64x40 grid.
@@ -339,9 +423,9 @@ fn fire() -> (kiln_scene::VoxelGrid, kiln_scene::VoxelGrid) {
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     snail().write_ply(&root.join("molten-glass/snail.ply"));
-    let (glass, drink) = martini();
-    glass.write_ply(&root.join("martini/glass.ply"));
-    drink.write_ply(&root.join("martini/liquid.ply"));
+    let glass = root.join("martini/glass.pbrt");
+    std::fs::write(&glass, martini_pbrt(&martini_contours(0.72))).unwrap();
+    println!("wrote {}", glass.display());
     let (density, temperature) = fire();
     let bbox = ([-1.0, 0.0, -1.0], [1.0, 1.0, 1.0]);
     for (name, grid) in [("density.vol", &density), ("temperature.vol", &temperature)] {

@@ -124,6 +124,15 @@ fn quadrics_curves_hair_and_motion_are_bit_identical_across_tiles_and_threads() 
     assert_same_bits_for_any_split("motion", load(&path, 4, Some((48, 36))));
 }
 
+/// Surfaces of revolution and nested dielectrics: the martini scene (three glasses of
+/// drink sharing their boundaries by priority, a scattering medium, caustic and volume
+/// photon maps).
+#[test]
+fn revolutions_and_nested_dielectrics_are_bit_identical_across_tiles_and_threads() {
+    let path = scene("martini/scene.pbrt");
+    assert_same_bits_for_any_split("martini", load(&path, 2, Some((48, 32))));
+}
+
 #[test]
 fn media_are_bit_identical_across_tiles_and_threads() {
     assert_same_bits_for_any_split("fog", load(&scene("media/fog.pbrt"), 4, Some((60, 40))));

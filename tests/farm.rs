@@ -69,7 +69,7 @@ fn farm_images_are_bit_identical_to_kiln_render() {
 #[test]
 fn farm_images_with_photon_maps_are_bit_identical_to_kiln_render() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["media/lens", "media/haze", "photons/ball"] {
+    for name in ["media/lens", "media/haze", "photons/ball", "martini/scene"] {
         let path = scene(&format!("{name}.pbrt"));
         let name = name.replace('/', "-");
         let args = ["--spp", "4", "--resolution", "32x32", "--tile", "16"];

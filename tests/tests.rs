@@ -14,6 +14,7 @@ mod motion;
 mod nested;
 mod photons;
 mod reference;
+mod revolution;
 mod sensor;
 mod shapes;
 mod textures;
