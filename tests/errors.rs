@@ -510,3 +510,55 @@ fn nanovdb_errors_name_the_line() {
         assert!(err.contains(says), "{file}: expected '{says}' in:\n{err}");
     }
 }
+
+/// A bad surface of revolution or nested-dielectric priority names its line and says what
+/// is wrong.
+#[test]
+fn revolution_and_priority_errors_say_what_is_wrong() {
+    let head = "WorldBegin\n";
+    for (shape, line, message) in [
+        (
+            "Shape \"revolution\"\n",
+            2,
+            "revolution: \"point2 contour\" [r z ...] is required",
+        ),
+        (
+            "Shape \"revolution\" \"point2 contour\" [ 0 0 ]\n",
+            2,
+            "the contour has 1 point(s); it needs two or more",
+        ),
+        (
+            "Shape \"revolution\" \"point2 contour\" [ 0 0  -1 1 ]\n",
+            2,
+            "contour point 1 is (-1, 1); every point needs a finite radius r >= 0",
+        ),
+        (
+            "Shape \"revolution\" \"point2 contour\" [ 0 0  1 1 ] \"vector2 normals\" [ 1 0 ]\n",
+            2,
+            "1 normals for 2 contour points; give one per point",
+        ),
+        (
+            "Shape \"revolution\" \"point2 contour\" [ 0 0  0 1 ]\n",
+            2,
+            "the contour sweeps no area",
+        ),
+        (
+            "Shape \"sphere\" \"integer priority\" -2\n",
+            2,
+            "\"priority\" is -2; nested dielectric priorities run from 0",
+        ),
+        (
+            "Material \"diffuse\"\nShape \"sphere\" \"integer priority\" 2\n",
+            3,
+            "\"priority\" (nested dielectrics) applies to shapes with a \"dielectric\" or \"interface\" material",
+        ),
+        (
+            "Material \"dielectric\"\nAreaLightSource \"volume\" \"rgb Le\" [1 1 1]\nShape \"revolution\" \"point2 contour\" [ 0 1  1 0  0 -1 ]\n",
+            4,
+            "a VolumeLight revolution must face outwards",
+        ),
+    ] {
+        let (err, _d) = failing(&format!("{head}{shape}"));
+        assert_names(&err, "scene.pbrt", line, message);
+    }
+}
