@@ -102,6 +102,7 @@ impl Nesting {
     /// MediumInterface, as in pbrt-v4. False when the ray would be inside more than
     /// [`MAX_NESTING`] shapes (it should end).
     #[must_use]
+    #[inline]
     pub fn cross(
         &mut self,
         scene: &Scene,
@@ -110,12 +111,28 @@ impl Nesting {
         wi: Vec3A,
         medium: &mut Option<u32>,
     ) -> bool {
-        let Some(id) = hit.surface.nest else {
-            if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
-                *medium = next;
+        match hit.surface.nest {
+            None => {
+                if let Some(next) = hit.surface.medium_towards(wi, hit.ng) {
+                    *medium = next;
+                }
+                true
             }
-            return true;
-        };
+            Some(id) => self.cross_nested(scene, id, hit, dir, wi, medium),
+        }
+    }
+
+    /// [`Nesting::cross`] on nested shape `id`'s surface.
+    #[inline(never)]
+    fn cross_nested(
+        &mut self,
+        scene: &Scene,
+        id: u32,
+        hit: &SurfaceHit,
+        dir: Vec3A,
+        wi: Vec3A,
+        medium: &mut Option<u32>,
+    ) -> bool {
         let (came, goes) = (dir.dot(hit.ng), wi.dot(hit.ng));
         if (came < 0.0) != (goes < 0.0) {
             // Reflected: still where it was.
@@ -151,6 +168,7 @@ impl Scene {
     /// `nesting`: as [`Scene::bsdf`] gives it, but on a nested shape's surface none where
     /// the boundary is hidden (the ray goes straight on), and a dielectric of the relative
     /// index where it is true.
+    #[inline]
     pub fn bsdf_nested(
         &self,
         hit: &mut SurfaceHit,
@@ -158,9 +176,22 @@ impl Scene {
         nesting: &Nesting,
         dir: Vec3A,
     ) -> Option<Bsdf<'_>> {
-        let Some(id) = hit.surface.nest else {
-            return self.bsdf(hit, footprint);
-        };
+        match hit.surface.nest {
+            None => self.bsdf(hit, footprint),
+            Some(id) => self.nested_bsdf(id, hit, footprint, nesting, dir),
+        }
+    }
+
+    /// [`Scene::bsdf_nested`] on nested shape `id`'s surface.
+    #[inline(never)]
+    fn nested_bsdf(
+        &self,
+        id: u32,
+        hit: &mut SurfaceHit,
+        footprint: f32,
+        nesting: &Nesting,
+        dir: Vec3A,
+    ) -> Option<Bsdf<'_>> {
         match nesting.crossing(self, id, hit, dir) {
             Crossing::Through => None,
             Crossing::Interface { eta } => match self.bsdf(hit, footprint) {

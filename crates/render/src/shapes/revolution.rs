@@ -518,4 +518,70 @@ mod tests {
             assert!(nearest(&ball, [0.0, 0.0, 0.0], d).is_finite(), "seam {k}");
         }
     }
+
+    /// u is φ over φmax and v the arc length along the contour over its whole length; dp/du
+    /// and dp/dv are the derivatives of the point in those parameters.
+    #[test]
+    fn uv_follow_angle_and_arc_length() {
+        // Three strips of lengths 1, 1 and 2: v = 0, 0.25, 0.5, 1 at the points.
+        let contour = [[1.0, 0.0], [1.0, 1.0], [2.0, 1.0], [2.0, 3.0]];
+        let phi_max = 3.0;
+        let s = strips(&contour, None, 0.0, phi_max).unwrap();
+        for strip in &s {
+            for u in [Vec2::new(0.2, 0.3), Vec2::new(0.8, 0.9)] {
+                let p = strip.sample(u);
+                let l = strip.local(p);
+                let phi = phi_of(f64::from(p.x), f64::from(p.y)) as f32;
+                assert!((l.uv.x - phi / phi_max).abs() < 1e-5);
+                let v = if p.z < 1.0 - 1e-6 {
+                    0.25 * p.z
+                } else if (p.z - 1.0).abs() < 1e-6 {
+                    0.25 + 0.25 * ((p.x * p.x + p.y * p.y).sqrt() - 1.0)
+                } else {
+                    0.5 + 0.25 * (p.z - 1.0)
+                };
+                assert!((l.uv.y - v).abs() < 1e-5, "v {} vs {v} at {p:?}", l.uv.y);
+                // A small step in v moves the point by dp/dv times the step.
+                let dv = 1e-3;
+                let q = strip.local(p + l.dpdv * dv);
+                assert!((q.uv.y - l.uv.y - dv).abs() < 1e-5, "{} {}", q.uv.y, l.uv.y);
+                let du = 1e-3;
+                let q = strip.local(p + l.dpdu * du);
+                assert!((q.uv.x - l.uv.x - du).abs() < 1e-4);
+            }
+        }
+    }
+
+    /// Given normals are interpolated along each strip and turned about the axis; without
+    /// them a sharp turn keeps each strip's own normal (a crease) and a gentle one is smoothed.
+    #[test]
+    fn shading_normals_are_given_or_smoothed_below_the_crease() {
+        let contour = [[1.0, 0.0], [1.0, 1.0], [0.5, 1.5]];
+        let given = [[1.0, -1.0], [1.0, 0.0], [1.0, 1.0]];
+        let s = strips(&contour, Some(&given), 0.0, TAU as f32).unwrap();
+        // Halfway up the cylinder (the first strip): the mean of the two unit normals, and
+        // a quarter turn round, the same turned.
+        let mid = (Vec2::new(1.0, -1.0).normalize() + Vec2::X).normalize();
+        let l = s[0].local(Vec3A::new(1.0, 0.0, 0.5));
+        let ns = l.ns.unwrap();
+        assert!(
+            (ns - Vec3A::new(mid.x, 0.0, mid.y)).length() < 1e-5,
+            "{ns:?}"
+        );
+        let sector = s.iter().find(|k| k.phi0 <= 1.6 && k.phi1 >= 1.6).unwrap();
+        let l = sector.local(Vec3A::new(0.0, 1.0, 0.5));
+        assert!((l.ns.unwrap() - Vec3A::new(0.0, mid.x, mid.y)).length() < 1e-5);
+        // The turn at (1, 1) is 45°: a crease at 30°, smooth at 60°.
+        for (crease, smooth) in [(30f32, false), (60.0, true)] {
+            let s = strips(&contour, None, crease.to_radians(), TAU as f32).unwrap();
+            let at_top = s[0].local(Vec3A::new(1.0, 0.0, 1.0));
+            let n = at_top.ns.unwrap_or(at_top.n);
+            if smooth {
+                let want = Vec3A::new(1.0 + 0.5f32.sqrt(), 0.0, 0.5f32.sqrt()).normalize();
+                assert!((n - want).length() < 1e-5, "{n:?}");
+            } else {
+                assert!((n - Vec3A::X).length() < 1e-6, "{n:?}");
+            }
+        }
+    }
 }
