@@ -562,3 +562,36 @@ fn revolution_and_priority_errors_say_what_is_wrong() {
         assert_names(&err, "scene.pbrt", line, message);
     }
 }
+
+/// The subsurface material's parameters are checked where Kiln cannot honour them.
+#[test]
+fn subsurface_parameters_are_checked() {
+    for (material, message) in [
+        (
+            "Material \"subsurface\" \"rgb sigma_a\" [ 1 1 1 ]",
+            "subsurface: give both sigma_a and sigma_s, or neither",
+        ),
+        (
+            "Material \"subsurface\" \"string name\" \"Skin1\"",
+            "named measured media (\"string name\") are not supported yet",
+        ),
+        (
+            "Material \"subsurface\" \"float g\" 1",
+            "\"g\" is 1; it must lie strictly between -1 and 1",
+        ),
+        (
+            "Material \"subsurface\" \"rgb sigma_a\" [ 1 -1 1 ] \"rgb sigma_s\" [ 1 1 1 ]",
+            "sigma_a and sigma_s must not be negative",
+        ),
+        (
+            "Texture \"t\" \"spectrum\" \"checkerboard\"\nMaterial \"subsurface\" \"texture sigma_a\" \"t\" \"rgb sigma_s\" [ 1 1 1 ]",
+            "a textured \"sigma_a\" is not supported",
+        ),
+    ] {
+        let (err, _d) = failing(&format!("WorldBegin\n{material}\n"));
+        assert!(
+            err.contains("scene.pbrt:") && err.contains(message),
+            "{material}: {err}"
+        );
+    }
+}

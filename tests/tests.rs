@@ -17,5 +17,6 @@ mod reference;
 mod revolution;
 mod sensor;
 mod shapes;
+mod subsurface;
 mod textures;
 mod volume_light;

@@ -328,6 +328,16 @@ pub enum MaterialKind {
     Diffuse {
         reflectance: RgbValue,
     },
+    /// pbrt-v4's "subsurface": a dielectric boundary (`eta`, `roughness`) around a
+    /// homogeneous scattering interior, which Kiln renders by random walk (a volumetric
+    /// path inside the shape) rather than pbrt-v4's tabulated BSSRDF.
+    Subsurface {
+        eta: f32,
+        roughness: Roughness,
+        /// Henyey-Greenstein asymmetry inside.
+        g: f32,
+        interior: SubsurfaceInterior,
+    },
     Dielectric {
         eta: f32,
         roughness: Roughness,
@@ -608,6 +618,15 @@ impl ShapeKind {
             phi_max: std::f64::consts::TAU,
         }
     }
+}
+
+/// How a "subsurface" material gives its interior, `scale` applied (per unit length).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SubsurfaceInterior {
+    /// `sigma_a` and `sigma_s` (pbrt-v4's defaults, a skin-like medium in mm⁻¹, without them).
+    Coefficients { sigma_a: Rgb, sigma_s: Rgb },
+    /// `reflectance` (the multiple-scattering albedo to reach) and `mfp` (mean free path).
+    Reflectance { reflectance: Rgb, mfp: Rgb },
 }
 
 /// Emission attached to a shape by AreaLightSource.

@@ -110,10 +110,15 @@ impl Model {
             MaterialKind::Diffuse { reflectance } => Model::Diffuse(DiffuseMaterial {
                 reflectance: textures.rgb_value(reflectance),
             }),
-            MaterialKind::Dielectric { eta, roughness } => Model::Dielectric(DielectricMaterial {
-                eta: *eta,
-                roughness: rough(roughness),
-            }),
+            // The surface of a subsurface material is a dielectric; its interior becomes a
+            // medium inside the shapes that use it (scene/build.rs).
+            MaterialKind::Subsurface { eta, roughness, .. }
+            | MaterialKind::Dielectric { eta, roughness } => {
+                Model::Dielectric(DielectricMaterial {
+                    eta: *eta,
+                    roughness: rough(roughness),
+                })
+            }
             MaterialKind::ThinDielectric { eta } => {
                 Model::ThinDielectric(ThinDielectricMaterial { eta: *eta })
             }

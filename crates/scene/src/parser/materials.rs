@@ -96,6 +96,92 @@ impl Parser {
         })
     }
 
+    /// pbrt-v4's "subsurface": `eta` (1.33), `g` (0), `roughness` (or `uroughness` and
+    /// `vroughness`), `scale` (1), and the interior by `sigma_a` and `sigma_s`, or by
+    /// `reflectance` and `mfp` (1), or pbrt-v4's defaults; constants only.
+    fn subsurface(&self, params: &ParamSet, loc: &Loc) -> Result<MaterialKind> {
+        let constant = |name: &str, usage: SpectrumUse| -> Result<Option<Rgb>> {
+            match self.rgb_value(params, name, usage)? {
+                None => Ok(None),
+                Some(RgbValue::Constant(c)) => Ok(Some(c)),
+                Some(RgbValue::Texture(_)) => Err(SceneError::at(
+                    &params.loc_of(name).unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "subsurface: a textured \"{name}\" is not supported (Kiln's random walk needs one interior per shape); give a constant"
+                    ),
+                )),
+            }
+        };
+        if params.loc_of("name").is_some() {
+            return Err(SceneError::at(
+                &params.loc_of("name").unwrap_or_else(|| loc.clone()),
+                "subsurface: named measured media (\"string name\") are not supported yet; give sigma_a and sigma_s, or reflectance and mfp",
+            ));
+        }
+        let scale = params.float("scale", 1.0)? as f32;
+        let eta = params.float("eta", 1.33)? as f32;
+        let g = params.float("g", 0.0)? as f32;
+        if !(scale >= 0.0 && scale.is_finite() && eta > 0.0 && eta.is_finite()) {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "subsurface: \"scale\" ({scale}) must be 0 or more and \"eta\" ({eta}) positive"
+                ),
+            ));
+        }
+        if !(g > -1.0 && g < 1.0) {
+            return Err(SceneError::at(
+                &params.loc_of("g").unwrap_or_else(|| loc.clone()),
+                format!("subsurface: \"g\" is {g}; it must lie strictly between -1 and 1"),
+            ));
+        }
+        let negative = |v: &Rgb| v.iter().any(|c| !(*c >= 0.0 && c.is_finite()));
+        let sigma_a = constant("sigma_a", SpectrumUse::Unbounded)?;
+        let sigma_s = constant("sigma_s", SpectrumUse::Unbounded)?;
+        let interior = match (sigma_a, sigma_s) {
+            (Some(a), Some(s)) => SubsurfaceInterior::Coefficients {
+                sigma_a: a.map(|v| v * scale),
+                sigma_s: s.map(|v| v * scale),
+            },
+            (Some(_), None) | (None, Some(_)) => {
+                return Err(SceneError::at(
+                    loc,
+                    "subsurface: give both sigma_a and sigma_s, or neither",
+                ));
+            }
+            (None, None) => match constant("reflectance", SpectrumUse::Albedo)? {
+                Some(reflectance) => {
+                    let mfp = constant("mfp", SpectrumUse::Unbounded)?.unwrap_or([1.0; 3]);
+                    if negative(&mfp) || mfp.contains(&0.0) {
+                        return Err(SceneError::at(loc, "subsurface: \"mfp\" must be positive"));
+                    }
+                    SubsurfaceInterior::Reflectance {
+                        reflectance: reflectance.map(|v| v.clamp(0.0, 1.0)),
+                        mfp: mfp.map(|v| v * scale),
+                    }
+                }
+                None => SubsurfaceInterior::Coefficients {
+                    sigma_a: [0.0011, 0.0024, 0.014].map(|v| v * scale),
+                    sigma_s: [2.55, 3.21, 3.77].map(|v| v * scale),
+                },
+            },
+        };
+        if let SubsurfaceInterior::Coefficients { sigma_a, sigma_s } = &interior
+            && (negative(sigma_a) || negative(sigma_s))
+        {
+            return Err(SceneError::at(
+                loc,
+                "subsurface: sigma_a and sigma_s must not be negative",
+            ));
+        }
+        Ok(MaterialKind::Subsurface {
+            eta,
+            roughness: self.roughness(params)?,
+            g,
+            interior,
+        })
+    }
+
     pub(super) fn material(
         &mut self,
         ty: &str,
@@ -111,6 +197,7 @@ impl Parser {
             "diffuse" => MaterialKind::Diffuse {
                 reflectance: reflectance(0.5)?,
             },
+            "subsurface" => self.subsurface(params, loc)?,
             "dielectric" => MaterialKind::Dielectric {
                 eta: self.scalar_eta(params, 1.5)?,
                 roughness: self.roughness(params)?,
@@ -294,7 +381,7 @@ impl Parser {
                 return Err(SceneError::at(
                     loc,
                     format!(
-                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, thindielectric, conductor, coateddiffuse, coatedconductor, measured, hair, mix, interface)"
+                        "unknown or unsupported material type '{other}' (Kiln has diffuse, diffusetransmission, dielectric, subsurface, thindielectric, conductor, coateddiffuse, coatedconductor, measured, hair, mix, interface)"
                     ),
                 ));
             }
