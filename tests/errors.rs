@@ -572,8 +572,8 @@ fn subsurface_parameters_are_checked() {
             "subsurface: give both sigma_a and sigma_s, or neither",
         ),
         (
-            "Material \"subsurface\" \"string name\" \"Skin1\"",
-            "named measured media (\"string name\") are not supported yet",
+            "Material \"subsurface\" \"string name\" \"Skin9\"",
+            "no measured medium named 'Skin9' (Kiln knows Jensen et al. 2001's: Apple,",
         ),
         (
             "Material \"subsurface\" \"float g\" 1",

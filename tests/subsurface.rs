@@ -114,3 +114,41 @@ Shape "bilinearmesh" "point3 P" [ -5 -5 -1  5 -5 -1  -5 5 -1  5 5 -1 ]
         assert!(max_z_score(&a, &c, 4, 4) > 10.0);
     }
 }
+
+/// A measured medium by name (pbrt-v4's sssdragon asks for "Skin1") is its table's
+/// coefficients times `scale`: the same image as those coefficients written out.
+#[test]
+fn a_named_measured_medium_is_its_coefficients() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |material: &str| {
+        format!(
+            r#"Integrator "volpath" "integer maxdepth" [ 32 ]
+Sampler "zsobol" "integer pixelsamples" [ 8 ]
+Film "rgb" "integer xresolution" [ 24 ] "integer yresolution" [ 24 ]
+LookAt 0 -4 1  0 0 0  0 0 1
+Camera "perspective" "float fov" [ 35 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+{material}
+Shape "sphere"
+"#
+        )
+    };
+    let named = write_scene(
+        dir.path(),
+        "named.pbrt",
+        &scene(
+            "Material \"subsurface\" \"string name\" \"Skin1\" \"float scale\" 10 \"float eta\" 1.5",
+        ),
+    );
+    let written = write_scene(
+        dir.path(),
+        "written.pbrt",
+        &scene(
+            "Material \"subsurface\" \"rgb sigma_a\" [ 0.032 0.17 0.48 ] \"rgb sigma_s\" [ 0.74 0.88 1.01 ] \"float scale\" 10 \"float eta\" 1.5",
+        ),
+    );
+    let a = render(&named, dir.path(), "named", &[]);
+    let b = render(&written, dir.path(), "written", &[]);
+    assert_eq!(a.bytes, b.bytes);
+}

@@ -29,6 +29,7 @@ pub mod error;
 pub mod files;
 mod lexer;
 pub mod loop_subdiv;
+pub mod measured_media;
 mod params;
 mod parser;
 pub mod photometry;

@@ -97,9 +97,10 @@ impl Parser {
     }
 
     /// pbrt-v4's "subsurface": `eta` (1.33), `g` (0), `roughness` (or `uroughness` and
-    /// `vroughness`), `scale` (1), and the interior by `sigma_a` and `sigma_s`, or by
-    /// `reflectance` and `mfp` (1), or pbrt-v4's defaults; constants only.
-    fn subsurface(&self, params: &ParamSet, loc: &Loc) -> Result<MaterialKind> {
+    /// `vroughness`), `scale` (1), and the interior by `name` (a measured medium), by
+    /// `sigma_a` and `sigma_s`, by `reflectance` and `mfp` (1), or pbrt-v4's defaults;
+    /// constants only.
+    fn subsurface(&mut self, params: &ParamSet, loc: &Loc) -> Result<MaterialKind> {
         let constant = |name: &str, usage: SpectrumUse| -> Result<Option<Rgb>> {
             match self.rgb_value(params, name, usage)? {
                 None => Ok(None),
@@ -112,12 +113,6 @@ impl Parser {
                 )),
             }
         };
-        if params.loc_of("name").is_some() {
-            return Err(SceneError::at(
-                &params.loc_of("name").unwrap_or_else(|| loc.clone()),
-                "subsurface: named measured media (\"string name\") are not supported yet; give sigma_a and sigma_s, or reflectance and mfp",
-            ));
-        }
         let scale = params.float("scale", 1.0)? as f32;
         let eta = params.float("eta", 1.33)? as f32;
         let g = params.float("g", 0.0)? as f32;
@@ -136,8 +131,23 @@ impl Parser {
             ));
         }
         let negative = |v: &Rgb| v.iter().any(|c| !(*c >= 0.0 && c.is_finite()));
-        let sigma_a = constant("sigma_a", SpectrumUse::Unbounded)?;
-        let sigma_s = constant("sigma_s", SpectrumUse::Unbounded)?;
+        let mut sigma_a = constant("sigma_a", SpectrumUse::Unbounded)?;
+        let mut sigma_s = constant("sigma_s", SpectrumUse::Unbounded)?;
+        let mut g = g;
+        if let Some(name) = params.string("name")? {
+            let at = params.loc_of("name").unwrap_or_else(|| loc.clone());
+            let Some((a, s)) = crate::measured_media::measured_medium(&name) else {
+                return Err(SceneError::at(
+                    &at,
+                    format!(
+                        "subsurface: no measured medium named '{name}' (Kiln knows Jensen et al. 2001's: {})",
+                        crate::measured_media::measured_medium_names().join(", ")
+                    ),
+                ));
+            };
+            // The table gives reduced scattering: isotropic, as pbrt-v4 enforces.
+            (sigma_a, sigma_s, g) = (Some(a), Some(s), 0.0);
+        }
         let interior = match (sigma_a, sigma_s) {
             (Some(a), Some(s)) => SubsurfaceInterior::Coefficients {
                 sigma_a: a.map(|v| v * scale),
@@ -173,6 +183,10 @@ impl Parser {
                 loc,
                 "subsurface: sigma_a and sigma_s must not be negative",
             ));
+        }
+        if params.loc_of("name").is_some() && params.float("g", 0.0)? != 0.0 {
+            let at = params.loc_of("g").unwrap_or_else(|| loc.clone());
+            self.warn(&at, "subsurface: \"g\" is ignored with a named measured medium (its coefficients are reduced scattering, as in pbrt-v4)");
         }
         Ok(MaterialKind::Subsurface {
             eta,
