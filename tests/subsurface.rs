@@ -272,3 +272,49 @@ Shape "sphere"
     );
     assert!((kiln - PBRT_VOLUMETRIC).abs() < (PBRT_BSSRDF - PBRT_VOLUMETRIC).abs());
 }
+
+/// Photon maps leave subsurface walks alone: a volume photon map in a scene with a
+/// subsurface sphere (and caustic photons through it) gives the same image, within noise,
+/// as plain path tracing. (Photons stored inside the sphere once ended every walk at its
+/// first scattering with a gather far wider than the walk.)
+#[test]
+fn photon_maps_do_not_cut_subsurface_walks_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |integrator: &str| {
+        format!(
+            r#"{integrator}
+Sampler "zsobol" "integer pixelsamples" [ 32 ]
+Film "rgb" "integer xresolution" [ 48 ] "integer yresolution" [ 48 ]
+LookAt 0 -4 1  0 0 0  0 0 1
+Camera "perspective" "float fov" [ 35 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 0.5 0.5 0.5 ]
+LightSource "distant" "point3 from" [ 1 -1 2 ] "point3 to" [ 0 0 0 ] "rgb L" [ 2 2 2 ]
+Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
+Shape "bilinearmesh" "point3 P" [ -5 -5 -1  5 -5 -1  -5 5 -1  5 5 -1 ]
+Material "subsurface" "float eta" 1.33 "rgb sigma_a" [ 0.3 0.8 1.5 ] "rgb sigma_s" [ 12 10 8 ]
+Shape "sphere"
+"#
+        )
+    };
+    let plain = write_scene(
+        dir.path(),
+        "plain.pbrt",
+        &scene("Integrator \"volpath\" \"integer maxdepth\" [ 64 ]"),
+    );
+    let photons = write_scene(
+        dir.path(),
+        "photons.pbrt",
+        &scene(
+            "Integrator \"volpath\" \"integer maxdepth\" [ 64 ] \"integer volumephotons\" [ 20000 ] \"integer causticphotons\" [ 20000 ]",
+        ),
+    );
+    let a = render(&plain, dir.path(), "plain", &["--seed", "1"]).image;
+    let b = render(&photons, dir.path(), "photons", &["--seed", "2"]).image;
+    let z = max_z_score(&a, &b, 4, 4);
+    eprintln!("subsurface with and without photon maps: largest block z {z:.2}");
+    assert!(
+        z < 4.0,
+        "photon maps change the subsurface sphere by {z} standard errors"
+    );
+}

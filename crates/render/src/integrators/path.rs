@@ -235,8 +235,10 @@ fn medium_step(
     // With a volume map the path ends here: the map holds all light scattered here but the
     // direct, which next-event estimation adds with full weight.
     let mut ends_here = false;
+    // (Not inside a subsurface material: its random walk goes on as a path.)
     if let Some(maps) = &ctx.prepass.photons
         && (maps.has_volume_map() || maps.caustics)
+        && !scene.is_walk_medium(m)
     {
         // Light scattered here from the photons; the throughput already holds sigma_s, the
         // estimate divides it out.

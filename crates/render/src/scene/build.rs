@@ -1195,6 +1195,11 @@ impl Scene {
                 medium_lights: Vec::new(),
                 light_media,
                 nested: b.nested,
+                first_walk_medium: if b.use_media {
+                    desc.media.len() as u32
+                } else {
+                    0
+                },
             };
         scene.light_media.resize(scene.lights.len(), None);
         // Each emissive grid medium is a light, sampled by its emission distribution.

@@ -54,6 +54,9 @@ pub struct Scene {
     pub light_media: Vec<Option<[u32; 2]>>,
     /// Nested dielectric shapes, referred to by `SurfaceInfo::nest`.
     pub nested: Vec<crate::nesting::NestedShape>,
+    /// Media from this index on are the interiors of "subsurface" materials: random walks,
+    /// which photon maps neither store photons in nor shortcut with gathers.
+    pub first_walk_medium: u32,
 }
 
 impl Scene {
@@ -77,6 +80,11 @@ impl Scene {
         }
         material.normal.apply(hit, &ctx);
         material.bsdf(&ctx)
+    }
+
+    /// Whether medium `m` is a subsurface material's interior (see `first_walk_medium`).
+    pub fn is_walk_medium(&self, m: u32) -> bool {
+        m >= self.first_walk_medium
     }
 
     /// What lights need of the scene to be sampled and evaluated.

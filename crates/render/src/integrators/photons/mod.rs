@@ -438,14 +438,18 @@ impl<'a> Shooter<'a> {
                             n: Vec3A::ZERO,
                             power: beta,
                         };
+                        // Inside a subsurface material the photon walks on, stored nowhere:
+                        // camera paths walk there themselves (and a walk ends a caustic).
+                        let walk = scene.is_walk_medium(m);
                         match pass {
+                            Pass::Caustic { .. } if walk => {}
                             Pass::Caustic { volume } => {
                                 if volume && events > 0 && only_specular {
                                     stored.volume.push(photon);
                                 }
                                 return;
                             }
-                            Pass::Volume if events > 0 => stored.volume.push(photon),
+                            Pass::Volume if events > 0 && !walk => stored.volume.push(photon),
                             Pass::Volume => {}
                         }
                         events += 1;
