@@ -5,6 +5,8 @@
 //!   eye stalks, 120k+ triangles;
 //! - `scenes/fire/density.vol`, `scenes/fire/temperature.vol`: a flame for seed 001's
 //!   emissive medium, in Mitsuba's .vol format;
+//! - `scenes/lily-pond/pads.pbrt`: seed 004's lily pads (thin closed discs) and their stems
+//!   (circles swept along curves of sines and cosines);
 //! - `scenes/martini/glass.pbrt`: a martini glass and its drink, Kiln's surfaces of
 //!   revolution from seed 003's three 2D contours, sharing one boundary by priority.
 //!
@@ -420,12 +422,127 @@ fn fire() -> (kiln_scene::VoxelGrid, kiln_scene::VoxelGrid) {
     (grid(density), grid(temperature))
 }
 
+/// Seed 004's lily pads and their stems, in pbrt-v4's syntax: `count` pads scattered on the
+/// water (y = 0), each a thin closed disc with its notch, its edge curling up a little, and
+/// under each a stem: a circle swept along a curve of sines and cosines down to the pond's
+/// floor (pbrt-v4's `curve` of type cylinder, a b-spline). The including scene defines the
+/// materials "pad" and "stem".
+fn lily_pads(count: usize) -> String {
+    let mut out = String::from(
+        "# Lily pads and stems (seed 004), written by `cargo run --release --example scene_assets`.\n",
+    );
+    // A fixed little generator, so the pond is the same on every run.
+    let mut state = 0x1234_5678_9abc_def1u64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut placed: Vec<(f32, f32, f32)> = Vec::new();
+    while placed.len() < count {
+        let (x, z) = (uniform() * 6.0 - 3.0, uniform() * 5.0 - 3.5);
+        let r = 0.3 + 0.3 * uniform();
+        if placed
+            .iter()
+            .all(|&(px, pz, pr)| (x - px).hypot(z - pz) > (r + pr) * 1.02)
+        {
+            placed.push((x, z, r));
+        }
+    }
+    for (k, &(cx, cz, radius)) in placed.iter().enumerate() {
+        let turn = uniform() * 2.0 * PI;
+        let notch = 0.35f32;
+        let n = 40;
+        let thick = 0.012f32;
+        // The outline: the centre, then the rim from one side of the notch to the other.
+        let mut p: Vec<[f32; 3]> = Vec::new();
+        let mut idx: Vec<[usize; 3]> = Vec::new();
+        // The pad floats a hair above the water's surface (coincident surfaces would leave
+        // which one a ray meets to rounding).
+        let lift = |r: f32| 0.004 + 0.04 * (r / radius).powi(4);
+        let rim = |i: usize, y: f32| -> [f32; 3] {
+            let a = turn + notch / 2.0 + (2.0 * PI - notch) * i as f32 / n as f32;
+            [
+                cx + radius * a.cos(),
+                y + lift(radius),
+                cz + radius * a.sin(),
+            ]
+        };
+        // Top (0..=n, centre n+1), bottom (n+2..=2n+2, centre 2n+3).
+        for i in 0..=n {
+            p.push(rim(i, thick));
+        }
+        p.push([cx, thick + lift(0.0), cz]);
+        for i in 0..=n {
+            p.push(rim(i, 0.0));
+        }
+        p.push([cx, lift(0.0), cz]);
+        let (top_c, bot0, bot_c) = (n + 1, n + 2, 2 * n + 3);
+        let mut face = |a: usize, b: usize, c: usize, out_dir: [f32; 3], p: &[[f32; 3]]| {
+            // Kiln (as pbrt-v4) faces a triangle by (p0 - p2) x (p1 - p2).
+            let u = [p[a][0] - p[c][0], p[a][1] - p[c][1], p[a][2] - p[c][2]];
+            let v = [p[b][0] - p[c][0], p[b][1] - p[c][1], p[b][2] - p[c][2]];
+            let nrm = cross(u, v);
+            let d = nrm[0] * out_dir[0] + nrm[1] * out_dir[1] + nrm[2] * out_dir[2];
+            idx.push(if d >= 0.0 { [a, b, c] } else { [a, c, b] });
+        };
+        for i in 0..n {
+            face(top_c, i, i + 1, [0.0, 1.0, 0.0], &p);
+            face(bot_c, bot0 + i, bot0 + i + 1, [0.0, -1.0, 0.0], &p);
+            // The rim, facing out from the centre.
+            let a = rim(i, 0.0);
+            let out_dir = [a[0] - cx, 0.0, a[2] - cz];
+            face(i, i + 1, bot0 + i + 1, out_dir, &p);
+            face(i, bot0 + i + 1, bot0 + i, out_dir, &p);
+        }
+        // The notch's two cut faces and its point at the centre.
+        for (i, side) in [(0usize, -1.0f32), (n, 1.0)] {
+            let a = rim(i, 0.0);
+            let (dx, dz) = (a[0] - cx, a[2] - cz);
+            // Perpendicular to the cut, pointing into the notch.
+            let out_dir = [-dz * side, 0.0, dx * side];
+            face(i, top_c, bot_c, out_dir, &p);
+            face(i, bot_c, bot0 + i, out_dir, &p);
+        }
+        let points: String = p
+            .iter()
+            .map(|v| format!("{:.5} {:.5} {:.5}  ", v[0], v[1], v[2]))
+            .collect();
+        let indices: String = idx
+            .iter()
+            .map(|t| format!("{} {} {}  ", t[0], t[1], t[2]))
+            .collect();
+        out.push_str(&format!(
+            "# pad {k}\nAttributeBegin\n    NamedMaterial \"pad\"\n    Shape \"trianglemesh\" \"point3 P\" [ {points}]\n        \"integer indices\" [ {indices}]\nAttributeEnd\n"
+        ));
+        // The stem: from under the pad's centre down to the floor, swaying.
+        let phase = uniform() * 2.0 * PI;
+        let stem: String = (0..10)
+            .map(|i| {
+                let t = i as f32 / 9.0;
+                let x = cx + 0.18 * (3.0 * t + phase).sin() * t;
+                let z = cz + 0.14 * (2.0 * t + phase).cos() * t - 0.14 * phase.cos() * t;
+                format!("{x:.4} {:.4} {z:.4}  ", -0.02 - 1.9 * t)
+            })
+            .collect();
+        out.push_str(&format!(
+            "AttributeBegin\n    NamedMaterial \"stem\"\n    Shape \"curve\" \"string basis\" \"bspline\" \"string type\" \"cylinder\" \"float width\" [ 0.035 ]\n        \"point3 P\" [ {stem}]\nAttributeEnd\n"
+        ));
+    }
+    out
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     snail().write_ply(&root.join("molten-glass/snail.ply"));
     let glass = root.join("martini/glass.pbrt");
     std::fs::write(&glass, martini_pbrt(&martini_contours(0.72))).unwrap();
     println!("wrote {}", glass.display());
+    let pads = root.join("lily-pond/pads.pbrt");
+    std::fs::create_dir_all(pads.parent().unwrap()).unwrap();
+    std::fs::write(&pads, lily_pads(9)).unwrap();
+    println!("wrote {}", pads.display());
     let (density, temperature) = fire();
     let bbox = ([-1.0, 0.0, -1.0], [1.0, 1.0, 1.0]);
     for (name, grid) in [("density.vol", &density), ("temperature.vol", &temperature)] {

@@ -124,13 +124,16 @@ fn quadrics_curves_hair_and_motion_are_bit_identical_across_tiles_and_threads() 
     assert_same_bits_for_any_split("motion", load(&path, 4, Some((48, 36))));
 }
 
-/// Surfaces of revolution and nested dielectrics: the martini scene (three glasses of
-/// drink sharing their boundaries by priority, a scattering medium, caustic and volume
-/// photon maps).
+/// Surfaces of revolution and nested dielectrics: the martini scene (three glasses of drink
+/// sharing their boundaries by priority, a scattering medium, caustic and volume photon
+/// maps); and the lily pond's subsurface walks.
 #[test]
 fn revolutions_and_nested_dielectrics_are_bit_identical_across_tiles_and_threads() {
     let path = scene("martini/scene.pbrt");
     assert_same_bits_for_any_split("martini", load(&path, 2, Some((48, 32))));
+    // Subsurface walks (the pads), curves (the stems) and a volume photon map (the water).
+    let path = scene("lily-pond/scene.pbrt");
+    assert_same_bits_for_any_split("lily-pond", load(&path, 2, Some((48, 32))));
 }
 
 #[test]
