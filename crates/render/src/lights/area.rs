@@ -5,10 +5,10 @@
 use super::LightSample;
 use crate::math::{Color, luminance};
 use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle};
+use crate::shapes::Geometry;
 use crate::shapes::quadric::QuadricPoint;
 use crate::shapes::sphere::{sample_sphere, sphere_pdf, sphere_uv};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
-use crate::shapes::{Geometry, ShapeSample};
 use glam::{Vec2, Vec3A};
 use kiln_scene::textures::TextureImage;
 use std::f32::consts::PI;
@@ -360,36 +360,16 @@ impl QuadricLight {
 
     pub fn sample(&self, geometry: &Geometry, p: Vec3A, u: Vec2) -> Option<LightSample> {
         let quadric = &geometry.prims.quadrics[self.quadric as usize];
-        let (q, area_pdf) = quadric.sample(u);
-        let d = q.p - p;
-        let dist2 = d.length_squared();
-        if dist2 == 0.0 || area_pdf == 0.0 {
-            return None;
-        }
-        let dist = dist2.sqrt();
-        let wi = d / dist;
-        let cos = q.n.dot(wi).abs();
-        if cos == 0.0 || (!self.two_sided && q.n.dot(wi) >= 0.0) {
+        let (q, point) = quadric.sample_from(p, u)?;
+        if !self.two_sided && q.n.dot(point.wi) >= 0.0 {
             return None;
         }
         let radiance = self.emitted(geometry, &q);
-        let point = ShapeSample {
-            wi,
-            pdf: area_pdf * dist2 / cos,
-            distance: dist,
-            n: q.n,
-        };
         (radiance != Color::ZERO).then(|| LightSample::on_surface(point, radiance))
     }
 
     pub fn pdf(&self, geometry: &Geometry, p: Vec3A, wi: Vec3A, q: Vec3A) -> f32 {
-        let quadric = &geometry.prims.quadrics[self.quadric as usize];
-        let at = quadric.point_at(q);
-        let cos = at.n.dot(wi).abs();
-        if cos == 0.0 {
-            return 0.0;
-        }
-        quadric.area_density(&at) * (q - p).length_squared() / cos
+        geometry.prims.quadrics[self.quadric as usize].solid_angle_pdf(p, wi, q)
     }
 
     /// A photon's starting point. Its `area` is the reciprocal of the sampled point's area

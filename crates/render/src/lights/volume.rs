@@ -65,25 +65,10 @@ impl VolumeQuadricLight {
 
     pub fn sample(&self, ctx: &LightContext, p: Vec3A, u: Vec2) -> (Option<LightSample>, u64) {
         let quadric = &ctx.geometry.prims.quadrics[self.quadric as usize];
-        let (q, area_pdf) = quadric.sample(u);
-        let d = q.p - p;
-        let dist2 = d.length_squared();
-        if dist2 == 0.0 || area_pdf == 0.0 {
+        let Some((q, point)) = quadric.sample_from(p, u) else {
             return (None, 0);
-        }
-        let dist = dist2.sqrt();
-        let wi = d / dist;
-        let cos = q.n.dot(wi).abs();
-        if cos == 0.0 {
-            return (None, 0);
-        }
-        let point = crate::shapes::ShapeSample {
-            wi,
-            pdf: area_pdf * dist2 / cos,
-            distance: dist,
-            n: q.n,
         };
-        let (le, rays) = volume_le(ctx, self.volume, q.p, q.n, q.ns, -wi);
+        let (le, rays) = volume_le(ctx, self.volume, q.p, q.n, q.ns, -point.wi);
         (
             (le != Color::ZERO).then(|| LightSample::on_surface(point, le)),
             rays,
@@ -91,13 +76,7 @@ impl VolumeQuadricLight {
     }
 
     pub fn pdf(&self, ctx: &LightContext, p: Vec3A, wi: Vec3A, q: Vec3A) -> f32 {
-        let quadric = &ctx.geometry.prims.quadrics[self.quadric as usize];
-        let at = quadric.point_at(q);
-        let cos = at.n.dot(wi).abs();
-        if cos == 0.0 {
-            return 0.0;
-        }
-        quadric.area_density(&at) * (q - p).length_squared() / cos
+        ctx.geometry.prims.quadrics[self.quadric as usize].solid_angle_pdf(p, wi, q)
     }
 
     /// A photon as [`VolumeTriangleLight::emit`] gives one, from a point sampled by area.

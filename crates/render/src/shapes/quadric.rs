@@ -265,6 +265,42 @@ impl Quadric {
         }
     }
 
+    /// A point sampled on the quadric as seen from `p`: the point, and the direction,
+    /// distance and solid-angle density (both sides count); None where the sample is
+    /// degenerate (at `p`, edge-on, or of zero density).
+    pub fn sample_from(&self, p: Vec3A, u: Vec2) -> Option<(QuadricPoint, super::ShapeSample)> {
+        let (q, area_pdf) = self.sample(u);
+        let d = q.p - p;
+        let dist2 = d.length_squared();
+        if dist2 == 0.0 || area_pdf == 0.0 {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let wi = d / dist;
+        let cos = q.n.dot(wi).abs();
+        if cos == 0.0 {
+            return None;
+        }
+        let sample = super::ShapeSample {
+            wi,
+            pdf: area_pdf * dist2 / cos,
+            distance: dist,
+            n: q.n,
+        };
+        Some((q, sample))
+    }
+
+    /// The solid-angle density with which [`Quadric::sample_from`] gives direction `wi`
+    /// from `p` towards the quadric's point `q`.
+    pub fn solid_angle_pdf(&self, p: Vec3A, wi: Vec3A, q: Vec3A) -> f32 {
+        let at = self.point_at(q);
+        let cos = at.n.dot(wi).abs();
+        if cos == 0.0 {
+            return 0.0;
+        }
+        self.area_density(&at) * (q - p).length_squared() / cos
+    }
+
     /// The world-space area: the area scale integrated over the object-space surface, as
     /// the mean of the area scale over the sampling density at a fixed 64 x 64 grid of
     /// samples (exact for similarity transforms of uniformly sampled shapes; the same on
