@@ -206,6 +206,10 @@ impl Strip {
     }
 }
 
+/// The most strip sectors one contour may make: a file's point count decides it, and each
+/// sector is a quadric record of a few hundred bytes.
+pub const MAX_SECTORS: usize = 1 << 22;
+
 /// A contour that cannot be turned into a surface.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContourError(pub String);
@@ -298,6 +302,14 @@ pub fn strips(
         }
     };
     let sectors = ((f64::from(phi_max) / (FRAC_PI_4 / 2.0)).ceil() as usize).max(1);
+    if segments.saturating_mul(sectors) > MAX_SECTORS {
+        return Err(ContourError(format!(
+            "a contour of {} points makes {} strip sectors, more than Kiln's limit of {MAX_SECTORS} (about {} GiB of primitives); use fewer points",
+            contour.len(),
+            segments.saturating_mul(sectors),
+            (MAX_SECTORS * std::mem::size_of::<super::Quadric>()) >> 30
+        )));
+    }
     let mut out = Vec::with_capacity(segments * sectors);
     let mut arc = 0.0f32;
     for i in 0..segments {
@@ -429,6 +441,12 @@ mod tests {
         assert!(strips(&[[0.0, 0.0], [0.0, 1.0]], None, 0.5, 1.0).is_err());
         assert!(strips(&[[1.0, 0.0], [1.0, 0.0]], None, 0.5, 1.0).is_err());
         assert!(strips(&[[1.0, 0.0], [1.0, 1.0]], Some(&[[1.0, 0.0]]), 0.5, 1.0).is_err());
+        // More points than the sector limit allows is refused before anything is built.
+        let many: Vec<[f32; 2]> = (0..=MAX_SECTORS / 16 + 1)
+            .map(|i| [1.0, i as f32 * 1e-3])
+            .collect();
+        let err = strips(&many, None, 0.5, TAU as f32).unwrap_err();
+        assert!(err.0.contains("more than Kiln's limit"), "{}", err.0);
     }
 
     /// The nearest hit of a ray on any of `strips`.
