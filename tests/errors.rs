@@ -587,6 +587,10 @@ fn subsurface_parameters_are_checked() {
             "Texture \"t\" \"spectrum\" \"checkerboard\"\nMaterial \"subsurface\" \"texture sigma_a\" \"t\" \"rgb sigma_s\" [ 1 1 1 ]",
             "a textured \"sigma_a\" is not supported",
         ),
+        (
+            "Texture \"t\" \"spectrum\" \"checkerboard\"\nMaterial \"subsurface\" \"texture reflectance\" \"t\" \"texture mfp\" \"t\"",
+            "a textured \"mfp\" is not supported",
+        ),
     ] {
         let (err, _d) = failing(&format!("WorldBegin\n{material}\n"));
         assert!(
@@ -594,4 +598,9 @@ fn subsurface_parameters_are_checked() {
             "{material}: {err}"
         );
     }
+    let (err, _d) = failing("Integrator \"volpath\" \"integer walkdepth\" 0\nWorldBegin\n");
+    assert!(
+        err.contains("scene.pbrt:1") && err.contains("walkdepth 0 is out of range"),
+        "{err}"
+    );
 }

@@ -30,11 +30,18 @@ fn h_function(w: f64, mu: f64) -> f64 {
 /// A semi-infinite, index-matched (eta 1) random-walk medium of isotropic scattering under a
 /// uniform sky of radiance 1 sends back, straight up, its plane albedo 1 − H(1) √(1 − w):
 /// for single-scattering albedos 0.5, 0.9 and 0.97 (one per channel, the same extinction)
-/// within 1% and four standard errors.
+/// within 1% and four standard errors. The walk is one bounce, whatever its length: with
+/// maxdepth 1 too.
 #[test]
 fn a_semi_infinite_walk_reflects_the_exact_plane_albedo() {
+    for max_depth in [1000, 1] {
+        semi_infinite_walk(max_depth);
+    }
+}
+
+fn semi_infinite_walk(max_depth: u32) {
     let dir = tempfile::tempdir().unwrap();
-    let text = r#"Integrator "volpath" "integer maxdepth" [ 1000 ]
+    let text = r#"Integrator "volpath" "integer maxdepth" [ MAXDEPTH ]
 Sampler "zsobol" "integer pixelsamples" [ 128 ]
 Film "rgb" "integer xresolution" [ 48 ] "integer yresolution" [ 48 ]
 LookAt 0 0 5  0 0 0  0 1 0
@@ -44,18 +51,42 @@ LightSource "infinite" "rgb L" [ 1 1 1 ]
 Material "subsurface" "float eta" 1 "rgb sigma_a" [ 0.5 0.1 0.03 ] "rgb sigma_s" [ 0.5 0.9 0.97 ]
 Shape "revolution" "point2 contour" [ 0 -2000  2000 -2000  2000 0  0 0 ]
 "#;
-    let path = write_scene(dir.path(), "semi.pbrt", text);
+    let text = text.replace("MAXDEPTH", &max_depth.to_string());
+    let path = write_scene(dir.path(), "semi.pbrt", &text);
     let img = render(&path, dir.path(), "semi", &[]).image;
     for (c, w) in [0.5f64, 0.9, 0.97].into_iter().enumerate() {
         let want = 1.0 - h_function(w, 1.0) * (1.0 - w).sqrt();
         let (got, se) = block_stats(&img, 0, 0, 48, 48, c);
-        eprintln!("albedo {w}: {got:.5} ± {se:.5}, exact {want:.5}");
+        eprintln!("maxdepth {max_depth}, albedo {w}: {got:.5} ± {se:.5}, exact {want:.5}");
         assert!(se < 0.003 * want, "too noisy to tell: ± {se}");
         assert!(
             (got - want).abs() < 0.01 * want && (got - want).abs() < 4.0 * se + 1e-4,
-            "albedo {w}: {got} ± {se} against the exact {want}"
+            "maxdepth {max_depth}, albedo {w}: {got} ± {se} against the exact {want}"
         );
     }
+}
+
+/// The Integrator's "walkdepth" caps a walk's events: cut off after 3, the walks in the
+/// semi-infinite medium of albedo 0.97 send back well under the exact plane albedo.
+#[test]
+fn walkdepth_cuts_subsurface_walks_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"Integrator "volpath" "integer maxdepth" [ 5 ] "integer walkdepth" [ 3 ]
+Sampler "zsobol" "integer pixelsamples" [ 16 ]
+Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "orthographic" "float screenwindow" [ -1 1 -1 1 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+Material "subsurface" "float eta" 1 "rgb sigma_a" [ 0.03 0.03 0.03 ] "rgb sigma_s" [ 0.97 0.97 0.97 ]
+Shape "revolution" "point2 contour" [ 0 -2000  2000 -2000  2000 0  0 0 ]
+"#;
+    let path = write_scene(dir.path(), "cut.pbrt", text);
+    let img = render(&path, dir.path(), "cut", &[]).image;
+    let exact = 1.0 - h_function(0.97, 1.0) * (1.0 - 0.97f64).sqrt();
+    let (got, _) = block_stats(&img, 0, 0, 16, 16, 0);
+    eprintln!("walkdepth 3: {got:.4}, exact without a cap {exact:.4}");
+    assert!(got > 0.05 && got < 0.8 * exact, "{got} against {exact}");
 }
 
 /// The subsurface material is the same thing as a dielectric of its eta with its
@@ -316,5 +347,66 @@ Shape "sphere"
     assert!(
         z < 4.0,
         "photon maps change the subsurface sphere by {z} standard errors"
+    );
+}
+
+/// A textured reflectance (pbrt-v4's head scene gives one) sets each walk's coefficients
+/// where it enters: a deep slab whose reflectance is a checkerboard of 0.8 and 0.3, with a
+/// mean free path far below a square's size, shows in each square what a slab of that
+/// square's constant reflectance shows (within four standard errors of the difference),
+/// and the two squares differ.
+#[test]
+fn a_textured_reflectance_sets_each_walk_where_it_enters() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |reflectance: &str| {
+        format!(
+            r#"Integrator "volpath" "integer maxdepth" [ 1000 ]
+Sampler "zsobol" "integer pixelsamples" [ 64 ]
+Film "rgb" "integer xresolution" [ 48 ] "integer yresolution" [ 48 ]
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "orthographic" "float screenwindow" [ -2 2 -2 2 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+Texture "checks" "spectrum" "checkerboard" "float uscale" 2 "float vscale" 2
+    "rgb tex1" [ 0.8 0.8 0.8 ] "rgb tex2" [ 0.3 0.3 0.3 ]
+Material "subsurface" "float eta" 1 {reflectance} "rgb mfp" [ 0.01 0.01 0.01 ]
+Shape "trianglemesh"
+    "point3 P" [ -2 -2 0  2 -2 0  2 2 0  -2 2 0  -2 -2 -1  2 -2 -1  2 2 -1  -2 2 -1 ]
+    "point2 uv" [ 0 0  1 0  1 1  0 1  0 0  1 0  1 1  0 1 ]
+    "integer indices" [ 0 1 2  0 2 3  4 6 5  4 7 6  0 4 5  0 5 1  1 5 6  1 6 2
+                        2 6 7  2 7 3  3 7 4  3 4 0 ]
+"#
+        )
+    };
+    let render_with = |name: &str, reflectance: &str| {
+        let path = write_scene(dir.path(), &format!("{name}.pbrt"), &scene(reflectance));
+        render(&path, dir.path(), name, &[]).image
+    };
+    let textured = render_with("textured", "\"texture reflectance\" \"checks\"");
+    let light = render_with("light", "\"rgb reflectance\" [ 0.8 0.8 0.8 ]");
+    let dark = render_with("dark", "\"rgb reflectance\" [ 0.3 0.3 0.3 ]");
+    // The squares' interiors, 4 pixels in from every edge. pbrt-v4's camera space is
+    // left-handed: looking down from +z with y up, the image's x runs along world -x, so u
+    // runs right to left and v bottom to top; checkerboard's tex1 is where both are below
+    // 0.5, the bottom right square.
+    let squares = [(4, 28, 0.3), (28, 28, 0.8), (4, 4, 0.8), (28, 4, 0.3)];
+    let mut seen = Vec::new();
+    for (x0, y0, a) in squares {
+        let reference = if a > 0.5 { &light } else { &dark };
+        let (got, se) = block_stats(&textured, x0, y0, 16, 16, 1);
+        let (want, se_want) = block_stats(reference, x0, y0, 16, 16, 1);
+        let err = (se * se + se_want * se_want).sqrt();
+        eprintln!(
+            "square at ({x0}, {y0}), reflectance {a}: {got:.4} ± {se:.4}, constant {want:.4} ± {se_want:.4}"
+        );
+        assert!(
+            (got - want).abs() < 4.0 * err + 1e-4,
+            "square at ({x0}, {y0}): {got} ± {se}, against {want} ± {se_want} for a constant {a}"
+        );
+        seen.push(got);
+    }
+    assert!(
+        seen[1] > 1.5 * seen[0] && seen[2] > 1.5 * seen[3],
+        "{seen:?}"
     );
 }

@@ -249,6 +249,11 @@ pub enum IntegratorKind {
     Sppm,
 }
 
+/// How many events a subsurface walk may take unless the Integrator's "walkdepth" says
+/// otherwise: enough that a walk in skin-like stuff (single-scattering albedo 0.99) is almost
+/// never cut off before Russian roulette or its surface ends it.
+pub const DEFAULT_WALK_DEPTH: u32 = 1024;
+
 #[derive(Debug, Clone)]
 pub struct IntegratorDesc {
     /// The name in the file ("path", "volpath", or one Kiln mapped onto those).
@@ -258,6 +263,10 @@ pub struct IntegratorDesc {
     pub max_depth: u32,
     /// Russian roulette may end paths from this bounce on (Kiln's "integer rrdepth").
     pub rr_depth: u32,
+    /// The most events one subsurface random walk may take, its scatterings inside and its
+    /// reflections off the inside of its surface (Kiln's "integer walkdepth"). A walk counts
+    /// as one bounce towards `max_depth`, as pbrt-v4's BSSRDF does.
+    pub walk_depth: u32,
     pub strategy: LightStrategy,
     pub light_sampler: LightSamplerKind,
     /// pbrt-v4's "regularize": after the first non-specular bounce, microfacet BSDFs are
@@ -507,6 +516,40 @@ impl TriangleMeshData {
         self.quads.extend(kept);
         self
     }
+
+    /// Whether the mesh clearly faces inward: the volume its faces enclose, oriented as
+    /// pbrt-v4 orients them (by their winding, or by the vertex normals where the mesh has
+    /// them, which the geometric normals then follow), is negative and at least a quarter of
+    /// the unsigned volume its faces sweep from the mesh's centre. A closed mesh facing out
+    /// encloses a positive volume; an open sheet rarely passes the quarter. Bilinear patches
+    /// count as their two triangles.
+    pub fn faces_inward(&self) -> bool {
+        let at = |i: u32| glam::DVec3::from(self.positions[i as usize].map(f64::from));
+        let (mut lo, mut hi) = (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY);
+        for p in &self.positions {
+            let p = glam::DVec3::from(p.map(f64::from));
+            (lo, hi) = (lo.min(p), hi.max(p));
+        }
+        let centre = (lo + hi) / 2.0;
+        let (mut signed, mut swept, mut agreement) = (0.0, 0.0, 0.0);
+        for t in self.triangulated_indices().chunks_exact(3) {
+            let [a, b, c] = [at(t[0]) - centre, at(t[1]) - centre, at(t[2]) - centre];
+            let v = a.dot(b.cross(c));
+            signed += v;
+            swept += v.abs();
+            if let Some(n) = &self.normals {
+                let n = t
+                    .iter()
+                    .map(|&i| glam::DVec3::from(n[i as usize].map(f64::from)))
+                    .sum::<glam::DVec3>();
+                agreement += (b - a).cross(c - a).dot(n);
+            }
+        }
+        if agreement < 0.0 {
+            signed = -signed;
+        }
+        signed < 0.0 && -signed >= 0.25 * swept
+    }
 }
 
 /// How a hair fibre's absorption is given (pbrt-v4 takes the first given of these).
@@ -625,8 +668,12 @@ impl ShapeKind {
 pub enum SubsurfaceInterior {
     /// `sigma_a` and `sigma_s` (pbrt-v4's defaults, a skin-like medium in mm⁻¹, without them).
     Coefficients { sigma_a: Rgb, sigma_s: Rgb },
-    /// `reflectance` (the multiple-scattering albedo to reach) and `mfp` (mean free path).
-    Reflectance { reflectance: Rgb, mfp: Rgb },
+    /// `reflectance` (the multiple-scattering albedo to reach, which may be a texture: a
+    /// walk then takes its coefficients from where it entered) and `mfp` (mean free path).
+    Reflectance {
+        reflectance: crate::textures::RgbValue,
+        mfp: Rgb,
+    },
 }
 
 /// Emission attached to a shape by AreaLightSource.

@@ -57,6 +57,8 @@ pub struct PathSettings {
     pub max_depth: u32,
     /// The first bounce after which Russian roulette may end a path.
     pub rr_depth: u32,
+    /// The most events one subsurface walk may take (see [`kiln_scene::IntegratorDesc`]).
+    pub walk_depth: u32,
     pub strategy: LightStrategy,
     /// The photon maps to build (none: pure path tracing).
     pub photons: PhotonDesc,
@@ -69,6 +71,7 @@ impl PathSettings {
         PathSettings {
             max_depth: i.max_depth,
             rr_depth: i.rr_depth,
+            walk_depth: i.walk_depth,
             strategy: i.strategy,
             photons: i.photons,
             regularize: i.regularize,
@@ -192,6 +195,7 @@ impl Integrator {
             volume_photons,
             volume_gather: gather(p.volume_radius, scene.radius / 50.0, p.volume_nearest),
             max_depth: settings.max_depth,
+            walk_depth: settings.walk_depth,
             roulette: if p.roulette {
                 Roulette::WeightAware
             } else {

@@ -11,6 +11,7 @@ use super::direct::{Vertex, emission_weight, sample_direct, survives_roulette};
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, Prepass, pass_through};
 use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
 use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::media::subsurface::EnteredWalk;
 use crate::media::{Emitted, MediumEvent};
 use crate::nesting::Nesting;
 use crate::sampling::{PixelSampler, TrackingRng};
@@ -37,7 +38,15 @@ struct PathState {
     beta: Color,
     /// The radiance scaling of refractions so far, which Russian roulette undoes.
     eta_scale: f32,
+    /// Bounces so far, towards maxdepth. A subsurface walk is one: the refraction that
+    /// entered it counts, and its scatterings and reflections inside do not (see `walk_events`).
     depth: u32,
+    /// Scattering vertices so far, a walk's included: what the sampler's dimensions,
+    /// the tracking numbers and Russian roulette go by.
+    vertices: u32,
+    /// Events (scatterings, and reflections off the inside of its surface) of the subsurface
+    /// walk the path is on, up to the integrator's `walk_depth`; zero outside one.
+    walk_events: u32,
     /// What the previous scattering vertex knew, for weighting emission found by BSDF or
     /// phase sampling: whether it was the camera or specular, where it was, and the
     /// density it sampled the current direction with.
@@ -58,6 +67,8 @@ struct PathState {
     /// The participating medium the ray travels in, and how many medium segments so far
     /// (each gets its own tracking numbers).
     medium: Option<u32>,
+    /// The coefficients of the subsurface walk the path is on, if they came from a texture.
+    walk: EnteredWalk,
     /// The nested dielectric shapes the ray is inside.
     nesting: Nesting,
     segments: u32,
@@ -84,7 +95,7 @@ impl PathState {
         if survives_roulette(
             &mut self.beta,
             self.eta_scale,
-            self.depth,
+            self.vertices,
             settings,
             sampler,
         ) {
@@ -118,6 +129,8 @@ pub(super) fn path_li(
         beta: Color::ONE,
         eta_scale: 1.0,
         depth: 0,
+        vertices: 0,
+        walk_events: 0,
         first_or_specular: true,
         prev_p: ray.origin,
         prev_n: Vec3A::ZERO,
@@ -126,6 +139,7 @@ pub(super) fn path_li(
         pass_throughs: 0,
         inside: None,
         medium: ctx.scene.camera_medium,
+        walk: EnteredWalk::default(),
         nesting: Nesting::default(),
         segments: 0,
         specular_since_gather: None,
@@ -174,10 +188,10 @@ fn medium_step(
     let Some(m) = state.medium else {
         return Next::Surface;
     };
-    let med = &scene.media[m as usize];
+    let med = state.walk.medium(&scene.media, m);
     let t_max = found.map_or(f32::INFINITY, |h| h.t);
     // Each bounce's tracking numbers are seeded from its unused eighth dimension.
-    let seed_dim = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * state.depth + 7;
+    let seed_dim = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * state.vertices + 7;
     state.segments += 1;
     let mut rng = TrackingRng::new(
         ((sampler.value(seed_dim).to_bits() as u64) << 32) | state.segments as u64,
@@ -225,10 +239,19 @@ fn medium_step(
         }
         MediumEvent::Scattered(t) => t,
     };
-    if state.depth == settings.max_depth || state.ending {
-        return Next::Stop;
+    let in_walk = scene.is_walk_medium(m);
+    if in_walk {
+        if state.walk_events == settings.walk_depth {
+            return Next::Stop;
+        }
+        state.walk_events += 1;
+    } else {
+        if state.depth == settings.max_depth || state.ending {
+            return Next::Stop;
+        }
+        state.depth += 1;
     }
-    state.depth += 1;
+    state.vertices += 1;
     let p = ray.at(t);
     let phase = med.phase();
     let wo = -ray.dir;
@@ -238,7 +261,7 @@ fn medium_step(
     // (Not inside a subsurface material: its random walk goes on as a path.)
     if let Some(maps) = &ctx.prepass.photons
         && (maps.has_volume_map() || maps.caustics)
-        && !scene.is_walk_medium(m)
+        && !in_walk
     {
         // Light scattered here from the photons; the throughput already holds sigma_s, the
         // estimate divides it out.
@@ -253,7 +276,7 @@ fn medium_step(
         state.specular_since_gather = Some(0);
         ends_here = maps.has_volume_map();
     }
-    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.depth - 1);
+    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.vertices - 1);
     sampler.set_dimension(base);
     if settings.strategy != LightStrategy::BsdfOnly && !scene.light_sampler.is_empty() {
         let v = Vertex {
@@ -417,7 +440,8 @@ fn surface_step(
     let hit = &mut hit.clone();
     let Some(mut bsdf) = scene.bsdf_nested(hit, ctx.footprint, &state.nesting, ray.dir) else {
         // An interface: continue straight through without counting a bounce.
-        return if pass_through(
+        let before = state.medium;
+        if !pass_through(
             scene,
             hit,
             ray,
@@ -425,10 +449,10 @@ fn surface_step(
             &mut state.nesting,
             &mut state.pass_throughs,
         ) {
-            Next::Continue
-        } else {
-            Next::Stop
-        };
+            return Next::Stop;
+        }
+        scene.enter_walk(hit, ray.dir, before, state.medium, &mut state.walk);
+        return Next::Continue;
     };
     if state.ending {
         return Next::Stop;
@@ -436,13 +460,23 @@ fn surface_step(
     if state.depth == 0 && state.want_visible {
         state.visible = Some(visible_surface(hit, &bsdf, -ray.dir));
     }
-    if state.depth == settings.max_depth || bsdf.is_black() {
+    // Met from inside a subsurface walk, the surface is one of the walk's events.
+    let in_walk = state.medium.is_some_and(|m| scene.is_walk_medium(m));
+    if (state.depth == settings.max_depth && !in_walk) || bsdf.is_black() {
         return Next::Stop;
     }
     if settings.regularize && state.any_non_specular {
         bsdf.regularize();
     }
-    state.depth += 1;
+    if in_walk {
+        if state.walk_events == settings.walk_depth {
+            return Next::Stop;
+        }
+        state.walk_events += 1;
+    } else {
+        state.depth += 1;
+    }
+    state.vertices += 1;
     let frame = Frame::new(hit.ns, hit.dpdu);
     let wo = frame.to_local(-ray.dir);
     if let Some(maps) = ctx.prepass.photons.as_ref().filter(|m| m.caustics) {
@@ -460,7 +494,7 @@ fn surface_step(
             state.specular_since_gather = Some(0);
         }
     }
-    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.depth - 1);
+    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.vertices - 1);
     sampler.set_dimension(base);
     if !bsdf.is_specular()
         && settings.strategy != LightStrategy::BsdfOnly
@@ -496,11 +530,16 @@ fn surface_step(
     if bs.eta != 1.0 {
         state.eta_scale *= bs.eta * bs.eta;
     }
+    let before = state.medium;
     if !state
         .nesting
         .cross(scene, hit, ray.dir, wi, &mut state.medium)
     {
         return Next::Stop;
+    }
+    scene.enter_walk(hit, wi, before, state.medium, &mut state.walk);
+    if !state.medium.is_some_and(|m| scene.is_walk_medium(m)) {
+        state.walk_events = 0;
     }
     *ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
     if let Some(volume) = hit.surface.volume {

@@ -51,6 +51,7 @@ impl SppmSettings {
         PathSettings {
             max_depth: self.max_depth,
             rr_depth: u32::MAX,
+            walk_depth: kiln_scene::DEFAULT_WALK_DEPTH,
             strategy: LightStrategy::LightOnly,
             photons: PhotonDesc::NONE,
             regularize: false,

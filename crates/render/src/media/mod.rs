@@ -1,7 +1,7 @@
 //! Participating media: what fills the space between surfaces.
 //!
 //! [`Medium`] is the closed set of kinds and its dispatch; each kind lives in its own file
-//! ([`homogeneous`], [`grid`]), beside the one
+//! ([`homogeneous`], [`grid`]; [`subsurface`] builds a subsurface material's interior), beside the one
 //! voxel-grid type ([`voxel_grid`]) that grid media and VolumeLight interiors share.
 //! Free-flight sampling, transmittance and the scattering coefficient are asked of a
 //! `Medium`, never of a kind: a new kind is added here and the compiler lists the rest.
@@ -11,6 +11,7 @@
 pub mod cloud;
 pub mod grid;
 pub mod homogeneous;
+pub mod subsurface;
 
 pub mod voxel_grid;
 

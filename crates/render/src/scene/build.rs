@@ -12,6 +12,7 @@ use crate::lights::{
 };
 use crate::materials::{DielectricMaterial, Material, Model, Perturbation, RoughnessTexture};
 use crate::math::rgb;
+use crate::media::subsurface::{TexturedInterior, subsurface_medium};
 use crate::media::{GridMedium, HomogeneousMedium, Medium, Phase, SampledGrid};
 use crate::motion::AnimatedTransform;
 use crate::nesting::NestedShape;
@@ -69,43 +70,6 @@ fn power_scale(power: Option<f32>, area: f32, two_sided: bool, image_luminance: 
         }
         None => 1.0,
     }
-}
-
-/// The homogeneous medium inside a "subsurface" material: its coefficients, or those whose
-/// random walk reflects `reflectance` (the multiple-scattering albedo of a semi-infinite,
-/// index-matched slab) with mean free path `mfp`. The single-scattering albedo for a wanted
-/// multiple-scattering albedo A is the fit of Chiang, Kutz and Burley (2016), "Practical and
-/// Controllable Subsurface Scattering for Production Path Tracing":
-/// α = 1 − (4.09712 + 4.20863 A − √(9.59217 + 41.6808 A + 17.7126 A²))².
-pub fn subsurface_medium(g: f32, interior: kiln_scene::SubsurfaceInterior) -> Medium {
-    let (sigma_a, sigma_s) = match interior {
-        kiln_scene::SubsurfaceInterior::Coefficients { sigma_a, sigma_s } => (sigma_a, sigma_s),
-        kiln_scene::SubsurfaceInterior::Reflectance { reflectance, mfp } => {
-            let mut a = [0.0; 3];
-            let mut s = [0.0; 3];
-            for c in 0..3 {
-                let albedo = single_scattering_albedo(reflectance[c]);
-                let sigma_t = 1.0 / mfp[c];
-                s[c] = albedo * sigma_t;
-                a[c] = (1.0 - albedo) * sigma_t;
-            }
-            (a, s)
-        }
-    };
-    Medium::Homogeneous(HomogeneousMedium {
-        sigma_a: rgb(sigma_a),
-        sigma_s: rgb(sigma_s),
-        le: crate::math::Color::ZERO,
-        phase: Phase::new(kiln_scene::PhaseDesc::HenyeyGreenstein { g }),
-    })
-}
-
-/// The single-scattering albedo whose random walk in a semi-infinite slab reflects the
-/// multiple-scattering albedo `a` (see [`subsurface_medium`]).
-pub fn single_scattering_albedo(a: f32) -> f32 {
-    let a = f64::from(a.clamp(0.0, 1.0));
-    let k = 4.09712 + 4.20863 * a - (9.59217 + 41.6808 * a + 17.7126 * a * a).sqrt();
-    (1.0 - k * k).clamp(0.0, 1.0) as f32
 }
 
 /// Whether a surface of revolution encloses a volume: swept all the way round, and its
@@ -1133,74 +1097,78 @@ impl Scene {
             .filter(|(_, l)| l.is_infinite())
             .map(|(i, _)| i as u32)
             .collect();
+        // The interiors of subsurface materials, in material order (the indices
+        // `subsurface_media` gave out), follow the description's media.
+        let (walk_media, walk_textures): (Vec<Medium>, Vec<Option<TexturedInterior>>) = desc
+            .materials
+            .iter()
+            .filter(|_| b.use_media)
+            .filter_map(|m| match m.kind {
+                MaterialKind::Subsurface { g, interior, .. } => {
+                    Some(subsurface_medium(g, interior, &b.textures))
+                }
+                _ => None,
+            })
+            .unzip();
         let film = &desc.film;
-        let mut scene =
-            Scene {
-                geometry,
-                materials: b.materials,
-                light_sampler: LightSampler::default(),
-                lights,
-                infinite_lights,
-                camera: Camera::new_moving(
-                    &desc.camera,
-                    film.xresolution,
-                    film.yresolution,
-                    film.diagonal,
-                    desc.transform_times,
-                )
-                .map_err(|message| BuildError::Unsupported {
-                    loc: desc.camera.loc.clone(),
-                    message,
-                })?,
-                filter: Filter::new(&desc.filter),
-                sensor: crate::sensor::Sensor::new(
-                    &film.sensor,
-                    desc.camera.shutter[1] - desc.camera.shutter[0],
-                ),
-                resolution: (film.xresolution, film.yresolution),
-                shutter: [desc.camera.shutter[0] as f32, desc.camera.shutter[1] as f32],
-                has_motion: has_motion || desc.camera.camera_to_world_end.is_some(),
-                radius,
-                volumes: b.volumes,
-                media: desc
-                    .media
-                    .iter()
-                    .filter(|_| b.use_media)
-                    .map(|m| match &m.kind {
-                        MediumKind::Homogeneous {
-                            sigma_a,
-                            sigma_s,
-                            le,
-                            phase,
-                        } => Medium::Homogeneous(HomogeneousMedium {
-                            sigma_a: rgb(*sigma_a),
-                            sigma_s: rgb(*sigma_s),
-                            le: rgb(*le),
-                            phase: Phase::new(*phase),
-                        }),
-                        MediumKind::Grid(g) => Medium::Grid(Box::new(GridMedium::new(g))),
-                    })
-                    // Then the interiors of subsurface materials, in material order (the
-                    // indices `subsurface_media` gave out).
-                    .chain(desc.materials.iter().filter(|_| b.use_media).filter_map(
-                        |m| match m.kind {
-                            MaterialKind::Subsurface { g, interior, .. } => {
-                                Some(subsurface_medium(g, interior))
-                            }
-                            _ => None,
-                        },
-                    ))
-                    .collect(),
-                camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
-                medium_lights: Vec::new(),
-                light_media,
-                nested: b.nested,
-                first_walk_medium: if b.use_media {
-                    desc.media.len() as u32
-                } else {
-                    0
-                },
-            };
+        let mut scene = Scene {
+            geometry,
+            materials: b.materials,
+            light_sampler: LightSampler::default(),
+            lights,
+            infinite_lights,
+            camera: Camera::new_moving(
+                &desc.camera,
+                film.xresolution,
+                film.yresolution,
+                film.diagonal,
+                desc.transform_times,
+            )
+            .map_err(|message| BuildError::Unsupported {
+                loc: desc.camera.loc.clone(),
+                message,
+            })?,
+            filter: Filter::new(&desc.filter),
+            sensor: crate::sensor::Sensor::new(
+                &film.sensor,
+                desc.camera.shutter[1] - desc.camera.shutter[0],
+            ),
+            resolution: (film.xresolution, film.yresolution),
+            shutter: [desc.camera.shutter[0] as f32, desc.camera.shutter[1] as f32],
+            has_motion: has_motion || desc.camera.camera_to_world_end.is_some(),
+            radius,
+            volumes: b.volumes,
+            media: desc
+                .media
+                .iter()
+                .filter(|_| b.use_media)
+                .map(|m| match &m.kind {
+                    MediumKind::Homogeneous {
+                        sigma_a,
+                        sigma_s,
+                        le,
+                        phase,
+                    } => Medium::Homogeneous(HomogeneousMedium {
+                        sigma_a: rgb(*sigma_a),
+                        sigma_s: rgb(*sigma_s),
+                        le: rgb(*le),
+                        phase: Phase::new(*phase),
+                    }),
+                    MediumKind::Grid(g) => Medium::Grid(Box::new(GridMedium::new(g))),
+                })
+                .chain(walk_media)
+                .collect(),
+            camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
+            medium_lights: Vec::new(),
+            light_media,
+            nested: b.nested,
+            first_walk_medium: if b.use_media {
+                desc.media.len() as u32
+            } else {
+                0
+            },
+            walk_textures,
+        };
         scene.light_media.resize(scene.lights.len(), None);
         // Each emissive grid medium is a light, sampled by its emission distribution.
         scene.medium_lights = vec![None; scene.media.len()];
@@ -1235,53 +1203,5 @@ impl Scene {
             &scene.light_context(),
         );
         Ok(scene)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::single_scattering_albedo;
-
-    /// The white-sky albedo (total diffuse reflectance under uniform light) of a
-    /// semi-infinite, index-matched, isotropically scattering medium of single-scattering
-    /// albedo `w`: 1 − 2 √(1 − w) ∫₀¹ μ H(μ) dμ, with Chandrasekhar's H-function iterated on a
-    /// midpoint grid.
-    fn white_sky_albedo(w: f64) -> f64 {
-        let n = 1000;
-        let grid: Vec<f64> = (0..n).map(|i| (i as f64 + 0.5) / n as f64).collect();
-        let root = (1.0 - w).sqrt();
-        let mut h = vec![1.0; n];
-        for _ in 0..200 {
-            h = grid
-                .iter()
-                .map(|&m| {
-                    let integral: f64 = grid
-                        .iter()
-                        .zip(&h)
-                        .map(|(mp, hp)| mp * hp / (m + mp))
-                        .sum::<f64>()
-                        / n as f64;
-                    1.0 / (root + w / 2.0 * integral)
-                })
-                .collect();
-        }
-        1.0 - 2.0 * root * grid.iter().zip(&h).map(|(m, hm)| m * hm).sum::<f64>() / n as f64
-    }
-
-    /// The subsurface material's reflectance parametrisation: the single-scattering albedo
-    /// it picks for a wanted reflectance A gives a walk whose exact white-sky albedo is A
-    /// (within 0.005: the fit's own accuracy).
-    #[test]
-    fn reflectance_inverts_to_the_albedo_that_reflects_it() {
-        for a in [0.05f32, 0.2, 0.4, 0.6, 0.8, 0.95] {
-            let w = f64::from(single_scattering_albedo(a));
-            let got = white_sky_albedo(w);
-            assert!(
-                (got - f64::from(a)).abs() < 0.005,
-                "A {a}: alpha {w} reflects {got}"
-            );
-        }
-        assert!(single_scattering_albedo(0.0) < 1e-4);
-        assert!(single_scattering_albedo(1.0) > 0.9999);
     }
 }

@@ -16,6 +16,7 @@ use crate::lights::{Light, LightContext, LightSampler, VolumeInterior};
 use crate::materials::{Material, Model};
 use crate::math::{Color, Ray};
 use crate::media::Medium;
+use crate::media::subsurface::{EnteredWalk, TexturedInterior};
 use crate::sampling::TrackingRng;
 use crate::shapes::{Geometry, SurfaceHit};
 use crate::textures::TextureEvalContext;
@@ -57,6 +58,9 @@ pub struct Scene {
     /// Media from this index on are the interiors of "subsurface" materials: random walks,
     /// which photon maps neither store photons in nor shortcut with gathers.
     pub first_walk_medium: u32,
+    /// For each subsurface interior (from `first_walk_medium` on), the texture its walks take
+    /// their coefficients from where they enter, if its reflectance is textured.
+    pub walk_textures: Vec<Option<TexturedInterior>>,
 }
 
 impl Scene {
@@ -85,6 +89,43 @@ impl Scene {
     /// Whether medium `m` is a subsurface material's interior (see `first_walk_medium`).
     pub fn is_walk_medium(&self, m: u32) -> bool {
         m >= self.first_walk_medium
+    }
+
+    /// Notes that a path at `hit` leaving along `wi` went from medium `before` into `after`:
+    /// entering a subsurface interior whose reflectance is a texture through its own surface,
+    /// its walk takes the coefficients the texture gives there. (Entering it some other way,
+    /// out of a shape nested inside it, the walk crosses the interior's untextured stand-in.)
+    #[inline]
+    pub fn enter_walk(
+        &self,
+        hit: &SurfaceHit,
+        wi: Vec3A,
+        before: Option<u32>,
+        after: Option<u32>,
+        walk: &mut EnteredWalk,
+    ) {
+        if before == after || self.walk_textures.is_empty() {
+            return;
+        }
+        let Some(m) = after.filter(|&m| self.is_walk_medium(m)) else {
+            return;
+        };
+        let through_own_surface = hit.surface.medium_towards(wi, hit.ng) == Some(Some(m));
+        let textured = self.walk_textures[(m - self.first_walk_medium) as usize].as_ref();
+        walk.set(
+            m,
+            textured.filter(|_| through_own_surface).map(|t| {
+                t.at(&TextureEvalContext::with_footprint(
+                    hit.p,
+                    hit.ng,
+                    hit.uv,
+                    hit.dpdu,
+                    hit.dpdv,
+                    Vec3A::ZERO,
+                    Vec3A::ZERO,
+                ))
+            }),
+        );
     }
 
     /// What lights need of the scene to be sampled and evaluated.

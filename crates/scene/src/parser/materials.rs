@@ -99,7 +99,7 @@ impl Parser {
     /// pbrt-v4's "subsurface": `eta` (1.33), `g` (0), `roughness` (or `uroughness` and
     /// `vroughness`), `scale` (1), and the interior by `name` (a measured medium), by
     /// `sigma_a` and `sigma_s`, by `reflectance` and `mfp` (1), or pbrt-v4's defaults;
-    /// constants only.
+    /// constants only, but for `reflectance`, which may be a texture.
     fn subsurface(&mut self, params: &ParamSet, loc: &Loc) -> Result<MaterialKind> {
         let constant = |name: &str, usage: SpectrumUse| -> Result<Option<Rgb>> {
             match self.rgb_value(params, name, usage)? {
@@ -108,7 +108,7 @@ impl Parser {
                 Some(RgbValue::Texture(_)) => Err(SceneError::at(
                     &params.loc_of(name).unwrap_or_else(|| loc.clone()),
                     format!(
-                        "subsurface: a textured \"{name}\" is not supported (Kiln's random walk needs one interior per shape); give a constant"
+                        "subsurface: a textured \"{name}\" is not supported (only \"reflectance\" may be a texture); give a constant"
                     ),
                 )),
             }
@@ -159,14 +159,19 @@ impl Parser {
                     "subsurface: give both sigma_a and sigma_s, or neither",
                 ));
             }
-            (None, None) => match constant("reflectance", SpectrumUse::Albedo)? {
+            (None, None) => match self.rgb_value(params, "reflectance", SpectrumUse::Albedo)? {
                 Some(reflectance) => {
                     let mfp = constant("mfp", SpectrumUse::Unbounded)?.unwrap_or([1.0; 3]);
                     if negative(&mfp) || mfp.contains(&0.0) {
                         return Err(SceneError::at(loc, "subsurface: \"mfp\" must be positive"));
                     }
                     SubsurfaceInterior::Reflectance {
-                        reflectance: reflectance.map(|v| v.clamp(0.0, 1.0)),
+                        reflectance: match reflectance {
+                            RgbValue::Constant(c) => {
+                                RgbValue::Constant(c.map(|v| v.clamp(0.0, 1.0)))
+                            }
+                            textured => textured,
+                        },
                         mfp: mfp.map(|v| v * scale),
                     }
                 }

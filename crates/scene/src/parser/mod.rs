@@ -543,6 +543,7 @@ impl Parser {
                 kind: IntegratorKind::VolPath,
                 max_depth: 5,
                 rr_depth: 5,
+                walk_depth: DEFAULT_WALK_DEPTH,
                 strategy: LightStrategy::Mis,
                 light_sampler: LightSamplerKind::Bvh,
                 regularize: false,
@@ -584,6 +585,40 @@ mod tests {
 
     /// Confined loading accepts any path that stays inside the root, `..` included, and
     /// refuses one that leaves it before opening it.
+    /// A subsurface material on a closed mesh that faces inward (its interior would fill the
+    /// space around it) is warned about, with the shape's line; facing out, reversed by
+    /// ReverseOrientation, or turned out by its vertex normals, it is not.
+    #[test]
+    fn an_inward_subsurface_mesh_is_warned_about() {
+        let cube = |indices: &str, extra: &str| {
+            format!(
+                "WorldBegin\nMaterial \"subsurface\"\n{extra}Shape \"trianglemesh\" \"point3 P\" [ 0 0 0  1 0 0  1 1 0  0 1 0  0 0 1  1 0 1  1 1 1  0 1 1 ] {indices}\n"
+            )
+        };
+        let out = "\"integer indices\" [ 0 2 1  0 3 2  4 5 6  4 6 7  0 1 5  0 5 4  1 2 6  1 6 5  2 3 7  2 7 6  3 0 4  3 4 7 ]";
+        let inward = "\"integer indices\" [ 0 1 2  0 2 3  4 6 5  4 7 6  0 5 1  0 4 5  1 6 2  1 5 6  2 7 3  2 6 7  3 4 0  3 7 4 ]";
+        let warned = |text: String| {
+            load(&text)
+                .warnings
+                .iter()
+                .any(|w| w.message.contains("this mesh faces inward"))
+        };
+        assert!(!warned(cube(out, "")));
+        assert!(warned(cube(inward, "")));
+        let w = load(&cube(inward, "")).warnings;
+        assert_eq!(w[0].loc.to_string(), "t.pbrt:3", "{w:?}");
+        assert!(warned(cube(out, "ReverseOrientation\n")));
+        assert!(!warned(cube(inward, "ReverseOrientation\n")));
+        // Vertex normals pointing out from the cube's centre turn the inward winding out.
+        let normals =
+            "\"normal N\" [ -1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1  -1 -1 1  1 -1 1  1 1 1  -1 1 1 ] ";
+        assert!(!warned(cube(&format!("{normals}{inward}"), "")));
+        // Only subsurface materials care.
+        assert!(!warned(
+            cube(inward, "").replace("\"subsurface\"", "\"diffuse\"")
+        ));
+    }
+
     /// A bilinearmesh's planar quads become two triangles (split along p00-p11); a quad
     /// whose corners leave the plane stays a bilinear patch.
     #[test]

@@ -609,6 +609,13 @@ impl Parser {
                 format!("Integrator: rrdepth {rr_depth} is out of range"),
             ));
         }
+        let walk_depth = params.int("walkdepth", i64::from(DEFAULT_WALK_DEPTH))?;
+        if !(1..=1_000_000).contains(&walk_depth) {
+            return Err(SceneError::at(
+                &params.loc_of("walkdepth").unwrap_or_else(|| loc.clone()),
+                format!("Integrator: walkdepth {walk_depth} is out of range (1 to 1000000)"),
+            ));
+        }
         let light_sampler = match params.string("lightsampler")?.as_deref() {
             None | Some("bvh") => LightSamplerKind::Bvh,
             Some("power") => LightSamplerKind::Power,
@@ -640,6 +647,7 @@ impl Parser {
             },
             max_depth: max_depth as u32,
             rr_depth: rr_depth as u32,
+            walk_depth: walk_depth as u32,
             strategy,
             light_sampler,
             regularize,

@@ -113,6 +113,20 @@ impl Parser {
                 )
             })?;
         self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
+        if let ShapeKind::Mesh(mesh) = &kind
+            && matches!(
+                self.materials[self.gs.material.0 as usize].kind,
+                MaterialKind::Subsurface { .. }
+            )
+            && mesh.faces_inward() != self.gs.reverse_orientation
+        {
+            self.warn(
+                loc,
+                format!(
+                    "{ty}: this mesh faces inward (its faces enclose a negative volume), so its subsurface interior lies outside it and fills the space around it; reverse its winding (or add ReverseOrientation)"
+                ),
+            );
+        }
         let (inside, outside) = (
             self.medium_id(&self.gs.media.0),
             self.medium_id(&self.gs.media.1),

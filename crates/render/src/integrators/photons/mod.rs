@@ -31,6 +31,7 @@ pub use map::{Gather, Photon, PhotonMap};
 use crate::lights::{EmittedRay, Light, SceneSphere};
 use crate::math::{Color, Frame, Ray, luminance, offset_origin};
 use crate::media::MediumEvent;
+use crate::media::subsurface::EnteredWalk;
 use crate::sampling::{AliasTable, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::NO_MEDIUM;
@@ -56,8 +57,11 @@ pub struct PhotonSettings {
     /// Photons traced for the volume map (0: none).
     pub volume_photons: u64,
     pub volume_gather: Gather,
-    /// Events (bounces and scatterings) a photon may have.
+    /// Events (bounces and scatterings) a photon may have; a subsurface walk counts as
+    /// one, the bounce that entered it.
     pub max_depth: u32,
+    /// The most events of one subsurface walk.
+    pub walk_depth: u32,
     pub roulette: Roulette,
 }
 
@@ -331,6 +335,7 @@ struct Shooter<'a> {
     table: AliasTable,
     sphere: SceneSphere,
     max_depth: u32,
+    walk_depth: u32,
     roulette: Roulette,
 }
 
@@ -342,6 +347,7 @@ impl<'a> Shooter<'a> {
             table,
             sphere,
             max_depth: settings.max_depth,
+            walk_depth: settings.walk_depth,
             roulette: settings.roulette,
         })
     }
@@ -412,21 +418,19 @@ impl<'a> Shooter<'a> {
         let mut medium = self.start_medium(light, &emitted);
         // Events so far, and whether all were specular.
         let mut events = 0u32;
+        // Events of the subsurface walk the photon is on (they do not count in `events`).
+        let mut walk_events = 0u32;
         let mut only_specular = true;
         let mut pass_throughs = 0u32;
         let mut nesting = crate::nesting::Nesting::default();
+        let mut walk = EnteredWalk::default();
         loop {
             let found = scene.geometry.intersect(&ray, f32::INFINITY);
             if let Some(m) = medium {
                 let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
                 // Photons carry no medium emission: the lights that are media shoot their own.
-                match scene.media[m as usize].sample_interaction(
-                    &ray,
-                    t_max,
-                    &mut rng,
-                    &mut beta,
-                    |_| {},
-                ) {
+                let med = walk.medium(&scene.media, m);
+                match med.sample_interaction(&ray, t_max, &mut rng, &mut beta, |_| {}) {
                     MediumEvent::Crossed => {}
                     // A photon whose walk is cut off is lost (the camera paths report theirs).
                     MediumEvent::Absorbed | MediumEvent::CutOff => return,
@@ -440,23 +444,30 @@ impl<'a> Shooter<'a> {
                         };
                         // Inside a subsurface material the photon walks on, stored nowhere:
                         // camera paths walk there themselves (and a walk ends a caustic).
-                        let walk = scene.is_walk_medium(m);
+                        let in_walk = scene.is_walk_medium(m);
                         match pass {
-                            Pass::Caustic { .. } if walk => {}
+                            Pass::Caustic { .. } if in_walk => {}
                             Pass::Caustic { volume } => {
                                 if volume && events > 0 && only_specular {
                                     stored.volume.push(photon);
                                 }
                                 return;
                             }
-                            Pass::Volume if events > 0 && !walk => stored.volume.push(photon),
+                            Pass::Volume if events > 0 && !in_walk => stored.volume.push(photon),
                             Pass::Volume => {}
                         }
-                        events += 1;
-                        if events >= self.max_depth {
-                            return;
+                        if in_walk {
+                            if walk_events == self.walk_depth {
+                                return;
+                            }
+                            walk_events += 1;
+                        } else {
+                            events += 1;
+                            if events >= self.max_depth {
+                                return;
+                            }
                         }
-                        let phase = scene.media[m as usize].phase();
+                        let phase = med.phase();
                         // Phase functions are sampled exactly: the throughput is unchanged.
                         let (wi, _) =
                             phase.sample(-ray.dir, Vec2::new(rng.next_f32(), rng.next_f32()));
@@ -472,6 +483,7 @@ impl<'a> Shooter<'a> {
             let Some(mut hit) = found else { return };
             let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, &nesting, ray.dir) else {
                 // An interface: straight on, into the medium on the other side.
+                let before = medium;
                 if !super::pass_through(
                     scene,
                     &hit,
@@ -482,6 +494,7 @@ impl<'a> Shooter<'a> {
                 ) {
                     return;
                 }
+                scene.enter_walk(&hit, ray.dir, before, medium, &mut walk);
                 continue;
             };
             let specular = bsdf.is_specular();
@@ -504,7 +517,14 @@ impl<'a> Shooter<'a> {
                 }
                 return;
             }
-            if events >= self.max_depth {
+            // Met from inside a subsurface walk, the surface is one of the walk's events.
+            let in_walk = medium.is_some_and(|m| scene.is_walk_medium(m));
+            if in_walk {
+                if walk_events == self.walk_depth {
+                    return;
+                }
+                walk_events += 1;
+            } else if events >= self.max_depth {
                 return;
             }
             let Some(bounce) = scatter(&bsdf, &hit, ray.dir, &mut rng) else {
@@ -515,13 +535,20 @@ impl<'a> Shooter<'a> {
             if !beta.is_finite() || beta == Color::ZERO {
                 return;
             }
-            events += 1;
+            if !in_walk {
+                events += 1;
+            }
             only_specular &= bounce.specular;
             if !self.survives(&mut beta, start, &mut rng) {
                 return;
             }
+            let before = medium;
             if !nesting.cross(scene, &hit, ray.dir, wi, &mut medium) {
                 return;
+            }
+            scene.enter_walk(&hit, wi, before, medium, &mut walk);
+            if !medium.is_some_and(|m| scene.is_walk_medium(m)) {
+                walk_events = 0;
             }
             ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
         }
