@@ -410,3 +410,55 @@ Shape "trianglemesh"
         "{seen:?}"
     );
 }
+
+/// Walks take no light samples (their shape's surface blocks every shadow ray) unless a
+/// light at a point might lie inside: lights inside a subsurface sphere, an emitting sphere
+/// or a point light, light it as they light the same medium inside a dielectric, where paths
+/// sample lights at every scattering (the same image within noise).
+#[test]
+fn lights_inside_a_subsurface_shape_are_found() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |light: &str, body: &str| {
+        format!(
+            r#"Integrator "volpath" "integer maxdepth" [ 100 ]
+Sampler "zsobol" "integer pixelsamples" [ 32 ]
+Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ]
+LookAt 0 -4 0  0 0 0  0 0 1
+Camera "perspective" "float fov" [ 35 ]
+WorldBegin
+{light}
+{body}
+Shape "sphere"
+"#
+        )
+    };
+    let lights = [
+        "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ]\nMaterial \"diffuse\" \"rgb reflectance\" [ 0 0 0 ]\nShape \"sphere\" \"float radius\" 0.3\nAttributeEnd",
+        "LightSource \"point\" \"rgb I\" [ 3 3 3 ]",
+    ];
+    for (i, light) in lights.into_iter().enumerate() {
+        let sss = write_scene(
+            dir.path(),
+            "sss.pbrt",
+            &scene(
+                light,
+                "Material \"subsurface\" \"float eta\" 1.33 \"rgb sigma_a\" [ 0.2 0.4 0.8 ] \"rgb sigma_s\" [ 2 2 2 ]",
+            ),
+        );
+        let explicit = write_scene(
+            dir.path(),
+            "explicit.pbrt",
+            &scene(
+                light,
+                "MakeNamedMedium \"inside\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [ 0.2 0.4 0.8 ] \"rgb sigma_s\" [ 2 2 2 ]\nMediumInterface \"inside\" \"\"\nMaterial \"dielectric\" \"float eta\" 1.33",
+            ),
+        );
+        let a = render(&sss, dir.path(), "sss", &["--seed", "1"]).image;
+        let b = render(&explicit, dir.path(), "explicit", &["--seed", "2"]).image;
+        let z = max_z_score(&a, &b, 4, 4);
+        let mean = block_stats(&a, 0, 0, 32, 32, 0).0;
+        eprintln!("light {i}: largest z {z:.2}, mean red {mean:.4}");
+        assert!(mean > 0.01, "light {i}: the sphere is dark");
+        assert!(z < 4.0, "light {i}: a block differs by {z} standard errors");
+    }
+}

@@ -278,7 +278,11 @@ fn medium_step(
     }
     let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.vertices - 1);
     sampler.set_dimension(base);
-    if settings.strategy != LightStrategy::BsdfOnly && !scene.light_sampler.is_empty() {
+    let samples_lights = !in_walk || scene.walk_samples_lights;
+    if samples_lights
+        && settings.strategy != LightStrategy::BsdfOnly
+        && !scene.light_sampler.is_empty()
+    {
         let v = Vertex {
             p,
             surface: None,
@@ -299,8 +303,9 @@ fn medium_step(
     }
     sampler.set_dimension(base + 4);
     let (wi, pdf) = phase.sample(wo, sampler.get_2d());
-    // Phase functions are sampled exactly: the value over the pdf is 1.
-    state.first_or_specular = false;
+    // Phase functions are sampled exactly: the value over the pdf is 1. (Emission found
+    // from a vertex that sampled no light counts in full, as after a specular bounce.)
+    state.first_or_specular = !samples_lights;
     state.any_non_specular = true;
     state.prev_pdf = pdf;
     state.prev_p = p;

@@ -248,6 +248,24 @@ impl Light {
         }
     }
 
+    /// Lights at a point in space, which no ray can hit: only sampling them finds them.
+    pub fn is_point(&self) -> bool {
+        match self {
+            Light::Point(_) | Light::Spot(_) | Light::Goniometric(_) | Light::Projection(_) => true,
+            Light::Distant(_)
+            | Light::Triangle(_)
+            | Light::Sphere(_)
+            | Light::Quadric(_)
+            | Light::VolumeTriangle(_)
+            | Light::VolumeSphere(_)
+            | Light::VolumeQuadric(_)
+            | Light::Medium(_)
+            | Light::UniformInfinite(_)
+            | Light::ImageInfinite(_)
+            | Light::Dome(_) => false,
+        }
+    }
+
     /// Lights at infinity, whose radiance escaped rays collect.
     pub fn is_infinite(&self) -> bool {
         match self {

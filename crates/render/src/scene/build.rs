@@ -1099,6 +1099,7 @@ impl Scene {
             .collect();
         // The interiors of subsurface materials, in material order (the indices
         // `subsurface_media` gave out), follow the description's media.
+        let walk_samples_lights = lights.iter().any(Light::is_point);
         let (walk_media, walk_textures): (Vec<Medium>, Vec<Option<TexturedInterior>>) = desc
             .materials
             .iter()
@@ -1168,6 +1169,7 @@ impl Scene {
                 0
             },
             walk_textures,
+            walk_samples_lights,
         };
         scene.light_media.resize(scene.lights.len(), None);
         // Each emissive grid medium is a light, sampled by its emission distribution.

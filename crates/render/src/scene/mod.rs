@@ -61,6 +61,12 @@ pub struct Scene {
     /// For each subsurface interior (from `first_walk_medium` on), the texture its walks take
     /// their coefficients from where they enter, if its reflectance is textured.
     pub walk_textures: Vec<Option<TexturedInterior>>,
+    /// Whether paths sample lights at the scattering events of subsurface walks. A shadow ray
+    /// from inside a walk reaches only what lies inside its shape, as the shape's dielectric
+    /// surface blocks it: a light there is found as well by the walk's own scattering, unless
+    /// it is a light at a point, which no ray can hit. Without such lights the walk samples
+    /// none, and counts the emission its scattering finds in full.
+    pub walk_samples_lights: bool,
 }
 
 impl Scene {
