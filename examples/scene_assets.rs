@@ -527,7 +527,7 @@ fn lily_pads(count: usize) -> String {
             })
             .collect();
         out.push_str(&format!(
-            "AttributeBegin\n    NamedMaterial \"stem\"\n    Shape \"curve\" \"string basis\" \"bspline\" \"string type\" \"cylinder\" \"float width\" [ 0.035 ]\n        \"point3 P\" [ {stem}]\nAttributeEnd\n"
+            "AttributeBegin\n    NamedMaterial \"stem\"\n    Shape \"curve\" \"string basis\" \"bspline\" \"string type\" \"cylinder\" \"float width\" [ 0.05 ]\n        \"point3 P\" [ {stem}]\nAttributeEnd\n"
         ));
     }
     out
