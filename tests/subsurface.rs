@@ -39,19 +39,41 @@ fn a_semi_infinite_walk_reflects_the_exact_plane_albedo() {
     }
 }
 
-fn semi_infinite_walk(max_depth: u32) {
-    let dir = tempfile::tempdir().unwrap();
-    let text = r#"Integrator "volpath" "integer maxdepth" [ MAXDEPTH ]
-Sampler "zsobol" "integer pixelsamples" [ 128 ]
-Film "rgb" "integer xresolution" [ 48 ] "integer yresolution" [ 48 ]
+/// A semi-infinite, index-matched random-walk medium (its top at z = 0) under a uniform sky
+/// of radiance 1, seen straight down at `spp` samples and `res` pixels square.
+fn semi_infinite(
+    integrator: &str,
+    spp: u32,
+    res: u32,
+    sigma_a: [f64; 3],
+    sigma_s: [f64; 3],
+) -> String {
+    let v = |c: [f64; 3]| format!("{} {} {}", c[0], c[1], c[2]);
+    format!(
+        r#"Integrator "volpath" {integrator}
+Sampler "zsobol" "integer pixelsamples" [ {spp} ]
+Film "rgb" "integer xresolution" [ {res} ] "integer yresolution" [ {res} ]
 LookAt 0 0 5  0 0 0  0 1 0
 Camera "orthographic" "float screenwindow" [ -1 1 -1 1 ]
 WorldBegin
 LightSource "infinite" "rgb L" [ 1 1 1 ]
-Material "subsurface" "float eta" 1 "rgb sigma_a" [ 0.5 0.1 0.03 ] "rgb sigma_s" [ 0.5 0.9 0.97 ]
+Material "subsurface" "float eta" 1 "rgb sigma_a" [ {} ] "rgb sigma_s" [ {} ]
 Shape "revolution" "point2 contour" [ 0 -2000  2000 -2000  2000 0  0 0 ]
-"#;
-    let text = text.replace("MAXDEPTH", &max_depth.to_string());
+"#,
+        v(sigma_a),
+        v(sigma_s)
+    )
+}
+
+fn semi_infinite_walk(max_depth: u32) {
+    let dir = tempfile::tempdir().unwrap();
+    let text = semi_infinite(
+        &format!("\"integer maxdepth\" [ {max_depth} ]"),
+        128,
+        48,
+        [0.5, 0.1, 0.03],
+        [0.5, 0.9, 0.97],
+    );
     let path = write_scene(dir.path(), "semi.pbrt", &text);
     let img = render(&path, dir.path(), "semi", &[]).image;
     for (c, w) in [0.5f64, 0.9, 0.97].into_iter().enumerate() {
@@ -71,17 +93,14 @@ Shape "revolution" "point2 contour" [ 0 -2000  2000 -2000  2000 0  0 0 ]
 #[test]
 fn walkdepth_cuts_subsurface_walks_off() {
     let dir = tempfile::tempdir().unwrap();
-    let text = r#"Integrator "volpath" "integer maxdepth" [ 5 ] "integer walkdepth" [ 3 ]
-Sampler "zsobol" "integer pixelsamples" [ 16 ]
-Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
-LookAt 0 0 5  0 0 0  0 1 0
-Camera "orthographic" "float screenwindow" [ -1 1 -1 1 ]
-WorldBegin
-LightSource "infinite" "rgb L" [ 1 1 1 ]
-Material "subsurface" "float eta" 1 "rgb sigma_a" [ 0.03 0.03 0.03 ] "rgb sigma_s" [ 0.97 0.97 0.97 ]
-Shape "revolution" "point2 contour" [ 0 -2000  2000 -2000  2000 0  0 0 ]
-"#;
-    let path = write_scene(dir.path(), "cut.pbrt", text);
+    let text = semi_infinite(
+        "\"integer maxdepth\" [ 5 ] \"integer walkdepth\" [ 3 ]",
+        16,
+        16,
+        [0.03; 3],
+        [0.97; 3],
+    );
+    let path = write_scene(dir.path(), "cut.pbrt", &text);
     let img = render(&path, dir.path(), "cut", &[]).image;
     let exact = 1.0 - h_function(0.97, 1.0) * (1.0 - 0.97f64).sqrt();
     let (got, _) = block_stats(&img, 0, 0, 16, 16, 0);
