@@ -1,8 +1,8 @@
 //! Writes the generated assets of the scenes in `scenes/` (their outputs are committed, so a
 //! fresh clone renders without running this):
 //!
-//! - `scenes/molten-glass/snail.ply`: the glass snail, a coiled shell on a body with two
-//!   eye stalks, 120k+ triangles;
+//! - `scenes/molten-glass/snail.ply` and `snail-grid.csv`: the glass snail (`snail.rs`), one
+//!   closed surface of 120k+ triangles, and the heat of its glass;
 //! - `scenes/fire/density.vol`, `scenes/fire/temperature.vol`: a flame for seed 001's
 //!   emissive medium, in Mitsuba's .vol format;
 //! - `scenes/lily-pond/pads.pbrt`: seed 004's lily pads (thin closed discs) and their stems
@@ -12,102 +12,11 @@
 //!
 //! `cargo run --release --example scene_assets`
 
+mod snail;
+mod workbench;
+
 use std::f32::consts::PI;
-use std::io::Write;
 use std::path::Path;
-
-/// A triangle mesh being built.
-#[derive(Default)]
-struct Mesh {
-    v: Vec<[f32; 3]>,
-    f: Vec<[u32; 3]>,
-}
-
-impl Mesh {
-    /// A closed tube around a grid of rings (`rings[i]` has `n` points, in order around
-    /// the ring); the two ends are closed by fans to their centres.
-    fn add_tube(&mut self, rings: &[Vec<[f32; 3]>]) {
-        let first_face = self.f.len();
-        self.add_tube_faces(rings);
-        // pbrt's normal is (p0 - p2) x (p1 - p2): outward when the closed surface's signed
-        // volume is positive. Wind the new part so that it is.
-        let volume: f64 = self.f[first_face..]
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| self.v[i as usize].map(f64::from));
-                a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                    + a[2] * (b[0] * c[1] - b[1] * c[0])
-            })
-            .sum();
-        if volume < 0.0 {
-            for t in &mut self.f[first_face..] {
-                t.swap(1, 2);
-            }
-        }
-    }
-
-    fn add_tube_faces(&mut self, rings: &[Vec<[f32; 3]>]) {
-        let base = self.v.len() as u32;
-        let n = rings[0].len() as u32;
-        for ring in rings {
-            self.v.extend(ring);
-        }
-        let m = rings.len() as u32;
-        for i in 0..m - 1 {
-            for j in 0..n {
-                let a = base + i * n + j;
-                let b = base + i * n + (j + 1) % n;
-                let (c, d) = (a + n, b + n);
-                self.f.push([a, c, b]);
-                self.f.push([b, c, d]);
-            }
-        }
-        for (ring, flip) in [(0u32, true), (m - 1, false)] {
-            let centre = rings[ring as usize]
-                .iter()
-                .fold([0.0; 3], |s, p| [s[0] + p[0], s[1] + p[1], s[2] + p[2]])
-                .map(|c| c / n as f32);
-            let c = self.v.len() as u32;
-            self.v.push(centre);
-            for j in 0..n {
-                let a = base + ring * n + j;
-                let b = base + ring * n + (j + 1) % n;
-                self.f.push(if flip { [c, a, b] } else { [c, b, a] });
-            }
-        }
-    }
-
-    fn write_ply(&self, path: &Path) {
-        let mut out = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-        write!(
-            out,
-            "ply\nformat binary_little_endian 1.0\ncomment made by examples/scene_assets.rs\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
-            self.v.len(),
-            self.f.len()
-        )
-        .unwrap();
-        for p in &self.v {
-            for c in p {
-                out.write_all(&c.to_le_bytes()).unwrap();
-            }
-        }
-        for t in &self.f {
-            out.write_all(&[3]).unwrap();
-            for i in t {
-                out.write_all(&(*i as i32).to_le_bytes()).unwrap();
-            }
-        }
-        println!("wrote {} ({} triangles)", path.display(), self.f.len());
-    }
-}
-
-fn add(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn scale(a: [f32; 3], s: f32) -> [f32; 3] {
-    a.map(|c| c * s)
-}
 
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [
@@ -115,122 +24,6 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
         a[2] * b[0] - a[0] * b[2],
         a[0] * b[1] - a[1] * b[0],
     ]
-}
-
-fn normalize(a: [f32; 3]) -> [f32; 3] {
-    let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-    scale(a, 1.0 / l)
-}
-
-/// The snail: a logarithmic helico-spiral shell (its tube grows by the same factor every
-/// turn and just touches the previous turn), a body with a raised head, two eye stalks.
-fn snail() -> Mesh {
-    let mut mesh = Mesh::default();
-    let turns = 3.25f32;
-    let growth = 5.5f32.ln() / (2.0 * PI * turns);
-    let (steps, around) = (560usize, 96usize);
-    // Centre line: radius and drop both proportional to the tube's size.
-    let centre = |t: f32| {
-        let s = (growth * t).exp() * 0.24;
-        [0.5 * s * t.cos(), -0.42 * s, 0.5 * s * t.sin()]
-    };
-    let t_max = 2.0 * PI * turns;
-    let rings: Vec<Vec<[f32; 3]>> = (0..=steps)
-        .map(|i| {
-            let t = t_max * i as f32 / steps as f32;
-            let s = (growth * t).exp() * 0.24;
-            let rho = 0.17 * s;
-            let c = centre(t);
-            let tangent = normalize(add(centre(t + 1e-3), scale(c, -1.0)));
-            let side = normalize(cross(tangent, [0.0, 1.0, 0.0]));
-            let up = cross(side, tangent);
-            (0..around)
-                .map(|j| {
-                    let a = 2.0 * PI * j as f32 / around as f32;
-                    add(c, add(scale(side, rho * a.cos()), scale(up, rho * a.sin())))
-                })
-                .collect()
-        })
-        .collect();
-    // Tip the coil's axis towards the viewer (+z), as a snail carries its shell, and set
-    // the shell on the body's back, its underside just above the body.
-    let (sin, cos) = (1.2f32).sin_cos();
-    let rings: Vec<Vec<[f32; 3]>> = rings
-        .into_iter()
-        .map(|r| {
-            r.into_iter()
-                .map(|p| [p[0], p[1] * cos - p[2] * sin, p[1] * sin + p[2] * cos])
-                .collect()
-        })
-        .collect();
-    let lift = 0.37
-        - rings
-            .iter()
-            .flatten()
-            .map(|p| p[1])
-            .fold(f32::INFINITY, f32::min);
-    let rings: Vec<Vec<[f32; 3]>> = rings
-        .into_iter()
-        .map(|r| {
-            r.into_iter()
-                .map(|p| [p[0] - 0.25, p[1] + lift, p[2]])
-                .collect()
-        })
-        .collect();
-    mesh.add_tube(&rings);
-
-    // The body: a long, low blob along x, its head end raised.
-    let (n_len, n_around) = (120usize, 64usize);
-    let body_rings: Vec<Vec<[f32; 3]>> = (1..n_len)
-        .map(|i| {
-            let u = i as f32 / n_len as f32; // 0 tail .. 1 head
-            let x = -1.5 + 3.0 * u;
-            let width = 0.34 * (PI * u).sin().powf(0.6) * (1.0 - 0.2 * u);
-            let height = 0.42 * (PI * u).sin().powf(0.5) * (0.7 + 0.3 * u);
-            let rise = 0.5 * ((u - 0.62).max(0.0) / 0.38).powf(1.3);
-            (0..n_around)
-                .map(|j| {
-                    let a = 2.0 * PI * j as f32 / n_around as f32;
-                    // A flat sole: the lower half is squashed.
-                    let (s, c) = (a.sin(), a.cos());
-                    let y = if s < 0.0 { 0.25 * s } else { s };
-                    [x, 0.02 + height * (1.0 + y) * 0.55 + rise, width * c]
-                })
-                .collect()
-        })
-        .collect();
-    mesh.add_tube(&body_rings);
-
-    // Eye stalks: thin tubes leaning forward out of the head, with rounded tips.
-    for side in [-1.0f32, 1.0] {
-        let base = [1.25, 0.75, 0.1 * side];
-        let tip = [1.5, 1.35, 0.3 * side];
-        let dir = normalize(add(tip, scale(base, -1.0)));
-        let sidev = normalize(cross(dir, [0.0, 0.0, 1.0]));
-        let upv = cross(sidev, dir);
-        let n = 60;
-        let rings: Vec<Vec<[f32; 3]>> = (0..=n)
-            .map(|i| {
-                let u = i as f32 / n as f32;
-                let c = add(base, scale(add(tip, scale(base, -1.0)), u));
-                let r = 0.028
-                    * (1.0 - u * 0.3)
-                    * if u > 0.85 {
-                        ((1.0 - u) / 0.15).sqrt().max(0.05)
-                    } else {
-                        1.0
-                    };
-                (0..32)
-                    .map(|j| {
-                        let a = 2.0 * PI * j as f32 / 32.0;
-                        add(c, add(scale(sidev, r * a.cos()), scale(upv, r * a.sin())))
-                    })
-                    .collect()
-            })
-            .collect();
-        mesh.add_tube(&rings);
-    }
-    mesh
 }
 
 /// Seed 003's martini glass as its three contours, points (r, z) about the glass's own
@@ -535,7 +328,17 @@ fn lily_pads(count: usize) -> String {
 
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    snail().write_ply(&root.join("molten-glass/snail.ply"));
+    let snail = snail::Snail::new(snail::SnailParams::default());
+    let mesh = snail::mesh(&snail);
+    mesh.write_ply(&root.join("molten-glass/snail.ply"));
+    let bench = workbench::WorkbenchParams::default();
+    let scene = root.join("molten-glass/scene.pbrt");
+    std::fs::write(&scene, workbench::scene(&bench)).unwrap();
+    println!("wrote {}", scene.display());
+    workbench::wood_png(&root.join("molten-glass/wood.png"));
+    let grid = root.join("molten-glass/snail-grid.csv");
+    std::fs::write(&grid, snail::heat_grid(&snail, &mesh, [32, 24, 20])).unwrap();
+    println!("wrote {}", grid.display());
     let glass = root.join("martini/glass.pbrt");
     std::fs::write(&glass, martini_pbrt(&martini_contours(0.72))).unwrap();
     println!("wrote {}", glass.display());
