@@ -167,7 +167,7 @@ impl Snail {
                 c[1] * co - c[2] * s - r
             })
             .fold(f32::INFINITY, f32::min);
-        snail.offset = [-0.1 * l, 0.3 - low, -0.02];
+        snail.offset = [-0.1 * l, 0.24 - low, -0.02];
         snail
     }
 
@@ -247,7 +247,7 @@ impl Snail {
     /// The field: negative inside. The foot is cut flat just above the bench (y = 0), its
     /// edge rounded.
     pub fn distance(&self, p: [f32; 3]) -> f32 {
-        let d = smin(self.shell(p), self.body(p), 2.0 * self.params.blend);
+        let d = smin(self.shell(p), self.body(p), 3.5 * self.params.blend);
         -smin(-d, p[1] - 0.004, 0.5 * self.params.blend)
     }
 

@@ -29,7 +29,7 @@ impl Default for WorkbenchParams {
             spp: 2048,
             glass_le: [1.2, 0.36, 0.07],
             furnace_l: [4.0, 1.5, 0.35],
-            fill_l: [3.0, 4.0, 6.5],
+            fill_l: [4.5, 6.0, 9.5],
             lens_radius: 0.035,
         }
     }
