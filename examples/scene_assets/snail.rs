@@ -193,24 +193,28 @@ impl Snail {
         let q = sub(p, self.offset);
         let (s, c) = self.tilt;
         let q = [q[0], q[1] * c + q[2] * s, -q[1] * s + q[2] * c];
-        let theta = (q[2].atan2(q[0]) - self.phase).rem_euclid(2.0 * PI);
         let tube = |t: f32| {
             let t = t.clamp(0.0, self.t_max);
             len(sub(q, self.coil_centre(t))) - self.tube_radius(t)
         };
+        // The distance along the whole centre line, sampled finely: each local minimum is
+        // the nearest point of one whorl, refined by a golden-section search between its
+        // neighbouring samples; the whorls are then joined by a smooth union.
+        let step = 0.04f32;
+        let n = (self.t_max / step).ceil() as usize;
+        let f: Vec<f32> = (0..=n).map(|i| tube(i as f32 * step)).collect();
         let mut d = f32::INFINITY;
-        let whorls = self.params.turns.ceil() as i32 + 1;
-        for k in -1..=whorls {
-            let t0 = theta + 2.0 * PI * k as f32;
-            if t0 < -1.5 || t0 > self.t_max + 1.5 {
+        for i in 0..=n {
+            let left = if i > 0 { f[i - 1] } else { f32::INFINITY };
+            let right = if i < n { f[i + 1] } else { f32::INFINITY };
+            if f[i] > left || f[i] > right {
                 continue;
             }
-            // The nearest point of this whorl near t0: a golden-section search.
-            let (mut a, mut b) = (t0 - 1.2, t0 + 1.2);
+            let (mut a, mut b) = ((i as f32 - 1.0) * step, (i as f32 + 1.0) * step);
             let g = 0.618_034f32;
             let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
             let (mut f1, mut f2) = (tube(x1), tube(x2));
-            for _ in 0..14 {
+            for _ in 0..8 {
                 if f1 < f2 {
                     b = x2;
                     (x2, f2) = (x1, f1);
@@ -223,7 +227,7 @@ impl Snail {
                     f2 = tube(x2);
                 }
             }
-            d = smin(d, f1.min(f2), 0.5 * self.params.blend);
+            d = smin(d, f1.min(f2).min(f[i]), self.params.blend);
         }
         d
     }
