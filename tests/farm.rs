@@ -665,7 +665,7 @@ fn sigterm_lets_a_worker_finish_its_tile_and_leave() {
     assert_eq!(s.tiles_done as usize, rendered_lines(&log), "{text}");
 }
 
-/// The headline scene, scenes/molten-glass (a 130k-face VolumeLight with a voxel grid),
+/// The headline scene, scenes/molten-glass (a 124k-face VolumeLight with a voxel grid),
 /// through a local farm of two workers and through `kiln render`: the same bytes.
 ///
 /// It renders a fifth of the 2880x1920 frame on each axis (18 x 12 tiles of 32 pixels):

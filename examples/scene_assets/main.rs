@@ -2,7 +2,7 @@
 //! fresh clone renders without running this):
 //!
 //! - `scenes/molten-glass/snail.ply` and `snail-grid.csv`: the glass snail (`snail.rs`), one
-//!   closed surface of 120k+ triangles, and the heat of its glass;
+//!   closed surface of 124k triangles, and the heat of its glass;
 //! - `scenes/fire/density.vol`, `scenes/fire/temperature.vol`: a flame for seed 001's
 //!   emissive medium, in Mitsuba's .vol format;
 //! - `scenes/lily-pond/pads.pbrt`: seed 004's lily pads (thin closed discs) and their stems
