@@ -200,7 +200,7 @@ pub fn scene(p: &WorkbenchParams) -> String {
 # (examples/scene_assets/workbench.rs) from parameters a reader can change there.
 # The snail (snail.ply, one closed surface) is one VolumeLight under a dielectric surface;
 # snail-grid.csv is the heat of its glass, hottest at the foot and where it is thick.
-Integrator "volpath" "integer maxdepth" [ 8 ]
+Integrator "volpath" "integer maxdepth" [ 8 ] "string lightsampler" [ "power" ]
 Sampler "zsobol" "integer pixelsamples" [ {spp} ]
 PixelFilter "gaussian"
 Film "rgb" "integer xresolution" [ {w} ] "integer yresolution" [ {h} ] "string filename" [ "molten-glass.exr" ]
