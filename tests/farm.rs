@@ -912,3 +912,34 @@ fn chaos_random_kills_of_workers_and_the_coordinator_lose_nothing() {
         "too few kills to prove anything"
     );
 }
+
+/// `kiln health` (the container image's health check) exits 0 when a coordinator answers
+/// /healthz, token or not, and 1 with the reason when nothing listens.
+#[test]
+fn kiln_health_tells_a_live_coordinator_from_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), Some("secret"));
+    let ok = crate::util::kiln()
+        .args(["health", "--coordinator", &url])
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let closed = format!("http://{}", listener.local_addr().unwrap());
+    drop(listener);
+    let down = crate::util::kiln()
+        .args(["health", "--coordinator", &closed, "--timeout", "2"])
+        .output()
+        .unwrap();
+    assert_eq!(down.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&down.stderr);
+    assert!(
+        err.contains("is not healthy") && err.contains(&closed),
+        "{err}"
+    );
+}

@@ -50,7 +50,7 @@ pub struct CoordinatorArgs {
     #[arg(long, env = "KILN_TOKEN")]
     token: Option<String>,
     /// Seconds a lease lasts without a heartbeat.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, env = "KILN_LEASE_TTL", default_value_t = 20.0)]
     lease_ttl: f64,
     /// The most pixels a job's frame may hold (it is kept in memory while the job runs).
     #[arg(long, default_value_t = kiln_image::MAX_PIXELS)]
@@ -257,6 +257,38 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
             eprintln!("kiln submit: wrote {}", out.display());
         }
         Ok(())
+    })
+}
+
+#[derive(clap::Args)]
+pub struct HealthArgs {
+    /// The coordinator's base URL.
+    #[arg(long, default_value = "http://127.0.0.1:7878")]
+    coordinator: String,
+    /// How long to wait for the answer, in seconds.
+    #[arg(long, default_value_t = 5)]
+    timeout: u64,
+}
+
+/// `kiln health`: GET /healthz within the timeout; an error (exit status 1) says why not.
+pub fn health(args: HealthArgs) -> Result<()> {
+    let rt = runtime()?;
+    rt.block_on(async {
+        let client = Client::new(&args.coordinator, None);
+        match tokio::time::timeout(
+            std::time::Duration::from_secs(args.timeout),
+            client.healthz(),
+        )
+        .await
+        {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => Err(anyhow::anyhow!("{} is not healthy: {e}", args.coordinator)),
+            Err(_) => Err(anyhow::anyhow!(
+                "{} did not answer within {} s",
+                args.coordinator,
+                args.timeout
+            )),
+        }
     })
 }
 

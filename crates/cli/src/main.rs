@@ -32,6 +32,8 @@ enum Command {
     Worker(farm::WorkerArgs),
     /// Upload a scene to a coordinator and create a job.
     Submit(farm::SubmitArgs),
+    /// Check that a coordinator answers (exit status 0), for container health checks.
+    Health(farm::HealthArgs),
 }
 
 fn main() -> ExitCode {
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
         Command::Coordinator(args) => farm::coordinator(args),
         Command::Worker(args) => farm::worker(args),
         Command::Submit(args) => farm::submit(args),
+        Command::Health(args) => farm::health(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -65,6 +65,13 @@ impl Client {
         Err(ClientError::Api { status, message })
     }
 
+    /// Whether the coordinator answers its health check (`GET /healthz`, no token needed).
+    pub async fn healthz(&self) -> Result<()> {
+        self.send(self.http.get(format!("{}/healthz", self.base)))
+            .await
+            .map(|_| ())
+    }
+
     pub async fn upload_scene(&self, bytes: Vec<u8>) -> Result<String> {
         let r = self
             .send(self.req(Method::POST, "/v1/scenes").body(bytes))

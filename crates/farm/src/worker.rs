@@ -88,9 +88,9 @@ pub async fn run(config: WorkerConfig, stop: Arc<Stop>) -> Result<u64, WorkerErr
     );
     let mut scenes = Scenes::default();
     let mut rendered = 0u64;
-    let mut unreachable_since = None;
+    let mut unreachable = Unreachable::default();
     while !stop.after_tile.load(Ordering::SeqCst) && !stop.now.load(Ordering::SeqCst) {
-        let Some(lease) = next_lease(&client, &config, &mut unreachable_since).await? else {
+        let Some(lease) = next_lease(&client, &config, &mut unreachable).await? else {
             continue;
         };
         // Loading may take a while (a big scene, photon maps built or waited for): the
@@ -124,26 +124,61 @@ pub async fn run(config: WorkerConfig, stop: Arc<Stop>) -> Result<u64, WorkerErr
     Ok(rendered)
 }
 
+/// Since when, and how many times in a row, the coordinator has not answered.
+#[derive(Default)]
+struct Unreachable {
+    since: Option<std::time::Instant>,
+    attempts: u32,
+}
+
+impl Unreachable {
+    /// The pause before asking again: exponential from 250 ms up to 8 s, each drawn at
+    /// random between half and all of it, so that a farm's workers do not all come back to
+    /// a restarted coordinator at once.
+    fn backoff(&self, name: &str) -> Duration {
+        let full = 0.25 * 2f64.powi(self.attempts.min(5) as i32);
+        // Jitter from the clock and the worker's name: nothing rendered depends on it.
+        let mut h = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos() as u64);
+        for b in name.bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
+        }
+        let u = (h >> 11) as f64 / (1u64 << 53) as f64;
+        Duration::from_secs_f64(full * (0.5 + 0.5 * u))
+    }
+}
+
 /// Asks the coordinator for a tile. `None` (after a pause) when there is no work now or
-/// the coordinator did not answer (it may be restarting); an error when it refuses this
-/// worker, or has been unreachable since `unreachable_since` for longer than allowed.
+/// the coordinator did not answer (it may be restarting: the pause backs off, with
+/// jitter); an error when it refuses this worker, or has been unreachable for longer than
+/// allowed.
 async fn next_lease(
     client: &Client,
     config: &WorkerConfig,
-    unreachable_since: &mut Option<std::time::Instant>,
+    unreachable: &mut Unreachable,
 ) -> Result<Option<Lease>, WorkerError> {
     let answer = client.lease(&config.name).await;
     if matches!(answer, Err(ClientError::Http(_))) {
-        let since = *unreachable_since.get_or_insert_with(std::time::Instant::now);
+        let since = *unreachable
+            .since
+            .get_or_insert_with(std::time::Instant::now);
         if since.elapsed() > config.give_up_after {
             return Err(WorkerError::Unreachable {
                 url: config.coordinator.clone(),
                 after: config.give_up_after,
             });
         }
-    } else {
-        *unreachable_since = None;
+        let pause = unreachable.backoff(&config.name);
+        unreachable.attempts += 1;
+        tracing::warn!(
+            "the coordinator at {} did not answer; asking again in {pause:?}",
+            config.coordinator
+        );
+        tokio::time::sleep(pause).await;
+        return Ok(None);
     }
+    *unreachable = Unreachable::default();
     match answer {
         Ok(Some(lease)) => Ok(Some(lease)),
         Ok(None) => {
@@ -380,4 +415,26 @@ async fn render_and_upload(
     };
     client.upload_tile(lease.lease, exr).await?;
     Ok(Outcome::Uploaded)
+}
+
+#[cfg(test)]
+mod backoff_tests {
+    use super::Unreachable;
+    use std::time::Duration;
+
+    /// The pause doubles from 250 ms to at most 8 s, each drawn between half and all of it.
+    #[test]
+    fn backoff_grows_to_its_cap_with_jitter() {
+        for attempts in 0..12u32 {
+            let u = Unreachable {
+                since: None,
+                attempts,
+            };
+            let full = Duration::from_millis(250 * (1 << attempts.min(5)));
+            for _ in 0..50 {
+                let pause = u.backoff("worker-7");
+                assert!(pause >= full / 2 && pause <= full, "{attempts}: {pause:?}");
+            }
+        }
+    }
 }
