@@ -47,6 +47,12 @@ pub enum Error {
     /// An upload under an expired lease that is not the tile already kept.
     #[error("lease {0} has expired or is unknown, and the tile differs from the one kept")]
     StaleTile(u64),
+    /// An upload under an expired lease whose tile has been lent again and is not back yet:
+    /// the newer lease's upload is the one kept.
+    #[error(
+        "lease {0} has expired and its tile is lent to another worker; this upload is not kept"
+    )]
+    Relent(u64),
     #[error("job {0} is no longer running")]
     JobEnded(u64),
     #[error("the upload is larger than the {limit} bytes this coordinator accepts")]

@@ -113,9 +113,10 @@ impl Error {
             | Error::BrokenUpload(_)
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
             Error::Unplannable(_) => StatusCode::UNPROCESSABLE_ENTITY,
-            Error::NotDone { .. } | Error::UnknownLease(_) | Error::StaleTile(_) => {
-                StatusCode::CONFLICT
-            }
+            Error::NotDone { .. }
+            | Error::UnknownLease(_)
+            | Error::StaleTile(_)
+            | Error::Relent(_) => StatusCode::CONFLICT,
             Error::SetAside(_) => StatusCode::FORBIDDEN,
             Error::JobEnded(_) => StatusCode::GONE,
             Error::Store(_)

@@ -164,11 +164,13 @@ impl State {
             let Some(idx) = job.find_tile(tile) else {
                 continue;
             };
-            if job.is_done(idx)
-                && self
-                    .store
-                    .tile(job.id, idx)?
-                    .is_some_and(|kept| kept == exr)
+            if !job.is_done(idx) {
+                return Err(Error::Relent(lease));
+            }
+            if self
+                .store
+                .tile(job.id, idx)?
+                .is_some_and(|kept| kept == exr)
             {
                 return Ok(());
             }

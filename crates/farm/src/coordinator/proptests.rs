@@ -72,6 +72,7 @@ fn assert_not_internal(r: &Result<(), Error>) {
                 e,
                 Error::UnknownLease(_)
                     | Error::StaleTile(_)
+                    | Error::Relent(_)
                     | Error::RejectedTile(_)
                     | Error::SetAside(_)
                     | Error::JobEnded(_)

@@ -122,13 +122,14 @@ async fn an_upload_under_an_expired_lease_is_kept_only_if_it_is_the_tile_kept() 
     let on_time = lease(&f.app, "on-time").await.unwrap();
     assert_eq!(on_time.tile_index, late.tile_index, "lost tiles go first");
     let tile = tile_of(&late, frame, 1.5);
-    // Before anyone delivered the tile, a late upload conflicts.
+    // Before anyone delivered the tile, a late upload conflicts: the tile is lent again,
+    // and that lease's upload is the one kept.
     let (status, body) = upload(&f.app, late.lease, exr(&tile)).await;
     assert_eq!(status, StatusCode::CONFLICT);
     assert_eq!(
         error_of(&body),
         format!(
-            "lease {} has expired or is unknown, and the tile differs from the one kept",
+            "lease {} has expired and its tile is lent to another worker; this upload is not kept",
             late.lease
         )
     );
