@@ -31,8 +31,15 @@ pub struct Client {
 
 impl Client {
     pub fn new(base: &str, token: Option<String>) -> Client {
+        // A connection that cannot be made in 10 s fails (the caller backs off and asks
+        // again) rather than waiting out the kernel's retries, about two minutes; requests
+        // themselves have no limit, as a tile or a bundle may take long to send.
+        let http = reqwest::Client::builder()
+            .connect_timeout(std::time::Duration::from_secs(10))
+            .build()
+            .unwrap_or_else(|_| reqwest::Client::new());
         Client {
-            http: reqwest::Client::new(),
+            http,
             base: base.trim_end_matches('/').to_string(),
             token,
         }
