@@ -11,7 +11,7 @@ use super::direct::{Vertex, emission_weight, sample_direct, survives_roulette};
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, Prepass, pass_through};
 use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
 use crate::math::{Color, Frame, Ray, offset_origin};
-use crate::media::subsurface::EnteredWalk;
+use crate::media::subsurface::Walk;
 use crate::media::{Emitted, MediumEvent};
 use crate::nesting::Nesting;
 use crate::sampling::{PixelSampler, TrackingRng};
@@ -39,14 +39,11 @@ struct PathState {
     /// The radiance scaling of refractions so far, which Russian roulette undoes.
     eta_scale: f32,
     /// Bounces so far, towards maxdepth. A subsurface walk is one: the refraction that
-    /// entered it counts, and its scatterings and reflections inside do not (see `walk_events`).
+    /// entered it counts, and its scatterings and reflections inside do not (see `walk`).
     depth: u32,
     /// Scattering vertices so far, a walk's included: what the sampler's dimensions,
     /// the tracking numbers and Russian roulette go by.
     vertices: u32,
-    /// Events (scatterings, and reflections off the inside of its surface) of the subsurface
-    /// walk the path is on, up to the integrator's `walk_depth`; zero outside one.
-    walk_events: u32,
     /// What the previous scattering vertex knew, for weighting emission found by BSDF or
     /// phase sampling: whether it was the camera or specular, where it was, and the
     /// density it sampled the current direction with.
@@ -67,8 +64,10 @@ struct PathState {
     /// The participating medium the ray travels in, and how many medium segments so far
     /// (each gets its own tracking numbers).
     medium: Option<u32>,
-    /// The coefficients of the subsurface walk the path is on, if they came from a texture.
-    walk: EnteredWalk,
+    /// The subsurface walk the path is on: its events (scatterings, and reflections off the
+    /// inside of its surface, up to the integrator's `walk_depth`) and its coefficients
+    /// where they came from a texture.
+    walk: Walk,
     /// The nested dielectric shapes the ray is inside.
     nesting: Nesting,
     segments: u32,
@@ -130,7 +129,6 @@ pub(super) fn path_li(
         eta_scale: 1.0,
         depth: 0,
         vertices: 0,
-        walk_events: 0,
         first_or_specular: true,
         prev_p: ray.origin,
         prev_n: Vec3A::ZERO,
@@ -139,7 +137,7 @@ pub(super) fn path_li(
         pass_throughs: 0,
         inside: None,
         medium: ctx.scene.camera_medium,
-        walk: EnteredWalk::default(),
+        walk: Walk::default(),
         nesting: Nesting::default(),
         segments: 0,
         specular_since_gather: None,
@@ -241,10 +239,9 @@ fn medium_step(
     };
     let in_walk = scene.is_walk_medium(m);
     if in_walk {
-        if state.walk_events == settings.walk_depth {
+        if !state.walk.take_event(settings.walk_depth) {
             return Next::Stop;
         }
-        state.walk_events += 1;
     } else {
         if state.depth == settings.max_depth || state.ending {
             return Next::Stop;
@@ -252,6 +249,7 @@ fn medium_step(
         state.depth += 1;
     }
     state.vertices += 1;
+    let med = state.walk.medium(&scene.media, m);
     let p = ray.at(t);
     let phase = med.phase();
     let wo = -ray.dir;
@@ -474,10 +472,9 @@ fn surface_step(
         bsdf.regularize();
     }
     if in_walk {
-        if state.walk_events == settings.walk_depth {
+        if !state.walk.take_event(settings.walk_depth) {
             return Next::Stop;
         }
-        state.walk_events += 1;
     } else {
         state.depth += 1;
     }
@@ -543,9 +540,6 @@ fn surface_step(
         return Next::Stop;
     }
     scene.enter_walk(hit, wi, before, state.medium, &mut state.walk);
-    if !state.medium.is_some_and(|m| scene.is_walk_medium(m)) {
-        state.walk_events = 0;
-    }
     *ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
     if let Some(volume) = hit.surface.volume {
         state.inside = if wi.dot(hit.ng) < 0.0 {

@@ -66,17 +66,22 @@ impl TexturedInterior {
     }
 }
 
-/// The interior a path's random walk crosses when it took its coefficients from a texture
-/// where it entered: scene medium `m`'s stand-in while the path is in `m`.
+/// The subsurface walk a path (or photon) is on: the coefficients it took from a textured
+/// reflectance where it entered (scene medium `m`'s stand-in while the path is in `m`), and
+/// the events it has taken, which count towards the integrator's `walk_depth` instead of
+/// maxdepth. `Scene::enter_walk` keeps both up to date at every crossing.
 #[derive(Debug, Clone, Default)]
-pub struct EnteredWalk(Option<(u32, Medium)>);
+pub struct Walk {
+    entered: Option<(u32, Medium)>,
+    events: u32,
+}
 
-impl EnteredWalk {
+impl Walk {
     /// Medium `m` as the path sees it: the walk's own coefficients if they were taken for
     /// `m`, else the scene's.
     #[inline]
     pub fn medium<'a>(&'a self, media: &'a [Medium], m: u32) -> &'a Medium {
-        match &self.0 {
+        match &self.entered {
             Some((w, medium)) if *w == m => medium,
             _ => &media[m as usize],
         }
@@ -85,7 +90,22 @@ impl EnteredWalk {
     /// The walk entered medium `m`, whose coefficients are `medium` there (None: the
     /// scene's own).
     pub fn set(&mut self, m: u32, medium: Option<Medium>) {
-        self.0 = medium.map(|medium| (m, medium));
+        self.entered = medium.map(|medium| (m, medium));
+    }
+
+    /// The path left every subsurface interior: a later walk starts its count afresh.
+    pub fn left(&mut self) {
+        self.events = 0;
+    }
+
+    /// Counts one more event of the walk; false once it has taken `limit` (it should end).
+    #[inline]
+    pub fn take_event(&mut self, limit: u32) -> bool {
+        if self.events == limit {
+            return false;
+        }
+        self.events += 1;
+        true
     }
 }
 

@@ -16,7 +16,7 @@ use crate::lights::{Light, LightContext, LightSampler, VolumeInterior};
 use crate::materials::{Material, Model};
 use crate::math::{Color, Ray};
 use crate::media::Medium;
-use crate::media::subsurface::{EnteredWalk, TexturedInterior};
+use crate::media::subsurface::{TexturedInterior, Walk};
 use crate::sampling::TrackingRng;
 use crate::shapes::{Geometry, SurfaceHit};
 use crate::textures::TextureEvalContext;
@@ -97,10 +97,11 @@ impl Scene {
         m >= self.first_walk_medium
     }
 
-    /// Notes that a path at `hit` leaving along `wi` went from medium `before` into `after`:
-    /// entering a subsurface interior whose reflectance is a texture through its own surface,
-    /// its walk takes the coefficients the texture gives there. (Entering it some other way,
-    /// out of a shape nested inside it, the walk crosses the interior's untextured stand-in.)
+    /// Notes that a path at `hit` leaving along `wi` went from medium `before` into `after`.
+    /// Out of every subsurface interior, its walk's count starts afresh. Entering an interior
+    /// whose reflectance is a texture through its own surface, the walk takes the
+    /// coefficients the texture gives there. (Entering it some other way, out of a shape
+    /// nested inside it, the walk crosses the interior's untextured stand-in.)
     #[inline]
     pub fn enter_walk(
         &self,
@@ -108,14 +109,18 @@ impl Scene {
         wi: Vec3A,
         before: Option<u32>,
         after: Option<u32>,
-        walk: &mut EnteredWalk,
+        walk: &mut Walk,
     ) {
-        if before == after || self.walk_textures.is_empty() {
+        if before == after {
             return;
         }
         let Some(m) = after.filter(|&m| self.is_walk_medium(m)) else {
+            walk.left();
             return;
         };
+        if self.walk_textures.is_empty() {
+            return;
+        }
         let through_own_surface = hit.surface.medium_towards(wi, hit.ng) == Some(Some(m));
         let textured = self.walk_textures[(m - self.first_walk_medium) as usize].as_ref();
         walk.set(

@@ -31,7 +31,7 @@ pub use map::{Gather, Photon, PhotonMap};
 use crate::lights::{EmittedRay, Light, SceneSphere};
 use crate::math::{Color, Frame, Ray, luminance, offset_origin};
 use crate::media::MediumEvent;
-use crate::media::subsurface::EnteredWalk;
+use crate::media::subsurface::Walk;
 use crate::sampling::{AliasTable, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::NO_MEDIUM;
@@ -418,12 +418,11 @@ impl<'a> Shooter<'a> {
         let mut medium = self.start_medium(light, &emitted);
         // Events so far, and whether all were specular.
         let mut events = 0u32;
-        // Events of the subsurface walk the photon is on (they do not count in `events`).
-        let mut walk_events = 0u32;
         let mut only_specular = true;
         let mut pass_throughs = 0u32;
         let mut nesting = crate::nesting::Nesting::default();
-        let mut walk = EnteredWalk::default();
+        // The subsurface walk the photon is on (its events do not count in `events`).
+        let mut walk = Walk::default();
         loop {
             let found = scene.geometry.intersect(&ray, f32::INFINITY);
             if let Some(m) = medium {
@@ -457,17 +456,16 @@ impl<'a> Shooter<'a> {
                             Pass::Volume => {}
                         }
                         if in_walk {
-                            if walk_events == self.walk_depth {
+                            if !walk.take_event(self.walk_depth) {
                                 return;
                             }
-                            walk_events += 1;
                         } else {
                             events += 1;
                             if events >= self.max_depth {
                                 return;
                             }
                         }
-                        let phase = med.phase();
+                        let phase = walk.medium(&scene.media, m).phase();
                         // Phase functions are sampled exactly: the throughput is unchanged.
                         let (wi, _) =
                             phase.sample(-ray.dir, Vec2::new(rng.next_f32(), rng.next_f32()));
@@ -520,10 +518,9 @@ impl<'a> Shooter<'a> {
             // Met from inside a subsurface walk, the surface is one of the walk's events.
             let in_walk = medium.is_some_and(|m| scene.is_walk_medium(m));
             if in_walk {
-                if walk_events == self.walk_depth {
+                if !walk.take_event(self.walk_depth) {
                     return;
                 }
-                walk_events += 1;
             } else if events >= self.max_depth {
                 return;
             }
@@ -547,9 +544,6 @@ impl<'a> Shooter<'a> {
                 return;
             }
             scene.enter_walk(&hit, wi, before, medium, &mut walk);
-            if !medium.is_some_and(|m| scene.is_walk_medium(m)) {
-                walk_events = 0;
-            }
             ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
         }
     }
