@@ -30,23 +30,17 @@ pub fn subsurface_medium(
             }),
             None,
         ),
-        SubsurfaceInterior::Reflectance { reflectance, mfp } => {
-            let mfp = rgb(mfp);
-            let fixed = match reflectance {
-                RgbValue::Constant(c) => Some(rgb(c)),
-                RgbValue::Texture(_) => None,
-            };
-            let textured = TexturedInterior {
-                reflectance: textures.rgb_value(&reflectance),
-                mfp,
-                phase,
-            };
-            let medium = match fixed {
-                Some(c) => reflectance_medium(c, mfp, phase),
-                None => textured.at(&TextureEvalContext::default()),
-            };
-            (medium, fixed.is_none().then_some(textured))
-        }
+        SubsurfaceInterior::Reflectance { reflectance, mfp } => match reflectance {
+            RgbValue::Constant(c) => (reflectance_medium(rgb(c), rgb(mfp), phase), None),
+            RgbValue::Texture(_) => {
+                let textured = TexturedInterior {
+                    reflectance: textures.rgb_value(&reflectance),
+                    mfp: rgb(mfp),
+                    phase,
+                };
+                (textured.at(&TextureEvalContext::default()), Some(textured))
+            }
+        },
     }
 }
 
