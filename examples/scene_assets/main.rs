@@ -13,18 +13,13 @@
 //! `cargo run --release --example scene_assets`
 
 mod snail;
+mod vec3;
 mod workbench;
+
+use vec3::cross;
 
 use std::f32::consts::PI;
 use std::path::Path;
-
-fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 
 /// Seed 003's martini glass as its three contours, points (r, z) about the glass's own
 /// vertical z axis, in order: glass-air (the foot from the axis out, the stem, the bowl's

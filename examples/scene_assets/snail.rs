@@ -8,6 +8,7 @@
 //! facing out. Shading normals are the field's gradient. The emission grid that makes the
 //! glass hotter at its foot and where it is thick comes from the same field.
 
+use crate::vec3::{cross, len, sub};
 use std::collections::HashMap;
 use std::f32::consts::PI;
 use std::io::Write;
@@ -52,22 +53,6 @@ fn smin(a: f32, b: f32, k: f32) -> f32 {
     }
     let h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0);
     b + (a - b) * h - k * h * (1.0 - h)
-}
-
-fn len(v: [f32; 3]) -> f32 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
-}
-
-fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 /// Distance to an ellipsoid of radii `r` centred at `c` (Quilez's bound, exact on the axes).
@@ -463,7 +448,7 @@ impl IsoMesh {
         let mut around = vec![[0.0f32; 3]; self.v.len()];
         for t in &self.f {
             let [a, b, c] = t.map(|i| self.v[i as usize]);
-            let n = cross3(sub(a, c), sub(b, c));
+            let n = cross(sub(a, c), sub(b, c));
             for &i in t {
                 for k in 0..3 {
                     around[i as usize][k] += n[k];
@@ -485,7 +470,7 @@ impl IsoMesh {
             let mut changed = false;
             for t in &self.f {
                 let [a, b, c] = t.map(|i| self.v[i as usize]);
-                let face = cross3(sub(a, c), sub(b, c));
+                let face = cross(sub(a, c), sub(b, c));
                 let sum = t.iter().fold([0.0f32; 3], |s, &i| {
                     let n = self.n[i as usize];
                     [s[0] + n[0], s[1] + n[1], s[2] + n[2]]

@@ -3,6 +3,7 @@
 //! its blowpipe, and the glory hole burning behind. Written as a pbrt-v4 scene
 //! (`scenes/molten-glass/scene.pbrt`) with its wood texture (`wood.png`).
 
+use crate::vec3::{cross, sub};
 use std::f32::consts::PI;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -71,18 +72,6 @@ fn cuboid(lo: [f32; 3], hi: [f32; 3]) -> String {
         p.join("  "),
         i.join(" ")
     )
-}
-
-fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 /// A closed cylinder of radius `r` from `a` to `b`: pbrt-v4's open cylinder and two disks,
