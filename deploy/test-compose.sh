@@ -11,8 +11,8 @@ if ! command -v docker >/dev/null || ! docker info >/dev/null 2>&1 || ! command 
     echo "test-compose: SKIPPED: no Docker engine or docker-compose on this machine"
     exit 0
 fi
-t0=$(date +%s)
-step() { echo "test-compose: [$(( $(date +%s) - t0 )) s] $*"; }
+NAME=test-compose
+. deploy/lib.sh
 project=kiln-ci-$$
 work="$(mktemp -d)"
 export KILN_IMAGE=kiln:ci KILN_ENV_FILE="$work/kiln.env" KILN_PORT=$(( 20000 + $$ % 20000 ))
@@ -34,34 +34,24 @@ url="http://127.0.0.1:$KILN_PORT"
 
 step "docker-compose up: a coordinator and two workers"
 compose up -d --scale worker=2
-for _ in $(seq 1 60); do
-    $kiln health --coordinator "$url" --timeout 2 >/dev/null 2>&1 && break
-    sleep 1
-done
-$kiln health --coordinator "$url"
+must_wait 60 '$kiln health --coordinator "$url" --timeout 2 >/dev/null 2>&1' "the coordinator's health check"
 
 scene=scenes/molten-glass/scene.pbrt
 args=(--spp 96 --resolution 360x240 --tile 32)
 step "submitting $scene (${args[*]}) from the host"
 id=$($kiln submit "$scene" --coordinator "$url" "${args[@]}" | sed 's/.*job //')
-status() { curl -sf -H "Authorization: Bearer $KILN_TOKEN" "$url/v1/jobs/$id" || echo '{}'; }
-field() { python3 -c "import json,sys; print(json.load(sys.stdin).get('$1', 0))"; }
-until [ "$(status | field tiles_done)" -ge 2 ]; do sleep 0.2; done
+must_wait 120 '[ "$(field tiles_done)" -ge 2 ]' "the first tiles"
 victim=$(compose ps -q worker | sed -n 1p)
-step "tiles done $(status | field tiles_done)/$(status | field tiles_total): docker kill worker ${victim:0:12}"
+step "tiles done $(field tiles_done)/$(field tiles_total): docker kill worker ${victim:0:12}"
 docker kill "$victim" >/dev/null
-metric() { curl -sf -H "Authorization: Bearer $KILN_TOKEN" "$url/metrics" | sed -n "s/^$1 //p"; }
-until [ "$(metric kiln_leases_expired_total)" -ge 1 ]; do sleep 0.5; done
-step "the killed worker's lease expired and its tile is lent again (leases issued $(metric kiln_leases_issued_total), expired $(metric kiln_leases_expired_total)); tiles done $(status | field tiles_done): docker restart coordinator"
+must_wait 60 '[ "$(metric kiln_leases_expired_total)" -ge 1 ]' "the killed worker's lease to expire"
+step "the killed worker's lease expired and its tile is lent again (leases issued $(metric kiln_leases_issued_total), expired $(metric kiln_leases_expired_total)); tiles done $(field tiles_done): docker restart coordinator"
 compose restart coordinator >/dev/null
-for _ in $(seq 1 60); do
-    $kiln health --coordinator "$url" --timeout 2 >/dev/null 2>&1 && break
-    sleep 1
-done
-step "coordinator back: tiles done $(status | field tiles_done)/$(status | field tiles_total)"
+must_wait 60 '$kiln health --coordinator "$url" --timeout 2 >/dev/null 2>&1' "the restarted coordinator"
+step "coordinator back: tiles done $(field tiles_done)/$(field tiles_total)"
 # The same scene and settings submitted again are the same job: wait for it and download.
 $kiln submit "$scene" --coordinator "$url" "${args[@]}" --wait --quiet -o "$work/farm.exr" >/dev/null
-step "job $id done: $(status | field failures) failed attempts"
+step "job $id done: $(field failures) failed attempts"
 $kiln render "$scene" "${args[@]}" --quiet -o "$work/direct.exr"
 if ! cmp -s "$work/farm.exr" "$work/direct.exr"; then
     echo "test-compose: FAILED: the farm's frame differs from kiln render's"

@@ -14,8 +14,8 @@ if [ "$(id -u)" != 0 ] || ! command -v ip >/dev/null || ! ip netns add "kiln-pro
     exit 0
 fi
 ip netns del "kiln-probe-$$"
-t0=$(date +%s)
-step() { echo "test-netns: [$(( $(date +%s) - t0 )) s] $*"; }
+NAME=test-netns
+. deploy/lib.sh
 tag=k$$
 sw=$tag-sw
 hosts=(coord w1 w2)
@@ -60,23 +60,18 @@ for w in w1 w2; do
     on "$w" "$kiln" worker --coordinator "$url" --threads 1 --name "$w" --cache-dir "$work/cache-$w" > "$work/$w.log" 2>&1 &
     pids+=($!)
 done
-timeout 30 bash -c "until ip netns exec $tag-coord $kiln health --coordinator $url --timeout 1 >/dev/null 2>&1; do sleep 0.3; done"
+must_wait 30 'on coord "$kiln" health --coordinator "$url" --timeout 1 >/dev/null 2>&1' "the coordinator's health check"
 
 scene=scenes/molten-glass/scene.pbrt
 args=(--spp 128 --resolution 360x240 --tile 32)
 id=$(on coord "$kiln" submit "$scene" --coordinator "$url" "${args[@]}" | sed 's/.*job //')
 step "job $id submitted from the coordinator's host (${args[*]})"
-get() { on coord curl -sf -H "Authorization: Bearer $KILN_TOKEN" "$url$1" || true; }
-field() { get "/v1/jobs/$id" | python3 -c "import json,sys; print(json.load(sys.stdin).get('$1', 0))" 2>/dev/null || echo 0; }
-metric() { get /metrics | sed -n "s/^$1 //p"; }
-wait_for() { timeout "$1" bash -c "until $2; do sleep 0.3; done"; }
-export -f get field metric on
-export tag id url kiln
+VIA="ip netns exec $tag-coord"
 
-wait_for 60 '[ "$(field tiles_done)" -ge 4 ]'
+must_wait 60 '[ "$(field tiles_done)" -ge 4 ]' "the first tiles"
 step "tiles done $(field tiles_done)/$(field tiles_total): cutting w1's link"
 link w1 down
-wait_for 30 '[ "$(metric kiln_leases_expired_total)" -ge 1 ]'
+must_wait 30 '[ "$(metric kiln_leases_expired_total)" -ge 1 ]' "w1's lease to expire"
 step "w1's lease expired (issued $(metric kiln_leases_issued_total), expired $(metric kiln_leases_expired_total)); tiles done $(field tiles_done); link back after 2 s more"
 sleep 2
 link w1 up

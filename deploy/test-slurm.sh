@@ -19,8 +19,8 @@ if ! command -v slurmctld >/dev/null || ! command -v munged >/dev/null; then
     echo "test-slurm: SKIPPED: slurm-wlm and munge could not be installed"
     exit 0
 fi
-t0=$(date +%s)
-step() { echo "test-slurm: [$(( $(date +%s) - t0 )) s] $*"; }
+NAME=test-slurm
+. deploy/lib.sh
 work="$(mktemp -d)"
 chmod 755 "$work"
 pids=()
@@ -80,7 +80,7 @@ CONF
 export SLURM_CONF="$work/slurm.conf"
 slurmctld -f "$work/slurm.conf" -i
 slurmd -f "$work/slurm.conf"
-timeout 30 bash -c 'until sinfo -h -o %T 2>/dev/null | grep -qE "idle|mixed"; do sleep 0.5; done'
+must_wait 30 'sinfo -h -o %T 2>/dev/null | grep -qE "idle|mixed"' "slurmd to register"
 step "sinfo: $(sinfo -h -o '%P %D %T %C')"
 
 export KILN_TOKEN="slurm-$$"
@@ -88,31 +88,26 @@ port=$(( 21000 + $$ % 20000 ))
 url="http://127.0.0.1:$port"
 "$kiln" coordinator --listen "127.0.0.1:$port" --data-dir "$work/data" --lease-ttl 3 > "$work/coord.log" 2>&1 &
 pids+=($!)
-timeout 30 bash -c "until $kiln health --coordinator $url --timeout 1 >/dev/null 2>&1; do sleep 0.3; done"
+must_wait 30 '"$kiln" health --coordinator "$url" --timeout 1 >/dev/null 2>&1' "the coordinator's health check"
 scene=scenes/molten-glass/scene.pbrt
 args=(--spp 128 --resolution 360x240 --tile 32)
 id=$("$kiln" submit "$scene" --coordinator "$url" "${args[@]}" | sed 's/.*job //')
 step "job $id submitted to the coordinator at $url (${args[*]})"
 array=$(cd "$work" && KILN="$kiln" KILN_COORDINATOR="$url" sbatch --parsable --array=0-2 --cpus-per-task=1 "$OLDPWD/deploy/slurm/kiln-workers.sbatch")
 step "sbatch: array job $array (3 tasks of 1 CPU on $cpus CPUs: one waits)"
-get() { curl -sf -H "Authorization: Bearer $KILN_TOKEN" "$url$1" || true; }
-field() { get "/v1/jobs/$id" | python3 -c "import json,sys; print(json.load(sys.stdin).get('$1', 0))" 2>/dev/null || echo 0; }
-metric() { get /metrics | sed -n "s/^$1 //p"; }
 queue() { squeue -h -j "$array" -o '%i %T' | tr '\n' ' '; }
-export -f get field metric
-export url id array
-timeout 120 bash -c 'until [ "$(field tiles_done)" -ge 6 ]; do sleep 0.3; done' || { echo "test-slurm: FAILED: no tiles came back; squeue: $(squeue -h -o '%i %T %r')"; cat "$work"/kiln-worker-*.log 2>/dev/null | tail -5; tail -5 "$work/logs/slurmd.log"; exit 1; }
+wait_until 120 '[ "$(field tiles_done)" -ge 6 ]' || { echo "test-slurm: FAILED: no tiles came back; squeue: $(squeue -h -o '%i %T %r')"; cat "$work"/kiln-worker-*.log 2>/dev/null | tail -5; tail -5 "$work/logs/slurmd.log"; exit 1; }
 step "tiles done $(field tiles_done)/$(field tiles_total); squeue: $(queue)"
 step "scancel ${array}_0 (SIGTERM: the worker delivers the tile in hand and leaves)"
 scancel "${array}_0"
-timeout 90 bash -c 'until squeue -h -j "${array}_2" -o %T | grep -q RUNNING; do sleep 0.3; done'
+must_wait 90 'squeue -h -j "${array}_2" -o %T | grep -q RUNNING' "task 2 to start"
 step "task 2 took its place; squeue: $(queue); tiles done $(field tiles_done)"
 sleep 3
 # (scancel --signal=KILL is a cancel, which sends SIGTERM first: the worker would deliver its
 # tile. A crash is a SIGKILL to the worker itself, as a node that dies gives.)
 step "SIGKILL to task ${array}_1's worker mid-tile, as a crashed node (its lease must expire and the tile be lent again)"
 pkill -KILL -f -- "--name slurm-${array}-1 "
-timeout 60 bash -c 'until [ "$(metric kiln_leases_expired_total)" -ge 1 ]; do sleep 0.3; done' || { echo "test-slurm: no lease expired; squeue: $(queue)"; tail -3 "$work"/kiln-worker-${array}_1.log; grep -i kill "$work/logs/slurmd.log" | tail -3; exit 1; }
+wait_until 60 '[ "$(metric kiln_leases_expired_total)" -ge 1 ]' || { echo "test-slurm: no lease expired; squeue: $(queue)"; tail -3 "$work"/kiln-worker-${array}_1.log; grep -i kill "$work/logs/slurmd.log" | tail -3; exit 1; }
 step "leases issued $(metric kiln_leases_issued_total), expired $(metric kiln_leases_expired_total); tiles done $(field tiles_done); squeue: $(queue)"
 "$kiln" submit "$scene" --coordinator "$url" "${args[@]}" --wait --quiet -o "$work/farm.exr" >/dev/null 2>&1
 step "job $id done: tiles $(field tiles_done)/$(field tiles_total), tiles accepted $(metric kiln_tiles_accepted_total)"
