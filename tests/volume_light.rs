@@ -285,7 +285,7 @@ fn volume_light_errors_name_their_place() {
     }
 }
 
-/// The headline snail (scenes/molten-glass/snail.ply) is one closed surface, consistently
+/// The headline snail (scenes/molten-glass/snail.ply) is one connected closed surface, consistently
 /// oriented and facing out: every edge is shared by exactly two faces that run along it in
 /// opposite directions, no face is degenerate, the enclosed volume is positive, and the
 /// vertex normals (which pbrt-v4's geometric normals follow) agree with the winding. Its
@@ -333,5 +333,29 @@ fn the_headline_snail_is_one_closed_outward_surface() {
     assert_eq!(
         disagree, 0,
         "faces whose winding disagrees with their normals"
+    );
+    // One surface, not several closed pieces that touch (the coiled tube, body and
+    // feelers the snail was before were four): every face reaches every other by edges.
+    let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    fn root(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    for f in &faces {
+        for k in 0..2 {
+            let (a, b) = (root(&mut parent, f[k]), root(&mut parent, f[k + 1]));
+            parent[a as usize] = b;
+        }
+    }
+    let pieces: std::collections::HashSet<u32> =
+        faces.iter().map(|f| root(&mut parent, f[0])).collect();
+    assert_eq!(
+        pieces.len(),
+        1,
+        "the snail is {} separate surfaces",
+        pieces.len()
     );
 }
