@@ -27,8 +27,9 @@ fn flame(n: usize) -> (VoxelGrid, VoxelGrid) {
                 let u = (x as f32 + 0.5) / n as f32 * 2.0 - 1.0;
                 let v = (y as f32 + 0.5) / n as f32;
                 let w = (z as f32 + 0.5) / n as f32 * 2.0 - 1.0;
-                let ripple = 0.12 * (9.0 * v + 3.0 * u).sin() * (7.0 * w + 5.0 * v).cos();
-                let r = ((u - 0.2 * v * v + ripple).hypot(w)) / (0.7 * (1.0 - 0.85 * v) + 0.04);
+                let ripple = 0.12 * libm::sinf(9.0 * v + 3.0 * u) * libm::cosf(7.0 * w + 5.0 * v);
+                let r =
+                    (libm::hypotf(u - 0.2 * v * v + ripple, w)) / (0.7 * (1.0 - 0.85 * v) + 0.04);
                 let d = (1.0 - r * r).max(0.0) * (1.0 - 0.6 * v);
                 density.push(d);
                 temperature.push(if d > 0.0 {

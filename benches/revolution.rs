@@ -46,7 +46,7 @@ fn mesh_text(c: &[(f64, f64)], segments: usize) -> String {
     for (i, &(r, z)) in c.iter().enumerate() {
         for k in 0..segments {
             let phi = 2.0 * PI * k as f64 / segments as f64;
-            write!(p, "{} {} {} ", r * phi.cos(), r * phi.sin(), z).unwrap();
+            write!(p, "{} {} {} ", r * libm::cos(phi), r * libm::sin(phi), z).unwrap();
         }
         if i + 1 < c.len() {
             for k in 0..segments {
@@ -95,7 +95,7 @@ fn main() {
     let rays = rays(n);
     let points: String = contour.iter().map(|(r, z)| format!("{r} {z} ")).collect();
     // The chord of one of `s` segments round falls short of the circle by r (1 - cos(π/s)).
-    let accurate = (PI / (1.0 - tolerance).acos()).ceil() as usize;
+    let accurate = (PI / libm::acos(1.0 - tolerance)).ceil() as usize;
     println!(
         "martini glass: {} contour points; mesh accuracy {tolerance} of the radius needs {accurate} segments round",
         contour.len()

@@ -20,9 +20,9 @@ fn write_sphere_ply(path: &std::path::Path, rings: usize, segments: usize) -> us
         for j in 0..segments {
             let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
             verts.push([
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
+                libm::sinf(theta) * libm::cosf(phi),
+                libm::cosf(theta),
+                libm::sinf(theta) * libm::sinf(phi),
             ]);
         }
     }

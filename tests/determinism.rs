@@ -315,3 +315,127 @@ fn an_sppm_pixel_alone_is_its_tiles_pixel() {
     }
     assert_eq!(stats.samples, 9, "three pixels of three iterations");
 }
+
+/// What glibc is told to hide, as a CPU without them would: its libm then takes its SSE2
+/// code paths for exp, log, pow, sin, cos and the rest, which give other bits than its FMA
+/// ones. (Unknown names are ignored, so AVX512F does no harm where glibc lacks it.)
+const HIDE_FMA_AND_AVX2: &str = "glibc.cpu.hwcaps=-AVX2,-FMA,-AVX512F";
+
+/// Set in the child process [`glibc_masking_changes_std_math_here`] starts: that child prints
+/// std's f64 results instead of returning at once.
+const PROBE_ENV: &str = "KILN_TEST_LIBM_PROBE";
+
+/// A fingerprint of glibc's f64 exp, log, pow, sin, cos, tan, atan2 and acos over 200,000 inputs.
+#[test]
+fn std_math_fingerprint() {
+    if std::env::var_os(PROBE_ENV).is_none() {
+        return;
+    }
+    let mut hash = 0u64;
+    let mut x = 1e-4f64;
+    for _ in 0..200_000 {
+        x = x * 1.000_037 + 1e-7;
+        #[allow(clippy::disallowed_methods)] // the point: glibc's own functions
+        let y = [
+            (3.0 * x).exp(),
+            x.ln(),
+            x.powf(1.7),
+            (50.0 * x).sin(),
+            (30.0 * x).cos(),
+            x.tan(),
+            x.atan2(0.3),
+            (x % 1.0).acos(),
+        ];
+        for v in y {
+            hash = hash.wrapping_mul(1_000_003) ^ v.to_bits();
+        }
+    }
+    println!("std-fingerprint {hash:016x}");
+}
+
+/// Runs [`std_math_fingerprint`] in a child process, with glibc's FMA and AVX2 hidden or not.
+fn std_fingerprint(hide: bool) -> String {
+    let mut cmd = std::process::Command::new(std::env::current_exe().unwrap());
+    cmd.args([
+        "--exact",
+        "determinism::std_math_fingerprint",
+        "--nocapture",
+    ])
+    .args(["--test-threads", "1"])
+    .env(PROBE_ENV, "1");
+    if hide {
+        cmd.env("GLIBC_TUNABLES", HIDE_FMA_AND_AVX2);
+    } else {
+        cmd.env_remove("GLIBC_TUNABLES");
+    }
+    let out = cmd.output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    stdout
+        .lines()
+        .find_map(|l| l.split("std-fingerprint ").nth(1))
+        .and_then(|rest| rest.split_whitespace().next())
+        .unwrap_or_else(|| panic!("the probe printed no fingerprint:\n{stdout}"))
+        .to_string()
+}
+
+/// The control for the test below: on a CPU with FMA, hiding it changes what std's f64
+/// functions return, so a render that called them could change with the machine.
+#[test]
+fn glibc_masking_changes_std_math_here() {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let has_fma = cpuinfo
+        .lines()
+        .any(|l| l.starts_with("flags") && l.split_whitespace().any(|f| f == "fma"));
+    if !has_fma || !cfg!(all(target_os = "linux", target_env = "gnu")) {
+        eprintln!("SKIPPED: this CPU has no FMA for glibc to hide (or this is not glibc)");
+        return;
+    }
+    assert_ne!(
+        std_fingerprint(false),
+        std_fingerprint(true),
+        "hiding FMA and AVX2 from glibc no longer changes its f64 libm: the render test below \
+         would prove nothing; check the GLIBC_TUNABLES names"
+    );
+}
+
+/// Kiln calls the libm crate (pure Rust) for every transcendental function, and clippy
+/// refuses std's (clippy.toml): so a render gives the same bytes whichever code paths glibc
+/// picked for the CPU it started on. Scenes that reach Fresnel, microfacets, textures and
+/// noise, loop subdivision, media, blackbody emission, spot lights, VolumeLights and hair.
+#[test]
+fn renders_are_the_same_bytes_whatever_cpu_glibc_sees() {
+    let dir = tempfile::tempdir().unwrap();
+    for rel in [
+        "materials/scene.pbrt",
+        "textures/scene.pbrt",
+        "media/fog.pbrt",
+        "fire/scene.pbrt",
+        "lights/scene.pbrt",
+        "shapes/hair.pbrt",
+        "volume-light/voxel-grid.pbrt",
+    ] {
+        let path = scene(rel);
+        let render = |hide: bool| {
+            let out = dir
+                .path()
+                .join(format!("{}-{hide}.exr", rel.replace('/', "-")));
+            let mut cmd = crate::util::kiln();
+            cmd.arg("render")
+                .arg(&path)
+                .args(["--resolution", "64x48", "--spp", "4", "--quiet", "-o"])
+                .arg(&out);
+            if hide {
+                cmd.env("GLIBC_TUNABLES", HIDE_FMA_AND_AVX2);
+            } else {
+                cmd.env_remove("GLIBC_TUNABLES");
+            }
+            let status = cmd.status().unwrap();
+            assert!(status.success(), "kiln render {rel} failed");
+            std::fs::read(&out).unwrap()
+        };
+        assert!(
+            render(false) == render(true),
+            "{rel}: hiding FMA and AVX2 from glibc changed the rendered bytes"
+        );
+    }
+}

@@ -116,7 +116,7 @@ fn many_emitters_sampled_by_power_or_hierarchy_agree_with_bsdf_sampling() {
             let z = -2.0 + 4.0 * j as f64 / nz as f64;
             p.push_str(&format!(
                 "{x:.4} {:.4} {z:.4} ",
-                2.0 + 0.1 * (3.0 * x).sin()
+                2.0 + 0.1 * libm::sin(3.0 * x)
             ));
         }
     }

@@ -30,7 +30,7 @@ fn emissive_sphere_of_medium_matches_the_closed_form() {
         let img = render(&path, dir.path(), "glow", &[]).image;
         let chord = 2.0 * (r * r - b * b).sqrt();
         for (c, le) in [2.0, 1.0, 0.5].iter().enumerate() {
-            let expected = le * (1.0 - (-chord * sigma_a).exp());
+            let expected = le * (1.0 - libm::exp(-chord * sigma_a));
             let got = img.mean()[c];
             assert!(
                 (got - expected).abs() <= 0.005 * expected,
@@ -225,7 +225,7 @@ fn emissive_grid_sphere_matches_the_closed_form() {
             let img = render(&path, dir.path(), "glow", &[]).image;
             let chord = 2.0 * (r * r - b * b).sqrt();
             for (c, le) in le.iter().enumerate() {
-                let expected = le * (1.0 - (-chord * sigma_a).exp());
+                let expected = le * (1.0 - libm::exp(-chord * sigma_a));
                 let got = img.mean()[c];
                 assert!(
                     (got - expected).abs() <= 0.005 * expected,
@@ -620,7 +620,7 @@ fn rgb_grid_and_cloud_media_match_pbrt_v4() {
         [g, g, g]
     };
     let sigma_a = |x: f64, y: f64, z: f64| [0.5 + 0.5 * x, 0.3 + 0.6 * y, 1.0 + 0.3 * z];
-    let sigma_s = |x: f64, y: f64, z: f64| [2.0 * (1.0 + (x + y).sin()), 1.5, 0.5 + 0.5 * z];
+    let sigma_s = |x: f64, y: f64, z: f64| [2.0 * (1.0 + libm::sin(x + y)), 1.5, 0.5 + 0.5 * z];
     let le = |x: f64, y: f64, z: f64| [0.2 * x, 0.1 * y * z, 0.3 * (3.0 - x)];
     let glowing = |colour: bool| {
         let (a, l) = if colour {
@@ -721,7 +721,7 @@ fn nanovdb_test_density(i: i32, j: i32, k: i32) -> f32 {
     if (-8..0).contains(&i) && (0..8).contains(&j) && (-16..-8).contains(&k) {
         1.5
     } else if r2 < 1.0 {
-        (1.0 - r2) * (1.0 + 0.5 * (0.7 * x).sin())
+        (1.0 - r2) * (1.0 + 0.5 * libm::sinf(0.7 * x))
     } else {
         0.0
     }

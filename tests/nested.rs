@@ -156,7 +156,7 @@ AttributeEnd
     let img = render(&path, dir.path(), "stack", &[]).image;
     let want = stack_transmittance(
         &[1.0, 1.5, 1.33, 1.7, 1.0],
-        &[1.0, (-0.3f64 * 0.95).exp(), 1.0],
+        &[1.0, libm::exp(-0.3f64 * 0.95), 1.0],
     );
     let (got, se) = block_stats(&img, 0, 0, 64, 64, 1);
     eprintln!("slab stack: {got:.5} ± {se:.5}, closed form {want:.5}");

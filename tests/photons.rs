@@ -86,7 +86,7 @@ fn stored_photons_follow_the_closed_form_along_a_slab() {
         for b in 0..bins {
             let (d0, d1) = (b as f64 * 0.25, (b + 1) as f64 * 0.25);
             let want =
-                through * sigma_s / sigma_t * ((-sigma_t * d0).exp() - (-sigma_t * d1).exp());
+                through * sigma_s / sigma_t * (libm::exp(-sigma_t * d0) - libm::exp(-sigma_t * d1));
             let (mut sum, mut sum2) = (0.0f64, 0.0f64);
             for ph in photons {
                 let d = -ph.p.z as f64;
@@ -419,7 +419,7 @@ fn volume_sphere_exitant_power(interior: &kiln_render::lights::VolumeInterior, r
     let mut sum = [0.0f64; 3];
     for i in 0..steps {
         let theta = (i as f64 + 0.5) / steps as f64 * std::f64::consts::FRAC_PI_2;
-        let (sin_i, cos_i) = theta.sin_cos();
+        let (sin_i, cos_i) = libm::sincos(theta);
         let sin_o = eta * sin_i;
         if sin_o >= 1.0 {
             break;
@@ -430,7 +430,7 @@ fn volume_sphere_exitant_power(interior: &kiln_render::lights::VolumeInterior, r
         for (c, total) in sum.iter_mut().enumerate() {
             let (le, sigma) = (interior.le[c] as f64, interior.sigma_a[c] as f64);
             let along = if sigma > 0.0 {
-                le * (1.0 - (-sigma * chord).exp()) / sigma
+                le * (1.0 - libm::exp(-sigma * chord)) / sigma
             } else {
                 le * chord
             };

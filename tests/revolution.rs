@@ -11,7 +11,7 @@ fn sphere_contour(n: usize) -> String {
     let mut s = String::new();
     for i in 0..=n {
         let t = PI * i as f64 / n as f64;
-        write!(s, "{:.9} {:.9}  ", t.sin().max(0.0), -t.cos()).unwrap();
+        write!(s, "{:.9} {:.9}  ", libm::sin(t).max(0.0), -libm::cos(t)).unwrap();
     }
     s
 }
@@ -85,10 +85,10 @@ fn vase_mesh(segments: usize) -> String {
     let face = |i: usize| {
         let (a, b) = (pts[i], pts[i + 1]);
         let (tr, tz) = (b.0 - a.0, b.1 - a.1);
-        let l = tr.hypot(tz);
+        let l = libm::hypot(tr, tz);
         (tz / l, -tr / l)
     };
-    let crease = 30f64.to_radians().cos();
+    let crease = libm::cos(30f64.to_radians());
     // Each strip's ends get their own vertices, so creases stay sharp.
     let (mut p, mut n, mut idx) = (String::new(), String::new(), String::new());
     let mut count = 0usize;
@@ -105,7 +105,7 @@ fn vase_mesh(segments: usize) -> String {
             let (a, b) = (face(j - 1), face(j));
             if a.0 * b.0 + a.1 * b.1 >= crease {
                 let (r, z) = (a.0 + b.0, a.1 + b.1);
-                let l = r.hypot(z);
+                let l = libm::hypot(r, z);
                 (r / l, z / l)
             } else {
                 own
@@ -115,8 +115,8 @@ fn vase_mesh(segments: usize) -> String {
         for k in 0..=segments {
             let phi = 2.0 * PI * k as f64 / segments as f64;
             for ((r, z), (nr, nz)) in ends {
-                write!(p, "{} {} {} ", r * phi.cos(), r * phi.sin(), z).unwrap();
-                write!(n, "{} {} {} ", nr * phi.cos(), nr * phi.sin(), nz).unwrap();
+                write!(p, "{} {} {} ", r * libm::cos(phi), r * libm::sin(phi), z).unwrap();
+                write!(n, "{} {} {} ", nr * libm::cos(phi), nr * libm::sin(phi), nz).unwrap();
             }
         }
         for k in 0..segments {

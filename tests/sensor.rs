@@ -73,7 +73,7 @@ fn patch_means(img: &RgbBuffer) -> Vec<[f64; 3]> {
 /// A camera of Kiln's own making: Gaussian red, green and blue responses (peaks at 600,
 /// 540 and 450 nm), written in PhysLight's layout as `name`.json in `dir`.
 fn write_gaussian_camera(dir: &Path, name: &str) {
-    let g = |l: f64, mu: f64, sigma: f64| (-0.5 * ((l - mu) / sigma).powi(2)).exp();
+    let g = |l: f64, mu: f64, sigma: f64| libm::exp(-0.5 * ((l - mu) / sigma).powi(2));
     let rows: Vec<String> = (0..=80)
         .map(|i| {
             let l = 380.0 + 5.0 * i as f64;

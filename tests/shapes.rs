@@ -101,7 +101,7 @@ fn a_cylinder_light_around_a_point_gives_the_closed_form_irradiance() {
     let opening: f64 = (0..n)
         .map(|i| {
             let phi = (i as f64 + 0.5) / n as f64 * 2.0 * PI;
-            let r2 = 1.0 / ((phi.cos() / 2.0).powi(2) + phi.sin().powi(2));
+            let r2 = 1.0 / ((libm::cos(phi) / 2.0).powi(2) + libm::sin(phi).powi(2));
             0.5 * (1.0 - 4.0 / (r2 + 4.0)) * 2.0 * PI / n as f64
         })
         .sum();

@@ -105,9 +105,9 @@ pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> String {
         for j in 0..segments {
             let phi = 2.0 * std::f64::consts::PI * j as f64 / segments as f64;
             let v = [
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
+                libm::sin(theta) * libm::cos(phi),
+                libm::cos(theta),
+                libm::sin(theta) * libm::sin(phi),
             ];
             p.push(format!("{} {} {}", r * v[0], r * v[1], r * v[2]));
             n.push(format!("{} {} {}", v[0], v[1], v[2]));

@@ -45,8 +45,8 @@ fn martini_contours(fill: f32) -> MartiniContours {
     for i in 1..8 {
         let a = -PI / 2.0 + PI * i as f32 / 8.0;
         glass_air.push((
-            foot_r - foot_t / 2.0 + foot_t / 2.0 * a.cos(),
-            foot_t / 2.0 + foot_t / 2.0 * a.sin(),
+            foot_r - foot_t / 2.0 + foot_t / 2.0 * libm::cosf(a),
+            foot_t / 2.0 + foot_t / 2.0 * libm::sinf(a),
         ));
     }
     glass_air.extend([
@@ -71,8 +71,8 @@ fn martini_contours(fill: f32) -> MartiniContours {
     for i in 1..8 {
         let a = PI * i as f32 / 8.0;
         glass_air.push((
-            rim_r - wall / 2.0 + wall / 2.0 * a.cos(),
-            rim_z + wall / 2.0 * a.sin(),
+            rim_r - wall / 2.0 + wall / 2.0 * libm::cosf(a),
+            rim_z + wall / 2.0 * libm::sinf(a),
         ));
     }
     // The inside, down to the drink.
@@ -91,7 +91,10 @@ fn martini_contours(fill: f32) -> MartiniContours {
     let last = inner(bottom + 0.04);
     for i in 1..=6 {
         let a = PI / 2.0 * i as f32 / 6.0;
-        glass_drink.push((last * a.cos(), bottom + 0.04 * (1.0 - a.sin()).powf(0.7)));
+        glass_drink.push((
+            last * libm::cosf(a),
+            bottom + 0.04 * libm::powf(1.0 - libm::sinf(a), 0.7),
+        ));
     }
     glass_drink.last_mut().unwrap().0 = 0.0;
     let drink_air = vec![(inner(surface), surface), (0.0, surface)];
@@ -109,7 +112,7 @@ fn contour_normals(c: &[(f32, f32)]) -> Vec<(f32, f32)> {
     let strip = |i: usize| {
         let (a, b) = (c[i], c[i + 1]);
         let (tr, tz) = (b.0 - a.0, b.1 - a.1);
-        let l = tr.hypot(tz);
+        let l = libm::hypotf(tr, tz);
         (tz / l, -tr / l)
     };
     (0..c.len())
@@ -120,7 +123,7 @@ fn contour_normals(c: &[(f32, f32)]) -> Vec<(f32, f32)> {
                 i => (strip(i - 1), strip(i)),
             };
             let (r, z) = (p.0 + q.0, p.1 + q.1);
-            let l = r.hypot(z);
+            let l = libm::hypotf(r, z);
             (r / l, z / l)
         })
         .collect()
@@ -192,10 +195,11 @@ fn fire() -> (kiln_scene::VoxelGrid, kiln_scene::VoxelGrid) {
                 let v = (y as f32 + 0.5) / ny as f32;
                 let w = (z as f32 + 0.5) / nz as f32 * 2.0 - 1.0;
                 // Tongues: the radius wobbles with height and angle.
-                let angle = w.atan2(u);
-                let wobble = 1.0 + 0.25 * (5.0 * angle + 11.0 * v).sin() * v;
-                let sway = 0.15 * (6.0 * v).sin() * v;
-                let r = (u - sway).hypot(w) / ((0.8 * (1.0 - v).powf(0.7) + 0.03) * wobble);
+                let angle = libm::atan2f(w, u);
+                let wobble = 1.0 + 0.25 * libm::sinf(5.0 * angle + 11.0 * v) * v;
+                let sway = 0.15 * libm::sinf(6.0 * v) * v;
+                let r =
+                    libm::hypotf(u - sway, w) / ((0.8 * libm::powf(1.0 - v, 0.7) + 0.03) * wobble);
                 let d = (1.0 - r * r).max(0.0) * (1.0 - 0.5 * v);
                 density.push(d);
                 temperature.push(if d > 0.0 {
@@ -233,7 +237,7 @@ fn lily_pads(count: usize) -> String {
         let r = 0.3 + 0.3 * uniform();
         if placed
             .iter()
-            .all(|&(px, pz, pr)| (x - px).hypot(z - pz) > (r + pr) * 1.02)
+            .all(|&(px, pz, pr)| libm::hypotf(x - px, z - pz) > (r + pr) * 1.02)
         {
             placed.push((x, z, r));
         }
@@ -252,9 +256,9 @@ fn lily_pads(count: usize) -> String {
         let rim = |i: usize, y: f32| -> [f32; 3] {
             let a = turn + notch / 2.0 + (2.0 * PI - notch) * i as f32 / n as f32;
             [
-                cx + radius * a.cos(),
+                cx + radius * libm::cosf(a),
                 y + lift(radius),
-                cz + radius * a.sin(),
+                cz + radius * libm::sinf(a),
             ]
         };
         // Top (0..=n, centre n+1), bottom (n+2..=2n+2, centre 2n+3).
@@ -309,8 +313,8 @@ fn lily_pads(count: usize) -> String {
         let stem: String = (0..10)
             .map(|i| {
                 let t = i as f32 / 9.0;
-                let x = cx + 0.18 * (3.0 * t + phase).sin() * t;
-                let z = cz + 0.14 * (2.0 * t + phase).cos() * t - 0.14 * phase.cos() * t;
+                let x = cx + 0.18 * libm::sinf(3.0 * t + phase) * t;
+                let z = cz + 0.14 * libm::cosf(2.0 * t + phase) * t - 0.14 * libm::cosf(phase) * t;
                 format!("{x:.4} {:.4} {z:.4}  ", -0.02 - 1.9 * t)
             })
             .collect();

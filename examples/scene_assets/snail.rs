@@ -98,14 +98,14 @@ pub struct Snail {
 impl Snail {
     pub fn new(params: SnailParams) -> Snail {
         let t_max = 2.0 * PI * params.turns;
-        let rate = params.growth.ln() / t_max;
+        let rate = libm::logf(params.growth) / t_max;
         let mut snail = Snail {
             params,
             rate,
             t_max,
             // The aperture straight down once tilted: at angle pi/2 in the coil's plane.
             phase: (PI / 2.0 - t_max).rem_euclid(2.0 * PI),
-            tilt: 1.15f32.sin_cos(),
+            tilt: libm::sincosf(1.15f32),
             offset: [0.0; 3],
             body: Vec::new(),
             feelers: Vec::new(),
@@ -117,10 +117,10 @@ impl Snail {
         for i in 0..=n {
             let u = i as f32 / n as f32;
             let x = -0.52 * l + l * u;
-            let swell = (PI * u).sin().max(0.0).powf(0.55);
+            let swell = libm::powf(libm::sinf(PI * u).max(0.0), 0.55);
             let w = 0.07 + 0.27 * swell * (1.0 - 0.25 * u);
             let h = 0.06 + 0.2 * swell;
-            let rise = 0.42 * ((u - 0.68).max(0.0) / 0.32).powf(1.4);
+            let rise = 0.42 * libm::powf((u - 0.68).max(0.0) / 0.32, 1.4);
             snail
                 .body
                 .push(([x, h * 0.75 + rise, 0.0], [1.3 * l / n as f32, h, w]));
@@ -157,7 +157,7 @@ impl Snail {
     }
 
     fn size(&self, t: f32) -> f32 {
-        0.22 * (self.rate * t).exp()
+        0.22 * libm::expf(self.rate * t)
     }
 
     /// The coil's centre line in its own frame (axis along y), turned so that its widest
@@ -165,7 +165,7 @@ impl Snail {
     fn coil_centre(&self, t: f32) -> [f32; 3] {
         let s = self.size(t);
         let a = t + self.phase;
-        [0.5 * s * a.cos(), -0.42 * s, 0.5 * s * a.sin()]
+        [0.5 * s * libm::cosf(a), -0.42 * s, 0.5 * s * libm::sinf(a)]
     }
 
     fn tube_radius(&self, t: f32) -> f32 {
@@ -280,7 +280,7 @@ impl Snail {
     pub fn heat(&self, p: [f32; 3]) -> f32 {
         let depth = (-self.distance(p)).max(0.0);
         let thick = (0.35 + depth / 0.12).min(1.6);
-        let foot = 1.0 + 2.2 * (-p[1] / 0.3).exp();
+        let foot = 1.0 + 2.2 * libm::expf(-p[1] / 0.3);
         // Up the shell, the glass has cooled most towards the apex (which sits high).
         let height = (p[1] / 1.6).clamp(0.0, 1.0);
         let cool = 1.0 - 0.7 * height;

@@ -81,7 +81,7 @@ fn rod(a: [f32; 3], b: [f32; 3], r: f32) -> String {
     let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
     // Rotate z onto d: about z x d by the angle between them.
     let axis = [-d[1], d[0], 0.0];
-    let angle = (d[2] / l).clamp(-1.0, 1.0).acos() * 180.0 / PI;
+    let angle = libm::acosf((d[2] / l).clamp(-1.0, 1.0)) * 180.0 / PI;
     let rotate = if axis[0] == 0.0 && axis[1] == 0.0 {
         if d[2] < 0.0 {
             "Rotate 180 1 0 0\n".to_string()
@@ -105,7 +105,7 @@ fn wall_with_hole(x: (f32, f32), y: (f32, f32), z: f32, c: (f32, f32), r: f32) -
     let mut idx = Vec::new();
     for i in 0..n {
         let a = 2.0 * PI * i as f32 / n as f32;
-        let (s, co) = a.sin_cos();
+        let (s, co) = libm::sincosf(a);
         // The hole's edge, and where the same ray from the centre meets the square.
         let t = [
             (x.1 - c.0) / co,
@@ -142,9 +142,9 @@ pub fn wood_png(path: &Path) {
     let (w, h) = (1024u32, 256u32);
     let noise = |x: f32, y: f32| {
         // Smooth value noise from a few sines (enough for grain that never repeats in view).
-        (x * 1.7 + (y * 2.3).sin()).sin() * 0.5
-            + (x * 0.61 + y * 3.7 + (x * 0.23).sin() * 2.0).sin() * 0.35
-            + (x * 5.3 - y * 1.1).sin() * 0.15
+        libm::sinf(x * 1.7 + libm::sinf(y * 2.3)) * 0.5
+            + libm::sinf(x * 0.61 + y * 3.7 + libm::sinf(x * 0.23) * 2.0) * 0.35
+            + libm::sinf(x * 5.3 - y * 1.1) * 0.15
     };
     let mut rgb = Vec::with_capacity((w * h * 3) as usize);
     for j in 0..h {
@@ -152,8 +152,8 @@ pub fn wood_png(path: &Path) {
             let (x, y) = (i as f32 / w as f32 * 12.0, j as f32 / h as f32 * 3.0);
             let ring = (y * 9.0 + 0.9 * noise(x * 0.5, y)).fract();
             // Late wood (a narrow dark band) in each ring, and a little fine streaking.
-            let late = ((ring - 0.78) / 0.22).clamp(0.0, 1.0).powf(0.7);
-            let streak = 0.5 + 0.5 * (x * 40.0 + noise(x * 3.0, y * 20.0) * 6.0).sin();
+            let late = libm::powf(((ring - 0.78) / 0.22).clamp(0.0, 1.0), 0.7);
+            let streak = 0.5 + 0.5 * libm::sinf(x * 40.0 + noise(x * 3.0, y * 20.0) * 6.0);
             let t = 0.75 * late + 0.12 * streak;
             let light = [0.55f32, 0.36, 0.19];
             let dark = [0.25f32, 0.13, 0.06];
@@ -163,7 +163,7 @@ pub fn wood_png(path: &Path) {
                 let s = if v <= 0.003_130_8 {
                     12.92 * v
                 } else {
-                    1.055 * v.powf(1.0 / 2.4) - 0.055
+                    1.055 * libm::powf(v, 1.0 / 2.4) - 0.055
                 };
                 rgb.push((s * 255.0).round().clamp(0.0, 255.0) as u8);
             }

@@ -438,14 +438,14 @@ fn srgb_encode(linear: f32) -> u8 {
     let s = if v <= 0.003_130_8 {
         12.92 * v
     } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
+        1.055 * libm::powf(v, 1.0 / 2.4) - 0.055
     };
     (s * 255.0 + 0.5) as u8
 }
 
 /// Encodes a PNG preview: linear values times 2^exposure, clamped, sRGB-encoded, 8 bits.
 pub fn encode_png(buffer: &RgbBuffer, exposure: f32) -> Result<Vec<u8>, ImageError> {
-    let gain = 2f32.powf(exposure);
+    let gain = libm::powf(2f32, exposure);
     let mut data = Vec::with_capacity(buffer.pixels.len() * 3);
     for p in &buffer.pixels {
         for c in p {

@@ -76,7 +76,7 @@ impl Camera {
         });
         let (orthographic, scale) = match desc.projection {
             Projection::Perspective { fov_degrees } => {
-                (false, (fov_degrees.to_radians() / 2.0).tan() as f32)
+                (false, libm::tan(fov_degrees.to_radians() / 2.0) as f32)
             }
             Projection::Orthographic => (true, 1.0),
             Projection::Spherical { .. } | Projection::Realistic(_) => (false, 1.0),
@@ -258,9 +258,9 @@ fn spherical_direction(uv: Vec2, equal_area: bool) -> Vec3A {
         let theta = std::f32::consts::PI * uv.y;
         let phi = 2.0 * std::f32::consts::PI * uv.x;
         Vec3A::new(
-            theta.sin() * phi.cos(),
-            theta.sin() * phi.sin(),
-            theta.cos(),
+            libm::sinf(theta) * libm::cosf(phi),
+            libm::sinf(theta) * libm::sinf(phi),
+            libm::cosf(theta),
         )
     };
     Vec3A::new(d.x, d.z, d.y)

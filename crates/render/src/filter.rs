@@ -141,7 +141,7 @@ impl Filter {
 }
 
 fn gaussian_1d(x: f32, sigma: f32, radius: f32) -> f32 {
-    let g = |v: f32| (-v * v / (2.0 * sigma * sigma)).exp();
+    let g = |v: f32| libm::expf(-v * v / (2.0 * sigma * sigma));
     (g(x) - g(radius)).max(0.0)
 }
 
@@ -167,7 +167,11 @@ fn mitchell_1d(x: f32, b: f32, c: f32) -> f32 {
 /// sin(πx)/(πx).
 fn sinc(x: f32) -> f32 {
     let px = std::f32::consts::PI * x;
-    if px.abs() < 1e-5 { 1.0 } else { px.sin() / px }
+    if px.abs() < 1e-5 {
+        1.0
+    } else {
+        libm::sinf(px) / px
+    }
 }
 
 /// pbrt-v4's Lanczos-windowed sinc of radius `r` and `tau` lobes.

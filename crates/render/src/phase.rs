@@ -62,7 +62,7 @@ impl Phase {
         let sin = (1.0 - c * c).max(0.0).sqrt();
         let phi = 2.0 * PI * u.y;
         let frame = Frame::from_z(-wo);
-        let wi = frame.to_world(Vec3A::new(sin * phi.cos(), sin * phi.sin(), c));
+        let wi = frame.to_world(Vec3A::new(sin * libm::cosf(phi), sin * libm::sinf(phi), c));
         (wi, self.p(wo, wi))
     }
 }

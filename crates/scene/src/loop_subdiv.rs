@@ -217,9 +217,9 @@ pub fn loop_subdivide(
                 ),
                 _ => {
                     let theta = std::f64::consts::PI / (n - 1) as f64;
-                    let mut t = scale(add(r(0), r(n - 1)), theta.sin());
+                    let mut t = scale(add(r(0), r(n - 1)), libm::sin(theta));
                     for k in 1..n - 1 {
-                        let w = (2.0 * theta.cos() - 2.0) * (k as f64 * theta).sin();
+                        let w = (2.0 * libm::cos(theta) - 2.0) * libm::sin(k as f64 * theta);
                         t = add(t, scale(r(k), w));
                     }
                     scale(t, -1.0)
@@ -233,8 +233,8 @@ pub fn loop_subdivide(
             let (mut s, mut t) = ([0.0; 3], [0.0; 3]);
             for k in 0..n {
                 let a = 2.0 * std::f64::consts::PI * k as f64 / n as f64;
-                s = add(s, scale(r(k), a.cos()));
-                t = add(t, scale(r(k), a.sin()));
+                s = add(s, scale(r(k), libm::cos(a)));
+                t = add(t, scale(r(k), libm::sin(a)));
             }
             (pos, s, t)
         };

@@ -21,7 +21,7 @@ pub fn goniometric_mean(image: &ImageRgb) -> f64 {
 pub fn projection_power(image: &ImageRgb, fov_degrees: f64) -> f64 {
     let (w, h) = (image.width, image.height);
     let aspect = f64::from(w) / f64::from(h);
-    let tan = (fov_degrees.to_radians() / 2.0).tan();
+    let tan = libm::tan(fov_degrees.to_radians() / 2.0);
     let (sx, sy) = if aspect > 1.0 {
         (aspect, 1.0)
     } else {

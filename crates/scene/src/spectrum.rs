@@ -531,7 +531,7 @@ fn blackbody_samples(t: f64, visible_peak: bool) -> Vec<(f64, f64)> {
     // beyond the range of exp) neither overflow nor vanish. ln(e^x − 1) = x + ln(1 − e^−x).
     let ln_b = |m: f64| {
         let x = PLANCK_H * LIGHT_C / (m * BOLTZMANN_K * t);
-        -5.0 * m.ln() - x - (-(-x).exp_m1()).ln()
+        -5.0 * libm::log(m) - x - libm::log(-libm::expm1(-x))
     };
     let ln: Vec<(f64, f64)> = (0..=470u32)
         .map(|i| {
@@ -545,7 +545,9 @@ fn blackbody_samples(t: f64, visible_peak: bool) -> Vec<(f64, f64)> {
         // Wien's displacement law gives the peak.
         ln_b(2.897_771_955e-3 / t)
     };
-    ln.iter().map(|&(nm, l)| (nm, (l - peak).exp())).collect()
+    ln.iter()
+        .map(|&(nm, l)| (nm, libm::exp(l - peak)))
+        .collect()
 }
 
 /// Linear sRGB of the blackbody at `kelvin` normalised to 1 at its peak wavelength and not

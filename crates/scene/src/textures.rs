@@ -115,10 +115,10 @@ impl ColorEncoding {
                 if v <= 0.04045 {
                     v / 12.92
                 } else {
-                    ((v + 0.055) / 1.055).powf(2.4)
+                    libm::powf((v + 0.055) / 1.055, 2.4)
                 }
             }
-            ColorEncoding::Gamma(g) => v.max(0.0).powf(g),
+            ColorEncoding::Gamma(g) => libm::powf(v.max(0.0), g),
         }
     }
 }

@@ -49,7 +49,7 @@ impl Angles {
         Angles {
             sin_theta,
             cos_theta: (1.0 - sin_theta * sin_theta).max(0.0).sqrt(),
-            phi: w.z.atan2(w.y),
+            phi: libm::atan2f(w.z, w.y),
         }
     }
 }
@@ -81,7 +81,7 @@ impl HairBxdf {
             * (0.265 * beta_n + 1.194 * beta_n * beta_n + 5.372 * beta_n.powi(22));
         let mut sin_2k_alpha = [0.0; P_MAX];
         let mut cos_2k_alpha = [0.0; P_MAX];
-        sin_2k_alpha[0] = alpha_degrees.to_radians().sin();
+        sin_2k_alpha[0] = libm::sinf(alpha_degrees.to_radians());
         cos_2k_alpha[0] = (1.0 - sin_2k_alpha[0] * sin_2k_alpha[0]).max(0.0).sqrt();
         for i in 1..P_MAX {
             sin_2k_alpha[i] = 2.0 * cos_2k_alpha[i - 1] * sin_2k_alpha[i - 1];
@@ -113,9 +113,9 @@ impl HairBxdf {
             + 0.245 * b.powi(5);
         let c = c.clamp(Color::splat(1e-4), Color::ONE);
         Color::new(
-            (c.x.ln() / d).powi(2),
-            (c.y.ln() / d).powi(2),
-            (c.z.ln() / d).powi(2),
+            (libm::logf(c.x) / d).powi(2),
+            (libm::logf(c.y) / d).powi(2),
+            (libm::logf(c.z) / d).powi(2),
         )
     }
 
@@ -161,8 +161,8 @@ impl HairBxdf {
         );
         Outgoing {
             o,
-            gamma_o: self.h.asin(),
-            gamma_t: sin_gamma_t.asin(),
+            gamma_o: libm::asinf(self.h),
+            gamma_t: libm::asinf(sin_gamma_t),
             ap,
         }
     }
@@ -273,9 +273,9 @@ impl HairBxdf {
         // The longitudinal angle from M_p.
         let (sin_o, cos_o) = self.tilted(p, &out.o);
         let v = self.v[p];
-        let cos_theta = 1.0 + v * (u.x.max(1e-5) + (1.0 - u.x) * (-2.0 / v).exp()).ln();
+        let cos_theta = 1.0 + v * libm::logf(u.x.max(1e-5) + (1.0 - u.x) * libm::expf(-2.0 / v));
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let cos_phi = (2.0 * PI * u.y).cos();
+        let cos_phi = libm::cosf(2.0 * PI * u.y);
         let sin_theta_i = (-cos_theta * sin_o + sin_theta * cos_phi * cos_o).clamp(-1.0, 1.0);
         let cos_theta_i = (1.0 - sin_theta_i * sin_theta_i).max(0.0).sqrt();
         // The azimuth from N_p.
@@ -287,8 +287,8 @@ impl HairBxdf {
         let phi_i = out.o.phi + dphi;
         let wi = Vec3A::new(
             sin_theta_i,
-            cos_theta_i * phi_i.cos(),
-            cos_theta_i * phi_i.sin(),
+            cos_theta_i * libm::cosf(phi_i),
+            cos_theta_i * libm::sinf(phi_i),
         );
         let i = Angles {
             sin_theta: sin_theta_i,
@@ -312,9 +312,9 @@ fn mp(cos_i: f32, cos_o: f32, sin_i: f32, sin_o: f32, v: f32) -> f32 {
     let a = cos_i * cos_o / v;
     let b = sin_i * sin_o / v;
     let m = if v <= 0.1 {
-        (log_i0(a) - b - 1.0 / v + std::f32::consts::LN_2 + (1.0 / (2.0 * v)).ln()).exp()
+        libm::expf(log_i0(a) - b - 1.0 / v + std::f32::consts::LN_2 + libm::logf(1.0 / (2.0 * v)))
     } else {
-        (-b).exp() * i0(a) / ((1.0 / v).sinh() * 2.0 * v)
+        libm::expf(-b) * i0(a) / (libm::sinhf(1.0 / v) * 2.0 * v)
     };
     if m.is_finite() { m } else { 0.0 }
 }
@@ -335,9 +335,9 @@ fn i0(x: f32) -> f32 {
 
 fn log_i0(x: f32) -> f32 {
     if x > 12.0 {
-        x + 0.5 * (-(2.0 * PI).ln() + (1.0 / x).ln() + 1.0 / (8.0 * x))
+        x + 0.5 * (-libm::logf(2.0 * PI) + libm::logf(1.0 / x) + 1.0 / (8.0 * x))
     } else {
-        i0(x).ln()
+        libm::logf(i0(x))
     }
 }
 
@@ -356,12 +356,12 @@ fn np(phi: f32, p: usize, s: f32, gamma_o: f32, gamma_t: f32) -> f32 {
 }
 
 fn logistic(x: f32, s: f32) -> f32 {
-    let e = (-x.abs() / s).exp();
+    let e = libm::expf(-x.abs() / s);
     e / (s * (1.0 + e) * (1.0 + e))
 }
 
 fn logistic_cdf(x: f32, s: f32) -> f32 {
-    1.0 / (1.0 + (-x / s).exp())
+    1.0 / (1.0 + libm::expf(-x / s))
 }
 
 fn trimmed_logistic(x: f32, s: f32) -> f32 {
@@ -372,7 +372,7 @@ fn trimmed_logistic(x: f32, s: f32) -> f32 {
 fn sample_trimmed_logistic(u: f32, s: f32) -> f32 {
     let (a, b) = (logistic_cdf(-PI, s), logistic_cdf(PI, s));
     let k = b - a;
-    let x = -s * (1.0 / (u * k + a) - 1.0).ln();
+    let x = -s * libm::logf(1.0 / (u * k + a) - 1.0);
     x.clamp(-PI, PI)
 }
 

@@ -88,7 +88,7 @@ fn tr(dz: f32, w: Vec3A) -> f32 {
     if dz.abs() <= f32::MIN_POSITIVE {
         1.0
     } else {
-        (-(dz / w.z).abs()).exp()
+        libm::expf(-(dz / w.z).abs())
     }
 }
 
@@ -192,7 +192,7 @@ impl LayeredBxdf<'_> {
                     };
                     beta *= tr(self.thickness, w);
                 } else {
-                    let dz = -(1.0 - rng.f()).ln() * w.z.abs();
+                    let dz = -libm::logf(1.0 - rng.f()) * w.z.abs();
                     let zp = if w.z > 0.0 { z + dz } else { z - dz };
                     if zp == z {
                         continue;
@@ -316,7 +316,7 @@ impl LayeredBxdf<'_> {
                 return None;
             }
             if self.scatters() {
-                let dz = -(1.0 - rng.f()).ln() * w.z.abs();
+                let dz = -libm::logf(1.0 - rng.f()) * w.z.abs();
                 let zp = if w.z > 0.0 { z + dz } else { z - dz };
                 if zp == z {
                     return None;

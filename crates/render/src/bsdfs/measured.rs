@@ -69,7 +69,10 @@ fn u_to_phi(u: f32) -> f32 {
 /// (θ, φ) of a unit vector; θ by atan2, which keeps its precision near the pole (where the
 /// warped square's Jacobian is steepest), unlike acos.
 fn spherical(w: Vec3A) -> (f32, f32) {
-    ((w.x * w.x + w.y * w.y).sqrt().atan2(w.z), w.y.atan2(w.x))
+    (
+        libm::atan2f((w.x * w.x + w.y * w.y).sqrt(), w.z),
+        libm::atan2f(w.y, w.x),
+    )
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -158,8 +161,8 @@ impl MeasuredBxdf<'_> {
             phi_m += phi_o;
         }
         let theta_m = u_to_theta(u_wm.x);
-        let (sin_m, cos_m) = theta_m.sin_cos();
-        let wm = Vec3A::new(sin_m * phi_m.cos(), sin_m * phi_m.sin(), cos_m);
+        let (sin_m, cos_m) = libm::sincosf(theta_m);
+        let wm = Vec3A::new(sin_m * libm::cosf(phi_m), sin_m * libm::sinf(phi_m), cos_m);
         let wi = reflect(wo, wm);
         if wi.z <= 0.0 {
             return None;

@@ -102,7 +102,7 @@ impl TrowbridgeReitz {
         let t2 = wh.cross(t1);
         let r = u.x.sqrt();
         let theta = 2.0 * PI * u.y;
-        let mut p = Vec2::new(r * theta.cos(), r * theta.sin());
+        let mut p = Vec2::new(r * libm::cosf(theta), r * libm::sinf(theta));
         let h = (1.0 - p.x * p.x).max(0.0).sqrt();
         let s = (1.0 + wh.z) / 2.0;
         p.y = (1.0 - s) * h + s * p.y;

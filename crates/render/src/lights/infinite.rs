@@ -172,7 +172,7 @@ impl ImageInfiniteLight {
             let row_weight = if equal_area {
                 1.0
             } else {
-                (PI * (y as f32 + 0.5) / height as f32).sin()
+                libm::sinf(PI * (y as f32 + 0.5) / height as f32)
             };
             for x in 0..width {
                 func.push(luminance(light.pixels[y * width + x]).max(0.0) * row_weight);
@@ -193,8 +193,8 @@ impl ImageInfiniteLight {
         if self.equal_area {
             equal_area_sphere_to_square(wl)
         } else {
-            let theta = wl.z.clamp(-1.0, 1.0).acos();
-            let phi = wl.y.atan2(wl.x).rem_euclid(2.0 * PI);
+            let theta = libm::acosf(wl.z.clamp(-1.0, 1.0));
+            let phi = libm::atan2f(wl.y, wl.x).rem_euclid(2.0 * PI);
             Vec2::new(phi / (2.0 * PI), theta / PI)
         }
     }
@@ -205,9 +205,9 @@ impl ImageInfiniteLight {
         } else {
             let theta = uv.y * PI;
             let phi = uv.x * 2.0 * PI;
-            let s = theta.sin();
+            let s = libm::sinf(theta);
             (
-                Vec3A::new(s * phi.cos(), s * phi.sin(), theta.cos()),
+                Vec3A::new(s * libm::cosf(phi), s * libm::sinf(phi), libm::cosf(theta)),
                 2.0 * PI * PI * s,
             )
         };
@@ -285,7 +285,7 @@ impl ImageInfiniteLight {
         let jacobian = if self.equal_area {
             4.0 * PI
         } else {
-            2.0 * PI * PI * (uv.y * PI).sin()
+            2.0 * PI * PI * libm::sinf(uv.y * PI)
         };
         if jacobian == 0.0 {
             0.0
@@ -306,8 +306,8 @@ pub fn equal_area_square_to_sphere(p: Vec2) -> Vec3A {
     let r = 1.0 - d;
     let phi = if r == 0.0 { 1.0 } else { (vp - up) / r + 1.0 } * PI / 4.0;
     let z = (1.0 - r * r).copysign(signed_distance);
-    let cos_phi = phi.cos().copysign(u);
-    let sin_phi = phi.sin().copysign(v);
+    let cos_phi = libm::cosf(phi).copysign(u);
+    let sin_phi = libm::sinf(phi).copysign(v);
     let s = r * (2.0 - r * r).max(0.0).sqrt();
     Vec3A::new(cos_phi * s, sin_phi * s, z)
 }
@@ -319,7 +319,7 @@ pub fn equal_area_sphere_to_square(d: Vec3A) -> Vec2 {
     let a = x.max(y);
     let b = x.min(y);
     let b = if a == 0.0 { 0.0 } else { b / a };
-    let mut phi = b.atan() * 2.0 / PI;
+    let mut phi = libm::atanf(b) * 2.0 / PI;
     if x < y {
         phi = 1.0 - phi;
     }

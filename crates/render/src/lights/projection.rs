@@ -38,7 +38,7 @@ impl ProjectionLight {
         } else {
             [-1.0, 1.0, -1.0 / aspect, 1.0 / aspect]
         };
-        let tan = (fov_degrees.to_radians() / 2.0).tan() as f32;
+        let tan = libm::tan(fov_degrees.to_radians() / 2.0) as f32;
         let phi = scale * kiln_scene::photometry::projection_power(&image, fov_degrees) as f32;
         ProjectionLight {
             position,

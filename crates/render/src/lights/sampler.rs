@@ -107,13 +107,15 @@ impl LightBounds {
     /// solid measure of the emission cone times the box's area, times how elongated the
     /// parent box is across the split axis.
     fn cost(&self, parent_diag: Vec3A, axis: usize) -> f32 {
-        let theta_o = self.cos_o.clamp(-1.0, 1.0).acos();
-        let theta_e = self.cos_e.clamp(-1.0, 1.0).acos();
+        let theta_o = libm::acosf(self.cos_o.clamp(-1.0, 1.0));
+        let theta_e = libm::acosf(self.cos_e.clamp(-1.0, 1.0));
         let theta_w = (theta_o + theta_e).min(PI);
         let sin_o = safe_sqrt(1.0 - self.cos_o * self.cos_o);
         let m_omega = 2.0 * PI * (1.0 - self.cos_o)
             + PI / 2.0
-                * (2.0 * theta_w * sin_o - (theta_o - 2.0 * theta_w).cos() - 2.0 * theta_o * sin_o
+                * (2.0 * theta_w * sin_o
+                    - libm::cosf(theta_o - 2.0 * theta_w)
+                    - 2.0 * theta_o * sin_o
                     + self.cos_o);
         let kr = if parent_diag[axis] > 0.0 {
             parent_diag.max_element() / parent_diag[axis]
@@ -225,9 +227,9 @@ fn sin_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
 
 /// The smallest cone holding both cones (axis, cosine of the half-angle).
 fn cone_union(a: (Vec3A, f32), b: (Vec3A, f32)) -> (Vec3A, f32) {
-    let theta_a = a.1.clamp(-1.0, 1.0).acos();
-    let theta_b = b.1.clamp(-1.0, 1.0).acos();
-    let theta_d = a.0.dot(b.0).clamp(-1.0, 1.0).acos();
+    let theta_a = libm::acosf(a.1.clamp(-1.0, 1.0));
+    let theta_b = libm::acosf(b.1.clamp(-1.0, 1.0));
+    let theta_d = libm::acosf(a.0.dot(b.0).clamp(-1.0, 1.0));
     if (theta_d + theta_b).min(PI) <= theta_a {
         return a;
     }
@@ -244,7 +246,7 @@ fn cone_union(a: (Vec3A, f32), b: (Vec3A, f32)) -> (Vec3A, f32) {
         return (Vec3A::Z, -1.0);
     }
     let w = glam::Quat::from_axis_angle(axis.normalize().into(), theta_r) * glam::Vec3::from(a.0);
-    (Vec3A::from(w).normalize(), theta_o.cos())
+    (Vec3A::from(w).normalize(), libm::cosf(theta_o))
 }
 
 /// Lights at infinity (and distant lights), chosen uniformly with one share beside the
@@ -656,8 +658,8 @@ mod tests {
     fn pmf_matches_sampling() {
         let mut bounds = vec![None]; // a light at infinity
         for i in 0..37 {
-            let x = (i as f32 * 0.37).sin() * 4.0;
-            let y = (i as f32 * 1.3).cos() * 3.0;
+            let x = libm::sinf(i as f32 * 0.37) * 4.0;
+            let y = libm::cosf(i as f32 * 1.3) * 3.0;
             let p = Vec3A::new(x, y, (i % 5) as f32);
             if i % 3 == 0 {
                 let n = Vec3A::new(x, 1.0, -y).normalize();

@@ -19,8 +19,10 @@ impl SpotLight {
     /// The cone it shines in, for the light hierarchy; its power is that of a point light
     /// of the same intensity, as pbrt-v4 bounds it (the cone says where it reaches).
     pub fn bounds(&self) -> super::LightBounds {
-        let mut cos_e =
-            (self.cos_end.clamp(-1.0, 1.0).acos() - self.cos_start.clamp(-1.0, 1.0).acos()).cos();
+        let mut cos_e = libm::cosf(
+            libm::acosf(self.cos_end.clamp(-1.0, 1.0))
+                - libm::acosf(self.cos_start.clamp(-1.0, 1.0)),
+        );
         // Rounding in the importance's angles must not shut out the falloff's rim.
         if cos_e == 1.0 && self.cos_end != self.cos_start {
             cos_e = 0.999;

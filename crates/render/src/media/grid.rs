@@ -384,7 +384,7 @@ impl GridMedium {
             }
         }
         // Optical depth left before the next tentative collision.
-        let mut tau = -(1.0 - rng.next_f32()).ln();
+        let mut tau = -libm::logf(1.0 - rng.next_f32());
         loop {
             let axis = if next[0] < next[1] {
                 if next[0] < next[2] { 0 } else { 2 }
@@ -404,7 +404,7 @@ impl GridMedium {
                         break;
                     }
                     t += dt;
-                    tau = -(1.0 - rng.next_f32()).ln();
+                    tau = -libm::logf(1.0 - rng.next_f32());
                     steps += 1;
                     if steps > MAX_TRACKING_STEPS {
                         return Walk::CutOff;

@@ -41,14 +41,14 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     } else {
         (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
     };
-    r * Vec2::new(theta.cos(), theta.sin())
+    r * Vec2::new(libm::cosf(theta), libm::sinf(theta))
 }
 
 pub fn uniform_sphere(u: Vec2) -> Vec3A {
     let z = 1.0 - 2.0 * u.x;
     let r = (1.0 - z * z).max(0.0).sqrt();
     let phi = 2.0 * PI * u.y;
-    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+    Vec3A::new(r * libm::cosf(phi), r * libm::sinf(phi), z)
 }
 
 /// A uniform direction on the +z hemisphere.
@@ -56,7 +56,7 @@ pub fn uniform_hemisphere(u: Vec2) -> Vec3A {
     let z = u.x;
     let r = (1.0 - z * z).max(0.0).sqrt();
     let phi = 2.0 * PI * u.y;
-    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+    Vec3A::new(r * libm::cosf(phi), r * libm::sinf(phi), z)
 }
 
 /// A uniform direction inside the cone of half-angle acos(cos_max) around +z.
@@ -64,7 +64,11 @@ pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3A {
     let cos_theta = (1.0 - u.x) + u.x * cos_max;
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let phi = u.y * 2.0 * PI;
-    Vec3A::new(phi.cos() * sin_theta, phi.sin() * sin_theta, cos_theta)
+    Vec3A::new(
+        libm::cosf(phi) * sin_theta,
+        libm::sinf(phi) * sin_theta,
+        cos_theta,
+    )
 }
 
 /// Barycentrics (b0, b1, b2) of a uniform point on a triangle (the low-distortion square-to-triangle map).

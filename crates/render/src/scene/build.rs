@@ -747,7 +747,7 @@ impl Builder {
         let m = to_world.as_mat4();
         let normal_m = to_world.inverse().transpose().as_mat4();
         // Widths scale with the transform's mean scale (exact for similarity transforms).
-        let scale = to_world.determinant().abs().cbrt() as f32;
+        let scale = libm::cbrt(to_world.determinant().abs()) as f32;
         if !(scale > 0.0 && scale.is_finite()) {
             return refuse("this curve's transform cannot be inverted (a zero scale?)");
         }
@@ -777,7 +777,7 @@ impl Builder {
                 let n = ns[i].map(|n| {
                     Vec3A::from(normal_m.transform_vector3(glam::Vec3::from(n))).normalize_or_zero()
                 });
-                (n, n[0].dot(n[1]).clamp(-1.0, 1.0).acos())
+                (n, libm::acosf(n[0].dot(n[1]).clamp(-1.0, 1.0)))
             });
             let segment = CurveSegment {
                 cp,

@@ -185,8 +185,8 @@ impl CurveSegment {
         if angle.abs() < 1e-6 {
             return Some(n0);
         }
-        let s = angle.sin();
-        Some((n0 * ((1.0 - u) * angle).sin() + n1 * (u * angle).sin()) / s)
+        let s = libm::sinf(angle);
+        Some((n0 * libm::sinf((1.0 - u) * angle) + n1 * libm::sinf(u * angle)) / s)
     }
 
     /// The nearest hit of the ray on piece [u0, u1] with distance in (0, tmax).
@@ -216,7 +216,7 @@ impl CurveSegment {
         let eps = self.width[0].max(self.width[1]) * 0.05;
         let depth = if l0 > 0.0 && eps > 0.0 {
             let r = std::f32::consts::SQRT_2 * 6.0 * l0 / (8.0 * eps);
-            ((r.max(1.0).log2().floor() as i32) / 2).clamp(0, 10) as u32
+            ((libm::log2f(r.max(1.0)).floor() as i32) / 2).clamp(0, 10) as u32
         } else {
             0
         };
@@ -337,7 +337,7 @@ struct Query {
 
 /// Rodrigues' rotation of `v` by `angle` about the unit `axis`.
 fn rotate(v: Vec3A, axis: Vec3A, angle: f32) -> Vec3A {
-    let (s, c) = angle.sin_cos();
+    let (s, c) = libm::sincosf(angle);
     v * c + axis.cross(v) * s + axis * axis.dot(v) * (1.0 - c)
 }
 

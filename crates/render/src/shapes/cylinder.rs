@@ -80,7 +80,11 @@ impl Cylinder {
     pub fn sample(&self, u: Vec2) -> Vec3A {
         let z = self.z_min + u.x * (self.z_max - self.z_min);
         let phi = u.y * self.phi_max;
-        Vec3A::new(self.radius * phi.cos(), self.radius * phi.sin(), z)
+        Vec3A::new(
+            self.radius * libm::cosf(phi),
+            self.radius * libm::sinf(phi),
+            z,
+        )
     }
 
     /// Object-space bounds.

@@ -71,7 +71,7 @@ impl Disk {
         );
         let r = (ri2 + u.x * (r2 - ri2)).max(0.0).sqrt();
         let phi = u.y * self.phi_max;
-        Vec3A::new(r * phi.cos(), r * phi.sin(), self.height)
+        Vec3A::new(r * libm::cosf(phi), r * libm::sinf(phi), self.height)
     }
 
     /// Object-space bounds.

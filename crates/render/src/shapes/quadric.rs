@@ -40,7 +40,7 @@ pub struct LocalPoint {
 
 /// The azimuth of (x, y) in [0, 2π).
 pub fn phi_of(x: f64, y: f64) -> f64 {
-    let phi = y.atan2(x);
+    let phi = libm::atan2(y, x);
     if phi < 0.0 {
         phi + std::f64::consts::TAU
     } else {

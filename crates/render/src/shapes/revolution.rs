@@ -137,7 +137,7 @@ impl Strip {
         let s = self.along(p);
         let phi = phi_of(f64::from(p.x), f64::from(p.y)) as f32;
         let phi = phi.clamp(self.phi0, self.phi1);
-        let (sin, cos) = phi.sin_cos();
+        let (sin, cos) = libm::sincosf(phi);
         let q = self.a.lerp(self.b, s);
         let p = Vec3A::new(q.x * cos, q.x * sin, q.y);
         let turn = |v: Vec2| Vec3A::new(v.x * cos, v.x * sin, v.y);
@@ -173,14 +173,14 @@ impl Strip {
         };
         let q = self.a.lerp(self.b, s);
         let phi = self.phi0 + u.y * (self.phi1 - self.phi0);
-        Vec3A::new(q.x * phi.cos(), q.x * phi.sin(), q.y)
+        Vec3A::new(q.x * libm::cosf(phi), q.x * libm::sinf(phi), q.y)
     }
 
     /// Object-space bounds of the sector.
     pub fn bounds(&self) -> (Vec3A, Vec3A) {
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         let mut add = |r: f32, phi: f32, z: f32| {
-            let p = Vec3A::new(r * phi.cos(), r * phi.sin(), z);
+            let p = Vec3A::new(r * libm::cosf(phi), r * libm::sinf(phi), z);
             lo = lo.min(p);
             hi = hi.max(p);
         };
@@ -280,7 +280,7 @@ pub fn strips(
             .find_map(|i| face[i])
             .or_else(|| closed.then(|| (0..j).find_map(|i| face[i])).flatten())
     };
-    let cos_crease = crease.cos();
+    let cos_crease = libm::cosf(crease);
     // Shading normal at point j seen from the strip on `side` (its own normal `own`).
     let vertex_normal = |j: usize, own: Vec2| -> Vec2 {
         if let Some(n) = normals {
@@ -330,7 +330,7 @@ pub fn strips(
                 phi_max * (k + 1) as f32 / sectors as f32
             };
             let edge = |phi: f32| {
-                let (sin, cos) = phi.sin_cos();
+                let (sin, cos) = libm::sincosf(phi);
                 Vec2::new(cos, sin)
             };
             out.push(Strip {
@@ -366,7 +366,7 @@ mod tests {
         (0..=n)
             .map(|i| {
                 let theta = PI * i as f32 / n as f32;
-                [theta.sin().max(0.0), -theta.cos()]
+                [libm::sinf(theta).max(0.0), -libm::cosf(theta)]
             })
             .collect()
     }
@@ -532,7 +532,7 @@ mod tests {
         // Along the sector seams exactly (φ a multiple of 45°).
         for k in 0..8 {
             let phi = std::f64::consts::FRAC_PI_4 * k as f64;
-            let d = [phi.cos(), phi.sin(), 0.0];
+            let d = [libm::cos(phi), libm::sin(phi), 0.0];
             assert!(nearest(&ball, [0.0, 0.0, 0.0], d).is_finite(), "seam {k}");
         }
     }

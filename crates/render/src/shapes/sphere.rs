@@ -74,10 +74,13 @@ impl Geometry {
         } else {
             (1.0, 0.0)
         };
-        let theta = n.z.clamp(-1.0, 1.0).acos();
+        let theta = libm::acosf(n.z.clamp(-1.0, 1.0));
         let dpdu = Vec3A::new(-TAU * q.y, TAU * q.x, 0.0);
-        let dpdv = -PI * Vec3A::new(q.z * cos_phi, q.z * sin_phi, -s.radius * theta.sin());
-        let uv = Vec2::new((n.y.atan2(n.x) / TAU).rem_euclid(1.0), 1.0 - theta / PI);
+        let dpdv = -PI * Vec3A::new(q.z * cos_phi, q.z * sin_phi, -s.radius * libm::sinf(theta));
+        let uv = Vec2::new(
+            (libm::atan2f(n.y, n.x) / TAU).rem_euclid(1.0),
+            1.0 - theta / PI,
+        );
         if s.flip {
             n = -n;
         }
@@ -100,8 +103,8 @@ impl Geometry {
 pub fn sphere_uv(n: Vec3A) -> Vec2 {
     use std::f32::consts::{PI, TAU};
     Vec2::new(
-        (n.y.atan2(n.x) / TAU).rem_euclid(1.0),
-        1.0 - n.z.clamp(-1.0, 1.0).acos() / PI,
+        (libm::atan2f(n.y, n.x) / TAU).rem_euclid(1.0),
+        1.0 - libm::acosf(n.z.clamp(-1.0, 1.0)) / PI,
     )
 }
 
@@ -182,8 +185,8 @@ impl PartialSphere {
     /// θ (from +z) at `z_min` and at `z_max`.
     fn theta_range(&self) -> (f32, f32) {
         (
-            (self.z_min / self.radius).clamp(-1.0, 1.0).acos(),
-            (self.z_max / self.radius).clamp(-1.0, 1.0).acos(),
+            libm::acosf((self.z_min / self.radius).clamp(-1.0, 1.0)),
+            libm::acosf((self.z_max / self.radius).clamp(-1.0, 1.0)),
         )
     }
 
@@ -230,7 +233,7 @@ impl PartialSphere {
         let phi = phi_of(f64::from(p.x), f64::from(p.y)) as f32;
         let (theta_min, theta_max) = self.theta_range();
         let cos_theta = (p.z / self.radius).clamp(-1.0, 1.0);
-        let theta = cos_theta.acos();
+        let theta = libm::acosf(cos_theta);
         let r_xy = (p.x * p.x + p.y * p.y).sqrt();
         let (cos_phi, sin_phi) = (p.x / r_xy, p.y / r_xy);
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
@@ -258,7 +261,7 @@ impl PartialSphere {
         let z = self.z_min + u.x * (self.z_max - self.z_min);
         let r_xy = (self.radius * self.radius - z * z).max(0.0).sqrt();
         let phi = u.y * self.phi_max;
-        Vec3A::new(r_xy * phi.cos(), r_xy * phi.sin(), z)
+        Vec3A::new(r_xy * libm::cosf(phi), r_xy * libm::sinf(phi), z)
     }
 
     /// Object-space bounds.

@@ -106,7 +106,10 @@ impl Mapping2D {
                 let dphidp = Vec3A::new(-p.y, p.x, 0.0) / (TAU * x2y2);
                 let v = p.normalize_or_zero();
                 TexCoord2D {
-                    st: Vec2::new(v.z.clamp(-1.0, 1.0).acos() / PI, spherical_phi(v) / TAU),
+                    st: Vec2::new(
+                        libm::acosf(v.z.clamp(-1.0, 1.0)) / PI,
+                        spherical_phi(v) / TAU,
+                    ),
                     dsdx: finite(dthetadp.dot(dpdx)),
                     dsdy: finite(dthetadp.dot(dpdy)),
                     dtdx: finite(dphidp.dot(dpdx)),
@@ -118,7 +121,7 @@ impl Mapping2D {
                 let x2y2 = p.x * p.x + p.y * p.y;
                 let dsdp = Vec3A::new(-p.y, p.x, 0.0) / (TAU * x2y2);
                 TexCoord2D {
-                    st: Vec2::new((PI + p.y.atan2(p.x)) / TAU, p.z),
+                    st: Vec2::new((PI + libm::atan2f(p.y, p.x)) / TAU, p.z),
                     dsdx: finite(dsdp.dot(dpdx)),
                     dsdy: finite(dsdp.dot(dpdy)),
                     dtdx: dpdx.z,
@@ -147,7 +150,7 @@ impl Mapping2D {
 
 /// φ of a direction in [0, 2π).
 pub fn spherical_phi(v: Vec3A) -> f32 {
-    let p = v.y.atan2(v.x);
+    let p = libm::atan2f(v.y, v.x);
     if p < 0.0 { p + TAU } else { p }
 }
 

@@ -250,7 +250,7 @@ impl MipMap {
             return self.ewa_lookup(max_anisotropy, st, dst0, dst1);
         }
         let width = 2.0 * dst0.abs().max_element().max(dst1.abs().max_element());
-        let level = top as f32 + width.max(1e-8).log2();
+        let level = top as f32 + libm::log2f(width.max(1e-8));
         if level >= top as f32 {
             return texel(top, 0, 0);
         }
@@ -298,7 +298,7 @@ impl MipMap {
         if minor == 0.0 {
             return V::from_bilerp(&self.bilerp(0, st)[..self.channels]);
         }
-        let lod = (self.levels.len() as f32 - 1.0 + minor.log2()).max(0.0);
+        let lod = (self.levels.len() as f32 - 1.0 + libm::log2f(minor)).max(0.0);
         let il = lod.floor() as usize;
         let d = lod - il as f32;
         self.ewa::<V>(il, st, dst0, dst1) * (1.0 - d) + self.ewa::<V>(il + 1, st, dst0, dst1) * d
@@ -359,7 +359,7 @@ impl MipMap {
 fn gaussian_weight(r2: f32) -> f32 {
     static TABLE: std::sync::LazyLock<[f32; 128]> = std::sync::LazyLock::new(|| {
         let alpha = 2.0f32;
-        std::array::from_fn(|i| (-alpha * i as f32 / 127.0).exp() - (-alpha).exp())
+        std::array::from_fn(|i| libm::expf(-alpha * i as f32 / 127.0) - libm::expf(-alpha))
     });
     TABLE[((r2 * 128.0) as usize).min(127)]
 }
@@ -372,7 +372,7 @@ fn taps(old: usize, new: usize) -> Vec<(i64, [f32; 4])> {
             1.0
         } else {
             let px = std::f32::consts::PI * x;
-            px.sin() / px
+            libm::sinf(px) / px
         }
     };
     let windowed = |x: f32| {
@@ -437,12 +437,14 @@ fn encode(e: ColorEncoding, v: f32) -> u8 {
                 let s = if v <= 0.003_130_8 {
                     12.92 * v
                 } else {
-                    1.055 * v.powf(1.0 / 2.4) - 0.055
+                    1.055 * libm::powf(v, 1.0 / 2.4) - 0.055
                 };
                 (255.0 * s).round().clamp(0.0, 255.0) as u8
             }
         }
-        ColorEncoding::Gamma(g) => (255.0 * v.max(0.0).powf(1.0 / g) + 0.5).clamp(0.0, 255.0) as u8,
+        ColorEncoding::Gamma(g) => {
+            (255.0 * libm::powf(v.max(0.0), 1.0 / g) + 0.5).clamp(0.0, 255.0) as u8
+        }
     }
 }
 

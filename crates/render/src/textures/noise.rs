@@ -87,7 +87,7 @@ fn smooth_step(x: f32, a: f32, b: f32) -> f32 {
 /// How many octaves the footprint (`dpdx`, `dpdy`) resolves, at most `max_octaves`.
 fn octaves(dpdx: Vec3A, dpdy: Vec3A, max_octaves: u32) -> f32 {
     let len2 = dpdx.length_squared().max(dpdy.length_squared());
-    let n = -1.0 - 0.5 * len2.log2();
+    let n = -1.0 - 0.5 * libm::log2f(len2);
     if n.is_nan() {
         return max_octaves as f32;
     }
@@ -209,7 +209,7 @@ impl Marble {
                     self.roughness,
                     self.octaves,
                 );
-        let t = 0.5 + 0.5 * m.sin();
+        let t = 0.5 + 0.5 * libm::sinf(m);
         let first = ((t * 6.0).floor() as usize).min(5);
         let u = t * 6.0 - first as f32;
         let cp = |i: usize| Color::from(MARBLE[first + i]);

@@ -267,12 +267,16 @@ pub fn lambertian_bsdf_file(rho: f32, nt: usize, n: usize) -> Vec<u8> {
     // With D = σ = 1 and a uniform vndf, f = R(u_wm) / (4 cos θ_i): R = 4 ρ/π · cos θ_i.
     let mut r = Vec::with_capacity(nt * n * n);
     for &theta_o in &theta_i {
-        let wo = [theta_o.sin(), 0.0, theta_o.cos()];
+        let wo = [libm::sinf(theta_o), 0.0, libm::cosf(theta_o)];
         for y in 0..n {
             for x in 0..n {
                 let (ux, uy) = (x as f32 / (n - 1) as f32, y as f32 / (n - 1) as f32);
                 let (tm, pm) = (ux * ux * FRAC_PI_2, (2.0 * uy - 1.0) * PI);
-                let wm = [tm.sin() * pm.cos(), tm.sin() * pm.sin(), tm.cos()];
+                let wm = [
+                    libm::sinf(tm) * libm::cosf(pm),
+                    libm::sinf(tm) * libm::sinf(pm),
+                    libm::cosf(tm),
+                ];
                 let d = wo[0] * wm[0] + wo[1] * wm[1] + wo[2] * wm[2];
                 let wi_z = -wo[2] + 2.0 * d * wm[2];
                 r.push(4.0 * rho / PI * wi_z.max(0.0));

@@ -121,7 +121,7 @@ impl Parser {
                 values: (0..n * n)
                     .map(|k| {
                         let (x, y) = (centre(k % n), centre(k / n));
-                        ((-(x * x + y * y)).exp() - (-1.0f64).exp()).max(0.0) as f32
+                        (libm::exp(-(x * x + y * y)) - libm::exp(-1.0f64)).max(0.0) as f32
                     })
                     .collect(),
             },
@@ -153,10 +153,10 @@ impl Parser {
                         let r = if i % 2 == 1 {
                             1.0
                         } else {
-                            72f64.to_radians().cos() / 36f64.to_radians().cos()
+                            libm::cos(72f64.to_radians()) / libm::cos(36f64.to_radians())
                         };
                         let a = std::f64::consts::PI * i as f64 / 5.0;
-                        (r * a.cos(), r * a.sin())
+                        (r * libm::cos(a), r * libm::sin(a))
                     })
                     .collect();
                 vert.reverse();

@@ -62,8 +62,10 @@ impl Parser {
                 let direction = (point(to) - point(from)).normalize();
                 let cone = params.float("coneangle", 30.0)?;
                 let delta = params.float("conedeltaangle", 5.0)?;
-                let (cos_end, cos_start) =
-                    (cone.to_radians().cos(), (cone - delta).to_radians().cos());
+                let (cos_end, cos_start) = (
+                    libm::cos(cone.to_radians()),
+                    libm::cos((cone - delta).to_radians()),
+                );
                 // Φ = 2π I ((1 − cos start) + (cos start − cos end) / 2), pbrt-v4's k_e.
                 let k = power.map_or(1.0, |phi| {
                     let k_e = 2.0

@@ -755,6 +755,23 @@ impl Parser {
     }
 }
 
+/// The response of the camera a film's "sensor" names, read from the folder
+/// [`SENSOR_DATA_ENV`] names, white balanced for daylight at `kelvin`.
+fn camera_of(name: &str, kelvin: f64) -> std::result::Result<CameraResponse, String> {
+    let Some(dir) = std::env::var_os(SENSOR_DATA_ENV).filter(|d| !d.is_empty()) else {
+        return Err(format!(
+            "sensor '{name}' is a camera's measured spectral response, which Kiln does not ship: \
+             set {SENSOR_DATA_ENV} to a folder of camera response files (PhysLight's data/camera, \
+             github.com/wetadigital/physlight, Apache-2.0, has every camera pbrt-v4 names), or \
+             use \"cie1931\""
+        ));
+    };
+    let dir = std::path::PathBuf::from(dir);
+    let path = find_sensor(&dir, name)?;
+    let curves = read_sensor_curves(&path)?;
+    camera_response(name, &curves, kelvin)
+}
+
 #[cfg(test)]
 mod tests {
     use crate::description::*;
@@ -892,21 +909,4 @@ mod tests {
         let err = load_err("\nIntegrator \"path\" \"string lightsampler\" \"nearest\"\nWorldBegin");
         assert!(err.contains("t.pbrt:2") && err.contains("nearest"), "{err}");
     }
-}
-
-/// The response of the camera a film's "sensor" names, read from the folder
-/// [`SENSOR_DATA_ENV`] names, white balanced for daylight at `kelvin`.
-fn camera_of(name: &str, kelvin: f64) -> std::result::Result<CameraResponse, String> {
-    let Some(dir) = std::env::var_os(SENSOR_DATA_ENV).filter(|d| !d.is_empty()) else {
-        return Err(format!(
-            "sensor '{name}' is a camera's measured spectral response, which Kiln does not ship: \
-             set {SENSOR_DATA_ENV} to a folder of camera response files (PhysLight's data/camera, \
-             github.com/wetadigital/physlight, Apache-2.0, has every camera pbrt-v4 names), or \
-             use \"cie1931\""
-        ));
-    };
-    let dir = std::path::PathBuf::from(dir);
-    let path = find_sensor(&dir, name)?;
-    let curves = read_sensor_curves(&path)?;
-    camera_response(name, &curves, kelvin)
 }
