@@ -1,0 +1,189 @@
+//! BVH traversal alone, the part of a render the profiles put first: Kiln's closest-hit and
+//! any-hit rays per second over a scene's triangles, on one thread, with no shading. The
+//! triangles and rays are written to target/traversal/ so that another tracer can trace the
+//! very same set (benches/embree/ does, for the physical limit the issue asks about).
+//!
+//! The rays: one camera ray through every pixel of a 512-pixel-wide frame (jittered within
+//! the pixel), then from each point they hit one ray in a uniformly random direction, half
+//! of them into the surface (for the snail's glass, the interior chords paths trace). The
+//! secondary rays start 1e-4 of the scene's size off the surface, on the side they leave.
+//!
+//! `cargo bench --bench traversal [-- --width N --repeats N]`
+
+mod common;
+use common::arg;
+use glam::{Vec2, Vec3A};
+use kiln_render::shapes::{Geometry, Primitives};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// A ray as both tracers take it.
+#[derive(Clone, Copy)]
+struct TestRay {
+    origin: Vec3A,
+    dir: Vec3A,
+}
+
+/// A small deterministic generator (SplitMix64), so that every run traces the same rays.
+struct Rng(u64);
+impl Rng {
+    fn f(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+fn main() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let width = arg("--width", 512u32);
+    let repeats = arg("--repeats", 5usize);
+    let scenes = [
+        (
+            "cornell",
+            root.join("../shared/reference-scenes/cornell-box/scene.pbrt"),
+        ),
+        ("snail", root.join("scenes/molten-glass/scene.pbrt")),
+    ];
+    let out_dir = root.join("target/traversal");
+    std::fs::create_dir_all(&out_dir).expect("target/traversal can be made");
+    for (name, path) in scenes {
+        if !path.exists() {
+            println!(
+                "SKIPPED {name}: {} is not present (../shared exists beside the checkout and in CI only)",
+                path.display()
+            );
+            continue;
+        }
+        bench_scene(name, &path, width, repeats, &out_dir);
+    }
+}
+
+fn bench_scene(name: &str, path: &Path, width: u32, repeats: usize, out_dir: &Path) {
+    let mut desc = kiln_scene::load_file(path).expect("the scene loads");
+    let (xres, yres) = (desc.film.xresolution, desc.film.yresolution);
+    let height = (width as f32 * yres as f32 / xres as f32).round() as u32;
+    desc.film.xresolution = width;
+    desc.film.yresolution = height;
+    desc.film.pixel_bounds = [0, width, 0, height];
+    let renderer = kiln_render::Renderer::build(&desc).expect("the scene builds");
+    let scene = renderer.scene();
+    let prims = &scene.geometry.prims;
+    // The triangles alone, in their own BVH: what Embree is given too.
+    let start = Instant::now();
+    let geometry = Geometry::new(Primitives {
+        positions: prims.positions.clone(),
+        triangle_vertices: prims.triangle_vertices.clone(),
+        ..Primitives::default()
+    });
+    let build_s = start.elapsed().as_secs_f64();
+    let (lo, hi) = geometry.bounds();
+    let eps = 1e-4 * (hi - lo).max_element();
+
+    let mut rng = Rng(0x6b69_6c6e);
+    let mut rays = Vec::new();
+    for y in 0..height {
+        for x in 0..width {
+            let film = Vec2::new(x as f32 + rng.f(), y as f32 + rng.f());
+            let r = scene.camera.generate_ray(film, Vec2::splat(0.5));
+            rays.push(TestRay {
+                origin: r.origin,
+                dir: r.dir,
+            });
+        }
+    }
+    let primary = rays.len();
+    for i in 0..primary {
+        let r = rays[i];
+        let ray = kiln_render::math::Ray::new(r.origin, r.dir);
+        let Some(hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
+            continue;
+        };
+        let z = 1.0 - 2.0 * rng.f();
+        let phi = std::f32::consts::TAU * rng.f();
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        let dir = Vec3A::new(s * libm::cosf(phi), s * libm::sinf(phi), z);
+        let side = if dir.dot(hit.ng) >= 0.0 { 1.0 } else { -1.0 };
+        rays.push(TestRay {
+            origin: hit.p + hit.ng * (side * eps),
+            dir,
+        });
+    }
+
+    // Closest hits, then any hit, each timed over the whole set on this thread.
+    let closest = |geometry: &Geometry| {
+        let (mut hits, mut t_sum) = (0u64, 0f64);
+        for r in &rays {
+            let ray = kiln_render::math::Ray::new(r.origin, r.dir);
+            if let Some(t) = geometry.hit_distance(&ray, f32::INFINITY) {
+                hits += 1;
+                t_sum += t as f64;
+            }
+        }
+        (hits, t_sum)
+    };
+    let any = || {
+        rays.iter()
+            .filter(|r| !geometry.unoccluded(r.origin, r.dir, f32::INFINITY, 0.0))
+            .count()
+    };
+    let best = |f: &dyn Fn() -> f64| {
+        (0..repeats)
+            .map(|_| {
+                let start = Instant::now();
+                std::hint::black_box(f());
+                start.elapsed().as_secs_f64()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (hits, t_sum) = closest(&geometry);
+    let blocked = any();
+    let closest_s = best(&|| closest(&geometry).1);
+    let any_s = best(&|| any() as f64);
+    // obvhs's own closest-hit walk over the same BVH, for comparison.
+    let triangles = geometry.triangle_count();
+    let obvhs = geometry.with_obvhs_walk();
+    let (obvhs_hits, _) = closest(&obvhs);
+    assert_eq!(obvhs_hits, hits, "both walks find the same rays' hits");
+    let obvhs_s = best(&|| closest(&obvhs).1);
+    println!(
+        "traversal scene={name} triangles={} rays={} primary={primary} build_s={build_s:.3} \
+         closest_hits={hits} closest_t_sum={t_sum:.6} blocked={blocked} \
+         closest_rays_per_s={:.0} any_rays_per_s={:.0} obvhs_walk_closest_rays_per_s={:.0}",
+        triangles,
+        rays.len(),
+        rays.len() as f64 / closest_s,
+        rays.len() as f64 / any_s,
+        rays.len() as f64 / obvhs_s,
+    );
+
+    // For benches/embree: u32 count then f32 v0 v1 v2 per triangle; u32 count then
+    // f32 origin, direction, tmin, tmax per ray (little-endian).
+    let mut mesh = Vec::new();
+    mesh.extend((prims.triangle_vertices.len() as u32).to_le_bytes());
+    for tri in &prims.triangle_vertices {
+        for &v in tri {
+            for c in prims.positions[v as usize].to_array() {
+                mesh.extend(c.to_le_bytes());
+            }
+        }
+    }
+    let mut ray_bytes = Vec::new();
+    ray_bytes.extend((rays.len() as u32).to_le_bytes());
+    for r in &rays {
+        for c in r.origin.to_array().into_iter().chain(r.dir.to_array()) {
+            ray_bytes.extend(c.to_le_bytes());
+        }
+        ray_bytes.extend(0f32.to_le_bytes());
+        ray_bytes.extend(f32::INFINITY.to_le_bytes());
+    }
+    for (ext, bytes) in [("mesh", &mesh), ("rays", &ray_bytes)] {
+        let p = out_dir.join(format!("{name}.{ext}"));
+        std::fs::File::create(&p)
+            .and_then(|mut f| f.write_all(bytes))
+            .unwrap_or_else(|e| panic!("writing {}: {e}", p.display()));
+    }
+}
