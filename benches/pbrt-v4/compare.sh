@@ -54,5 +54,7 @@ for name in cornell-box veach-mis; do
     samples=$((res * res * spp))
     tp=$(best_time "$pbrt" --nthreads 2 --spp "$spp" --outfile "$work/$name-pbrt.exr" "$dst/scene.pbrt")
     tk=$(best_time "$kiln" render "$dst/scene.pbrt" --threads 2 --spp "$spp" -q -o "$work/$name-kiln.exr")
-    echo "$name ${res}x${res} ${spp} spp: pbrt-v4 $tp s ($(echo "$samples / $tp / 1000000" | bc -l | cut -c1-5) M samples/s), kiln $tk s ($(echo "$samples / $tk / 1000000" | bc -l | cut -c1-5) M samples/s): kiln/pbrt-v4 $(echo "$tp / $tk" | bc -l | cut -c1-5)x (target 5x)"
+    awk -v n="$name" -v r="$res" -v spp="$spp" -v s="$samples" -v tp="$tp" -v tk="$tk" 'BEGIN {
+        printf "%s %dx%d %d spp: pbrt-v4 %.2f s (%.3f M samples/s), kiln %.2f s (%.3f M samples/s): kiln/pbrt-v4 %.2fx (target 5x)\n",
+            n, r, r, spp, tp, s / tp / 1e6, tk, s / tk / 1e6, tp / tk }'
 done
