@@ -130,7 +130,7 @@ impl LightBounds {
 
 /// A [`LightBounds`] with what its importance needs computed once: the centre and squared
 /// radius of the box's bounding sphere, the distance clamp, and the sine of the cone.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Cluster {
     center: Vec3A,
     radius2: f32,
@@ -294,6 +294,9 @@ struct Node {
     /// The second child's index, or the light's index in a leaf.
     index: u32,
     leaf: bool,
+    /// The two children's clusters are equal (a quad's two triangles), so their importances
+    /// are too, bit for bit: one is computed for both.
+    twins: bool,
 }
 
 /// The hierarchy over the lights with finite bounds, and the lights at infinity beside it.
@@ -349,6 +352,7 @@ impl LightBvh {
                 cluster: Cluster::new(&b),
                 index: light,
                 leaf: true,
+                twins: false,
             });
             self.trails[light as usize] = Some(trail);
             return b;
@@ -364,6 +368,7 @@ impl LightBvh {
             cluster: Cluster::new(&lights[0].1),
             index: 0,
             leaf: false,
+            twins: false,
         });
         let (first, second) = lights.split_at_mut(split);
         let b0 = self.build(first, depth + 1, trail, sah_limit);
@@ -371,6 +376,8 @@ impl LightBvh {
         let b1 = self.build(second, depth + 1, trail | (1 << depth), sah_limit);
         let b = b0.union(&b1);
         self.nodes[me].cluster = Cluster::new(&b);
+        self.nodes[me].twins =
+            self.nodes[me + 1].cluster == self.nodes[self.nodes[me].index as usize].cluster;
         b
     }
 
@@ -389,8 +396,7 @@ impl LightBvh {
                 return (i > 0 || node.cluster.importance(p, n) > 0.0)
                     .then_some((node.index as usize, pmf));
             }
-            let c0 = self.nodes[i + 1].cluster.importance(p, n);
-            let c1 = self.nodes[node.index as usize].cluster.importance(p, n);
+            let (c0, c1) = self.child_importances(node, i, p, n);
             let total = c0 + c1;
             if total == 0.0 {
                 return None;
@@ -408,6 +414,16 @@ impl LightBvh {
         }
     }
 
+    /// The importances of node `i`'s two children at (`p`, `n`).
+    #[inline(always)]
+    fn child_importances(&self, node: &Node, i: usize, p: Vec3A, n: Vec3A) -> (f32, f32) {
+        let c0 = self.nodes[i + 1].cluster.importance(p, n);
+        if node.twins {
+            return (c0, c0);
+        }
+        (c0, self.nodes[node.index as usize].cluster.importance(p, n))
+    }
+
     fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
         let bounded = !self.nodes.is_empty();
         let Some(mut trail) = self.trails[light] else {
@@ -423,8 +439,7 @@ impl LightBvh {
                 }
                 return pmf;
             }
-            let c0 = self.nodes[i + 1].cluster.importance(p, n);
-            let c1 = self.nodes[node.index as usize].cluster.importance(p, n);
+            let (c0, c1) = self.child_importances(node, i, p, n);
             let total = c0 + c1;
             if total == 0.0 {
                 return 0.0;

@@ -181,31 +181,16 @@ fn child_entries(node: &CwBvhNode, ray: &Ray) -> ([f32; 8], u8) {
                 _mm_add_ps(_mm_mul_ps(b, d), o),
             )
         };
+        let planes = [
+            (&node.child_min_x, &node.child_max_x, ray.direction.x < 0.0),
+            (&node.child_min_y, &node.child_max_y, ray.direction.y < 0.0),
+            (&node.child_min_z, &node.child_max_z, ray.direction.z < 0.0),
+        ];
         for i in 0..2 {
-            let (nx, fx) = axis(
-                &node.child_min_x,
-                &node.child_max_x,
-                ray.direction.x < 0.0,
-                adj_dir_inv.x,
-                adj_origin.x,
-                i,
-            );
-            let (ny, fy) = axis(
-                &node.child_min_y,
-                &node.child_max_y,
-                ray.direction.y < 0.0,
-                adj_dir_inv.y,
-                adj_origin.y,
-                i,
-            );
-            let (nz, fz) = axis(
-                &node.child_min_z,
-                &node.child_max_z,
-                ray.direction.z < 0.0,
-                adj_dir_inv.z,
-                adj_origin.z,
-                i,
-            );
+            let [(nx, fx), (ny, fy), (nz, fz)] = std::array::from_fn(|a| {
+                let (lo, hi, neg) = planes[a];
+                axis(lo, hi, neg, adj_dir_inv[a], adj_origin[a], i)
+            });
             let tmin = _mm_max_ps(nx, _mm_max_ps(ny, nz));
             let tmax = _mm_min_ps(fx, _mm_min_ps(fy, fz));
             let tmin = _mm_max_ps(tmin, _mm_set1_ps(ENTRY_MIN));
