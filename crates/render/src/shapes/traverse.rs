@@ -20,7 +20,7 @@ use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray;
 
 /// Stack entries: a node pushes at most its 8 children and pops itself, so a BVH of depth
-/// d needs at most 7d + 1. A deeper BVH falls back to obvhs's walk ([`Walk::fits`]).
+/// d needs at most 7d + 1. A deeper BVH falls back to obvhs's walk ([`fits`]).
 const STACK: usize = 256;
 
 /// obvhs's lower clamp on a box's entry distance (its `EPSILON`), kept so that both walks
@@ -32,20 +32,12 @@ const ENTRY_MIN: f32 = 0.0001;
 const LEAF: u32 = 1 << 31;
 const LEAF_START: u32 = (1 << 29) - 1;
 
-/// Whether a BVH can be walked here: shallow enough for the fixed stack and with primitive
-/// slots that fit a stack entry.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Walk {
-    pub fits: bool,
-}
-
-impl Walk {
-    pub fn of(bvh: &CwBvh) -> Walk {
-        let fits = bvh.primitive_indices.len() < LEAF_START as usize
-            && !bvh.nodes.is_empty()
-            && depth(bvh) * 7 < STACK;
-        Walk { fits }
-    }
+/// Whether `bvh` can be walked here: shallow enough for the fixed stack, with primitive
+/// slots that fit a stack entry. Where not, the caller uses obvhs's walk.
+pub fn fits(bvh: &CwBvh) -> bool {
+    bvh.primitive_indices.len() < LEAF_START as usize
+        && !bvh.nodes.is_empty()
+        && depth(bvh) * 7 < STACK
 }
 
 /// The number of node levels of `bvh`.
@@ -74,13 +66,7 @@ fn internal_child(node: &CwBvhNode, slot: usize) -> u32 {
 /// slot's distance (infinite on a miss) for a ray whose `tmax` is the closest so far.
 /// Returns the distance and the slot.
 #[inline(always)]
-pub fn closest(bvh: &CwBvh, ray: Ray, hit: impl FnMut(&Ray, usize) -> f32) -> Option<(f32, u32)> {
-    walk::<false>(bvh, ray, hit)
-}
-
-/// The walk, stopping at the first hit when `ANY`.
-#[inline(always)]
-fn walk<const ANY: bool>(
+pub fn closest(
     bvh: &CwBvh,
     ray: Ray,
     mut hit: impl FnMut(&Ray, usize) -> f32,
@@ -107,9 +93,6 @@ fn walk<const ANY: bool>(
                 if t < r.tmax {
                     r.tmax = t;
                     best = Some(slot);
-                    if ANY {
-                        return Some((t, slot));
-                    }
                 }
             }
             continue;
@@ -251,7 +234,7 @@ mod tests {
             params,
             &mut std::time::Duration::default(),
         );
-        assert!(Walk::of(&bvh).fits);
+        assert!(fits(&bvh));
         let rt: Vec<RtTriangle> = bvh
             .primitive_indices
             .iter()
