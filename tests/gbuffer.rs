@@ -34,7 +34,7 @@ fn channel_mean(image: &RgbBuffer, name: &str) -> f64 {
     }
 }
 
-const SCENE: &str = r#"Integrator "volpath" "integer maxdepth" [ 5 ]
+pub(crate) const SCENE: &str = r#"Integrator "volpath" "integer maxdepth" [ 5 ]
 Sampler "independent" "integer pixelsamples" [ 64 ]
 Film "gbuffer" "integer xresolution" [ 48 ] "integer yresolution" [ 32 ]
 LookAt 0.3 1.2 -3  0 0.2 0.5  0 1 0

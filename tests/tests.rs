@@ -12,6 +12,7 @@ mod gbuffer;
 mod media;
 mod motion;
 mod nested;
+mod passes;
 mod photons;
 mod reference;
 mod revolution;

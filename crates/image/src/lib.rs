@@ -40,6 +40,9 @@ pub struct RgbBuffer {
     pub pixels: Vec<[f32; 3]>,
     /// Further channels (a G-buffer's), written beside R, G and B.
     pub aovs: Aovs,
+    /// Exact 32-bit integer channels (a farm tile's running sums, bit for bit), which
+    /// [`RgbBuffer::paste`] leaves behind: they travel with a tile, never into a frame.
+    pub words: Words,
 }
 
 /// Channels beyond R, G and B: their names, sorted (as EXR stores channels), and their
@@ -52,6 +55,18 @@ pub struct Aovs {
 
 /// The most channels beyond R, G and B that an image may hold.
 pub const MAX_AOVS: usize = 64;
+
+/// Unsigned 32-bit integer channels, stored exactly (EXR's UINT type): their names, sorted,
+/// and `names.len()` values per pixel in the pixels' order. Any EXR reader shows them as
+/// integers; Kiln keeps a farm tile's running sums in them.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Words {
+    pub names: Vec<String>,
+    pub values: Vec<u32>,
+}
+
+/// The most integer channels an image may hold.
+pub const MAX_WORDS: usize = 128;
 
 impl RgbBuffer {
     /// A black buffer of `width x height` at (x0, y0) in a `frame_width x frame_height` frame.
@@ -72,6 +87,7 @@ impl RgbBuffer {
             height,
             pixels: vec![[0.0; 3]; width as usize * height as usize],
             aovs: Aovs::default(),
+            words: Words::default(),
         }
     }
 
@@ -210,6 +226,7 @@ pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
         || buffer.width == 0
         || buffer.height == 0
         || buffer.aovs.values.len() != buffer.pixels.len() * buffer.aovs.names.len()
+        || buffer.words.values.len() != buffer.pixels.len() * buffer.words.names.len()
     {
         return Err(ImageError::Invalid(
             "buffer size does not match its pixels".into(),
@@ -229,6 +246,22 @@ pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
             FlatSamples::F32(
                 buffer
                     .aovs
+                    .values
+                    .iter()
+                    .skip(c)
+                    .step_by(n)
+                    .copied()
+                    .collect(),
+            ),
+        ));
+    }
+    let n = buffer.words.names.len();
+    for (c, name) in buffer.words.names.iter().enumerate() {
+        list.push(AnyChannel::new(
+            name.as_str(),
+            FlatSamples::U32(
+                buffer
+                    .words
                     .values
                     .iter()
                     .skip(c)
@@ -364,13 +397,38 @@ pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, Im
             }
         }
     }
-    // Every other channel but alpha is a further channel, in the file's (sorted) order.
-    let others: Vec<_> = layer
+    // Every other channel but alpha is a further channel, in the file's (sorted) order:
+    // the integer ones words, the rest float.
+    let is_word = |ch: &&exr::prelude::AnyChannel<exr::prelude::FlatSamples>| {
+        matches!(ch.sample_data, exr::prelude::FlatSamples::U32(_))
+    };
+    let (word_channels, others): (Vec<_>, Vec<_>) = layer
         .channel_data
         .list
         .iter()
         .filter(|ch| !["R", "G", "B", "A"].contains(&ch.name.to_string().as_str()))
-        .collect();
+        .partition(is_word);
+    if word_channels.len() > MAX_WORDS {
+        return Err(ImageError::Invalid(format!(
+            "EXR has {} integer channels; at most {MAX_WORDS} are read",
+            word_channels.len()
+        )));
+    }
+    let mut words = Words {
+        names: word_channels.iter().map(|ch| ch.name.to_string()).collect(),
+        values: vec![0; word_channels.len() * w * h],
+    };
+    words.names.sort();
+    let nw = word_channels.len();
+    for ch in &word_channels {
+        let name = ch.name.to_string();
+        let c = words.names.iter().position(|n| *n == name).unwrap_or(0);
+        if let exr::prelude::FlatSamples::U32(v) = &ch.sample_data {
+            for (i, &x) in v.iter().enumerate().take(w * h) {
+                words.values[i * nw + c] = x;
+            }
+        }
+    }
     if others.len() > MAX_AOVS {
         return Err(ImageError::Invalid(format!(
             "EXR has {} channels besides R, G, B and A; at most {MAX_AOVS} are read",
@@ -403,6 +461,7 @@ pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, Im
         height: h as u32,
         pixels,
         aovs,
+        words,
     })
 }
 
@@ -510,6 +569,29 @@ mod tests {
         assert!(frame.paste(&RgbBuffer::new(10, 8, 3, 2, 4, 5)).is_err());
     }
 
+    /// Integer channels keep every bit (NaN patterns and all, which a float channel could
+    /// not promise), come back in name order beside float ones, and are not pasted.
+    #[test]
+    fn integer_channels_round_trip_exactly_and_stay_out_of_frames() {
+        let mut tile = RgbBuffer::new(10, 8, 3, 2, 4, 5).with_aovs(["u"]);
+        tile.words = Words {
+            names: vec!["kiln.b".into(), "kiln.a".into()],
+            values: Vec::new(),
+        };
+        tile.words.names.sort();
+        tile.words.values = (0..40u32)
+            .map(|i| i.wrapping_mul(0x9e37_79b9) ^ 0x7fc0_0001)
+            .collect();
+        tile.words.values[0] = u32::MAX;
+        let back = decode_exr(&encode_exr(&tile).unwrap()).unwrap();
+        assert_eq!(back, tile);
+        let mut frame = RgbBuffer::new(10, 8, 0, 0, 10, 8).with_aovs(["u"]);
+        frame.paste(&tile).unwrap();
+        assert!(frame.words.names.is_empty() && frame.words.values.is_empty());
+        let mut short = tile.clone();
+        short.words.values.pop();
+        assert!(encode_exr(&short).is_err(), "words must match the pixels");
+    }
     /// A tiny file whose header claims a huge image (the 440-byte tile upload that aborted
     /// the coordinator) is refused before anything of that size is allocated.
     #[test]

@@ -134,6 +134,49 @@ impl GBufferPixel {
         self.uv[1] += w * s.uv.y as f64;
     }
 
+    /// The number of 64-bit values [`GBufferPixel::to_bits`] gives.
+    pub const BITS: usize = 25;
+
+    /// Every running sum, bit for bit (f64s by their bits, the count as it is), so that a
+    /// pixel can be carried between passes and continued with the same bytes.
+    pub fn to_bits(&self) -> [u64; Self::BITS] {
+        let floats = [self.weight_sum, self.surface_weight_sum]
+            .into_iter()
+            .chain(self.p)
+            .chain(self.n)
+            .chain(self.ns)
+            .chain([self.dzdx, self.dzdy])
+            .chain(self.uv)
+            .chain(self.albedo);
+        let rest = self.mean.into_iter().chain(self.m2);
+        let bits: Vec<u64> = floats
+            .map(f64::to_bits)
+            .chain([self.count])
+            .chain(rest.map(f64::to_bits))
+            .collect();
+        bits.try_into().expect("25 values")
+    }
+
+    /// The pixel [`GBufferPixel::to_bits`] gave these bits for.
+    pub fn from_bits(b: &[u64; Self::BITS]) -> GBufferPixel {
+        let f = |i: usize| f64::from_bits(b[i]);
+        let v3 = |i: usize| [f(i), f(i + 1), f(i + 2)];
+        GBufferPixel {
+            weight_sum: f(0),
+            surface_weight_sum: f(1),
+            p: v3(2),
+            n: v3(5),
+            ns: v3(8),
+            dzdx: f(11),
+            dzdy: f(12),
+            uv: [f(13), f(14)],
+            albedo: v3(15),
+            count: b[18],
+            mean: v3(19),
+            m2: v3(22),
+        }
+    }
+
     /// The pixel's channel values, in `layout`'s order, as pbrt-v4 writes them: albedo over
     /// every sample's weight; position, uv and depth derivatives (their magnitudes) over the
     /// weight of the samples that saw a surface; normals normalised; variance and relative

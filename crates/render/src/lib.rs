@@ -45,13 +45,16 @@ pub mod scene;
 pub mod sensor;
 pub mod shapes;
 pub mod shared;
+pub mod sums;
 pub mod textures;
 pub mod tile;
 pub mod work;
 
 pub use integrators::{Integrator, PathSettings};
 pub use scene::{BuildError, MediaPolicy, Scene};
+pub use sums::{SumsError, TileSums};
 pub use tile::{
-    RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names, progress_units,
-    render_pixel, render_tile, render_tile_until, render_tiles, split_into_tiles,
+    PassError, RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names,
+    progress_units, render_pixel, render_tile, render_tile_pass, render_tile_until, render_tiles,
+    split_into_tiles,
 };

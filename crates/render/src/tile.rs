@@ -2,7 +2,7 @@
 //! that `kiln render` and the farm's workers both call, and the [`Renderer`] it renders
 //! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
-use crate::gbuffer::{GBufferLayout, GBufferPixel, VisibleSurface};
+use crate::gbuffer::{GBufferLayout, VisibleSurface};
 use crate::integrators::photons::Gather;
 use crate::integrators::sppm::PassCache;
 use crate::integrators::{Integrator, Prepass};
@@ -10,6 +10,7 @@ use crate::math::Color;
 use crate::sampling::PixelSampler;
 use crate::scene::{BuildError, MediaPolicy, Scene};
 use crate::shared::SharedPrepass;
+use crate::sums::{PixelSums, TileSums};
 use crate::work::Work;
 use glam::Vec2;
 use rayon::prelude::*;
@@ -267,38 +268,111 @@ pub fn render_tile_until(
     if let Integrator::Sppm(sppm) = &renderer.settings.integrator {
         return render_sppm(renderer, sppm, &[rect], stop, &|| {}, true)?.pop();
     }
+    let from = TileSums::empty(rect, renderer.settings.gbuffer.is_some());
+    let to = renderer.settings.samples_per_pixel;
+    continue_tile(renderer, &from, to, stop).map(|(result, _)| result)
+}
+
+/// Why a tile cannot be rendered as a pass.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PassError {
+    #[error("SPPM renders in one pass: its photon radius shrinks over all its iterations together")]
+    Sppm,
+    #[error("a pass must end past the {from} samples its tile holds, not at {to}")]
+    Backwards { from: u32, to: u32 },
+    #[error("the running sums are of another tile or another film")]
+    Mismatch,
+}
+
+/// Continues a tile's running sums `from` (of the same rect, as the renderer's film keeps
+/// them) up to `to` samples of each pixel: a pass of a progressive render. The result's
+/// pixels are the same bytes as [`render_tile`]'s with `to` samples per pixel, whatever
+/// passes led here, because each pixel's sums go on in sample order exactly where they
+/// stopped. (The renderer's own sample count only sets the texture filter's footprint,
+/// which [`RenderSettings::footprint`] keeps constant from 64 samples up.) None if `stop`
+/// said yes.
+pub fn render_tile_pass(
+    renderer: &Renderer,
+    from: &TileSums,
+    to: u32,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Result<Option<(TileResult, TileSums)>, PassError> {
+    if let Integrator::Sppm(_) = &renderer.settings.integrator {
+        return Err(PassError::Sppm);
+    }
+    if to <= from.samples {
+        return Err(PassError::Backwards {
+            from: from.samples,
+            to,
+        });
+    }
+    if from.gbuffer != renderer.settings.gbuffer.is_some()
+        || from.pixels.len() as u64 != from.rect.pixel_count()
+    {
+        return Err(PassError::Mismatch);
+    }
+    Ok(continue_tile(renderer, from, to, stop))
+}
+
+/// Each pixel of `from.rect` from its sums in `from` on to `to` samples.
+fn continue_tile(
+    renderer: &Renderer,
+    from: &TileSums,
+    to: u32,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(TileResult, TileSums)> {
+    let rect = from.rect;
     let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
     let channels = layout.as_ref().map_or(0, |l| l.channels());
-    type Row = (Vec<[f32; 3]>, Vec<f32>, TileStats);
-    let rows: Option<Vec<Row>> = (rect.y0..rect.y0 + rect.height)
+    let want = layout.as_ref().map(|l| l.space);
+    let width = rect.width as usize;
+    type Row = (Vec<[f32; 3]>, Vec<f32>, Vec<PixelSums>, TileStats);
+    let rows: Option<Vec<Row>> = (0..rect.height as usize)
         .into_par_iter()
-        .map(|y| {
+        .map(|row| {
+            let y = rect.y0 + row as u32;
             let mut stats = TileStats::default();
-            let mut aovs = vec![0.0f32; channels * rect.width as usize];
-            let row = (rect.x0..rect.x0 + rect.width)
-                .map(|x| {
-                    let i = (x - rect.x0) as usize * channels;
-                    let out = layout.as_ref().map(|l| (l, &mut aovs[i..i + channels]));
-                    (!stop()).then(|| render_pixel_with(renderer, x, y, &mut stats, out))
-                })
-                .collect::<Option<Vec<_>>>()?;
-            Some((row, aovs, stats))
+            let mut aovs = vec![0.0f32; channels * width];
+            let mut sums = from.pixels[row * width..(row + 1) * width].to_vec();
+            let mut pixels = Vec::with_capacity(width);
+            for (i, p) in sums.iter_mut().enumerate() {
+                if stop() {
+                    return None;
+                }
+                let x = rect.x0 + i as u32;
+                add_samples(renderer, x, y, from.samples..to, want, &mut stats, p);
+                if let Some(l) = &layout {
+                    p.gbuffer
+                        .finish(l, &mut aovs[i * channels..(i + 1) * channels]);
+                }
+                pixels.push(p.value());
+            }
+            Some((pixels, aovs, sums, stats))
         })
         .collect();
     let mut pixels = Vec::with_capacity(rect.pixel_count() as usize);
     let mut aovs = Vec::with_capacity(rect.pixel_count() as usize * channels);
+    let mut sums = Vec::with_capacity(rect.pixel_count() as usize);
     let mut stats = TileStats::default();
-    for (row, row_aovs, s) in rows? {
+    for (row, row_aovs, row_sums, s) in rows? {
         pixels.extend(row);
         aovs.extend(row_aovs);
+        sums.extend(row_sums);
         stats.merge(&s);
     }
-    Some(TileResult {
+    let result = TileResult {
         rect,
         pixels,
         aovs,
         stats,
-    })
+    };
+    let sums = TileSums {
+        rect,
+        samples: to,
+        gbuffer: from.gbuffer,
+        pixels: sums,
+    };
+    Some((result, sums))
 }
 
 /// Renders `rects` (each as [`render_tile`] would) and calls `progress` after each unit of
@@ -488,27 +562,37 @@ fn render_pixel_with(
     stats: &mut TileStats,
     gbuffer: Option<(&GBufferLayout, &mut [f32])>,
 ) -> [f32; 3] {
-    let mut sum = [0.0f64; 3];
-    let mut weight_sum = 0.0f64;
-    let mut g = GBufferPixel::default();
+    let mut p = PixelSums::default();
+    let samples = 0..renderer.settings.samples_per_pixel;
     let want = gbuffer.as_ref().map(|(l, _)| l.space);
-    for s in 0..renderer.settings.samples_per_pixel {
+    add_samples(renderer, x, y, samples, want, stats, &mut p);
+    if let Some((layout, out)) = gbuffer {
+        p.gbuffer.finish(layout, out);
+    }
+    p.value()
+}
+
+/// Adds the pixel's `samples`, in sample order, to its running sums: the one way every
+/// pixel is accumulated, in one go or in passes.
+fn add_samples(
+    renderer: &Renderer,
+    x: u32,
+    y: u32,
+    samples: std::ops::Range<u32>,
+    want: Option<kiln_scene::GBufferSpace>,
+    stats: &mut TileStats,
+    p: &mut PixelSums,
+) {
+    for s in samples {
         let (l, w, seen) = render_sample_seeing(renderer, x, y, s, stats, want);
         for c in 0..3 {
-            sum[c] += (l[c] * w) as f64;
+            p.sum[c] += (l[c] * w) as f64;
         }
-        weight_sum += w as f64;
+        p.weight += w as f64;
         if want.is_some() {
-            g.add(l, w, seen.as_ref());
+            p.gbuffer.add(l, w, seen.as_ref());
         }
     }
-    if let Some((layout, out)) = gbuffer {
-        g.finish(layout, out);
-    }
-    if weight_sum == 0.0 {
-        return [0.0; 3];
-    }
-    sum.map(|v| (v / weight_sum) as f32)
 }
 
 /// The sampler dimension a camera sample's time comes from: far from the path's own.
