@@ -99,6 +99,7 @@ fn scale(workers: usize) {
         resolution: None,
         tile: 16,
         seed: None,
+        passes: None,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let total = rt.block_on(client.status(id)).unwrap().tiles_total;

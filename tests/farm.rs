@@ -330,6 +330,7 @@ fn new_job(
         resolution,
         tile,
         seed: None,
+        passes: None,
     };
     rt.block_on(client.create_job(&spec, None)).unwrap()
 }
@@ -500,6 +501,7 @@ fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
                 resolution: None,
                 tile: 8,
                 seed: None,
+                passes: None,
             },
             None,
         ))
@@ -566,6 +568,7 @@ fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
         resolution: None,
         tile: 8,
         seed: None,
+        passes: None,
     };
     let a = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
     let b = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
@@ -711,6 +714,7 @@ fn a_medium_too_dense_to_track_fails_its_job_with_the_reason() {
         resolution: None,
         tile: 8,
         seed: None,
+        passes: None,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let _worker = start_worker(
@@ -941,5 +945,123 @@ fn kiln_health_tells_a_live_coordinator_from_none() {
     assert!(
         err.contains("is not healthy") && err.contains(&closed),
         "{err}"
+    );
+}
+
+/// Progressive passes through real workers: whatever the schedule, tile size and worker
+/// count, the frame after the last pass is `kiln render`'s at that many samples, byte for
+/// byte (G-buffer channels too): each tile's pass continues the running sums the last
+/// one uploaded, downloaded by whichever worker renders it.
+#[test]
+fn the_farm_in_passes_gives_the_bytes_of_kiln_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene("materials/scene.pbrt");
+    let base = ["--resolution", "48x32", "--threads-per-worker", "1"];
+    let direct = render(
+        &path,
+        dir.path(),
+        "direct",
+        &["--spp", "6", "--resolution", "48x32", "--tile", "16"],
+    )
+    .bytes;
+    for (passes, tile, workers) in [("1,3,6", "11", "2"), ("2,6", "7", "1"), ("6", "16", "2")] {
+        let mut args = base.to_vec();
+        args.extend(["--passes", passes, "--tile", tile, "--workers", workers]);
+        let merged = farm(&path, dir.path(), &format!("p{tile}"), &args);
+        assert!(
+            merged == direct,
+            "passes {passes}, tiles of {tile}, {workers} workers: not kiln render's bytes"
+        );
+    }
+    let gb = crate::util::write_scene(dir.path(), "gb.pbrt", crate::gbuffer::SCENE);
+    let direct = render(
+        &gb,
+        dir.path(),
+        "gb-direct",
+        &["--spp", "4", "--resolution", "24x16"],
+    );
+    let merged = farm(
+        &gb,
+        dir.path(),
+        "gb-farm",
+        &[
+            "--passes",
+            "1,4",
+            "--tile",
+            "9",
+            "--resolution",
+            "24x16",
+            "--workers",
+            "2",
+        ],
+    );
+    assert!(merged == direct.bytes, "the G-buffer in passes differs");
+}
+
+/// A job stopped after a pass ends with that pass's whole frame, `kiln render`'s at its
+/// samples; extended, it renders on from there to `kiln render`'s at the new count, the
+/// workers continuing the sums the coordinator kept.
+#[test]
+fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), None);
+    let client = Client::new(&url, None);
+    let bundle = kiln_farm::bundle::pack(&scene("textures/scene.pbrt")).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = JobSpec {
+        scene: digest,
+        spp: None,
+        resolution: Some((24, 16)),
+        tile: 8,
+        seed: None,
+        passes: Some(vec![64, 72, 80, 88, 96]),
+    };
+    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+    let _worker = start_worker(
+        &url,
+        "p",
+        &dir.path().join("cache"),
+        &dir.path().join("p.log"),
+    );
+    // Stop as soon as the first pass is merged.
+    let start = Instant::now();
+    while rt.block_on(client.status(id)).unwrap().passes_done == 0 {
+        assert!(start.elapsed() < Duration::from_secs(120), "no pass merged");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    rt.block_on(client.stop_after_pass(id)).unwrap();
+    let s = wait_done(&rt, &client, id, Duration::from_secs(120));
+    assert_eq!(s.state, JobState::Done);
+    let stopped = s.samples_per_pixel_done;
+    assert!(
+        stopped < 96,
+        "the job ran on to {stopped} samples after its stop"
+    );
+    assert_eq!(s.passes.last(), Some(&stopped));
+    let render_at = |spp: u32| {
+        let args = ["--spp", &spp.to_string(), "--resolution", "24x16"].map(String::from);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        render(
+            &scene("textures/scene.pbrt"),
+            dir.path(),
+            &format!("d{spp}"),
+            &args,
+        )
+        .bytes
+    };
+    let result = rt.block_on(client.result(id)).unwrap();
+    assert!(
+        result == render_at(stopped),
+        "stopped at {stopped}: not kiln render's bytes"
+    );
+    let s = rt.block_on(client.extend(id, &[stopped + 8, 104])).unwrap();
+    assert_eq!(s.state, JobState::Running);
+    let s = wait_done(&rt, &client, id, Duration::from_secs(120));
+    assert_eq!((s.state, s.samples_per_pixel_done), (JobState::Done, 104));
+    let result = rt.block_on(client.result(id)).unwrap();
+    assert!(
+        result == render_at(104),
+        "extended to 104: not kiln render's bytes"
     );
 }

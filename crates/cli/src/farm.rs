@@ -158,6 +158,11 @@ pub struct JobArgs {
     /// Sampler seed (default: the scene's).
     #[arg(long)]
     seed: Option<u32>,
+    /// Progressive passes: cumulative samples per pixel at the end of each, comma
+    /// separated (e.g. 16,64,256); the whole frame is merged after each, and the last is
+    /// the job's samples per pixel.
+    #[arg(long, value_delimiter = ',')]
+    passes: Option<Vec<u32>>,
 }
 
 #[derive(clap::Args)]
@@ -189,6 +194,7 @@ async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> 
         resolution: job.resolution,
         tile: job.tile,
         seed: job.seed,
+        passes: job.passes.clone(),
     };
     // The same scene and settings submitted twice (a retry) make one job.
     let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);
@@ -216,6 +222,7 @@ async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: boo
             .expect("the template is valid")
             .progress_chars("=> "),
     );
+    let mut written = 0;
     loop {
         let s = client.status(id).await?;
         bar.set_position((s.progress * 1000.0) as u64);
@@ -223,12 +230,28 @@ async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: boo
             .eta_seconds
             .map(|e| format!(", {e:.0} s left"))
             .unwrap_or_default();
+        let passes = if s.passes.len() > 1 {
+            format!(
+                ", pass {}/{} merged ({} spp)",
+                s.passes_done,
+                s.passes.len(),
+                s.samples_per_pixel_done
+            )
+        } else {
+            String::new()
+        };
         bar.set_message(format!(
-            "{}/{} tiles, {:.2} M samples/s{eta}",
+            "{}/{} tiles, {:.2} M samples/s{passes}{eta}",
             s.tiles_done,
             s.tiles_total,
             s.samples_per_second / 1e6
         ));
+        // Each merged pass is written as it lands, so the file is always a whole frame.
+        if s.state == JobState::Running && s.passes_done > written {
+            written = s.passes_done;
+            let bytes = client.result(id).await?;
+            write_replacing(output, &bytes)?;
+        }
         match s.state {
             JobState::Running => tokio::time::sleep(Duration::from_millis(200)).await,
             JobState::Done => break,
@@ -238,8 +261,59 @@ async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: boo
     }
     bar.finish_and_clear();
     let bytes = client.result(id).await?;
-    std::fs::write(output, bytes).with_context(|| format!("cannot write {}", output.display()))?;
-    Ok(())
+    write_replacing(output, &bytes)
+}
+
+/// Writes `bytes` to `path` through a temporary file renamed over it: a reader sees the old
+/// file or the new one, never half of one.
+fn write_replacing(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("partial");
+    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// What `kiln job` does to a job.
+#[derive(clap::Subcommand)]
+pub enum JobAction {
+    /// Print the job's status as JSON.
+    Status,
+    /// End the job after the pass in progress: its result is that pass's whole frame.
+    Stop,
+    /// Add passes after the job's last (a done job renders on from the samples it has).
+    Extend {
+        /// Cumulative samples per pixel at the end of each new pass, comma separated.
+        #[arg(long, value_delimiter = ',', required = true)]
+        passes: Vec<u32>,
+    },
+    /// Cancel the job.
+    Cancel,
+}
+
+#[derive(clap::Args)]
+pub struct JobCommandArgs {
+    /// The job's id.
+    id: u64,
+    #[command(subcommand)]
+    action: JobAction,
+    #[arg(long, default_value = "http://127.0.0.1:7878")]
+    coordinator: String,
+    #[arg(long, env = "KILN_TOKEN")]
+    token: Option<String>,
+}
+
+pub fn job(args: JobCommandArgs) -> Result<()> {
+    let rt = runtime()?;
+    rt.block_on(async {
+        let client = Client::new(&args.coordinator, args.token.clone());
+        let status = match &args.action {
+            JobAction::Status => client.status(args.id).await?,
+            JobAction::Stop => client.stop_after_pass(args.id).await?,
+            JobAction::Extend { passes } => client.extend(args.id, passes).await?,
+            JobAction::Cancel => client.cancel(args.id).await?,
+        };
+        println!("{}", serde_json::to_string_pretty(&status)?);
+        Ok(())
+    })
 }
 
 pub fn submit(args: SubmitArgs) -> Result<()> {

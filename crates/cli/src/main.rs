@@ -32,6 +32,9 @@ enum Command {
     Worker(farm::WorkerArgs),
     /// Upload a scene to a coordinator and create a job.
     Submit(farm::SubmitArgs),
+    /// Follow or change a job on a coordinator: status, stop after the pass in progress,
+    /// extend with more passes, cancel.
+    Job(farm::JobCommandArgs),
     /// Check that a coordinator answers (exit status 0), for container health checks.
     Health(farm::HealthArgs),
 }
@@ -51,6 +54,7 @@ fn main() -> ExitCode {
         Command::Worker(args) => farm::worker(args),
         Command::Submit(args) => farm::submit(args),
         Command::Health(args) => farm::health(args),
+        Command::Job(args) => farm::job(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

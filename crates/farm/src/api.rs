@@ -15,6 +15,13 @@ pub struct JobSpec {
     pub tile: u32,
     #[serde(default)]
     pub seed: Option<u32>,
+    /// Progressive passes: cumulative samples per pixel at the end of each pass, ascending
+    /// (for example 16, 64, 256, 1024, 2048). After each pass the whole frame is merged and
+    /// can be downloaded; the job can be stopped after any pass and extended later. The
+    /// last is the job's samples per pixel (`spp`, if given, must equal it). Absent: one
+    /// pass of `spp` (or the scene's count).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub passes: Option<Vec<u32>>,
 }
 
 fn default_tile() -> u32 {
@@ -22,13 +29,35 @@ fn default_tile() -> u32 {
 }
 
 impl JobSpec {
+    /// What the job changes in its scene: the samples per pixel are the last pass's when
+    /// passes are given.
     pub fn overrides(&self) -> kiln_scene::Overrides {
         kiln_scene::Overrides {
             resolution: self.resolution,
-            spp: self.spp,
+            spp: self
+                .spp
+                .or_else(|| self.passes.as_ref().and_then(|p| p.last().copied())),
             seed: self.seed,
         }
     }
+}
+
+/// The samples a lease renders: each pixel of its tile from `from` samples (the running
+/// sums the tile holds after its previous pass, downloaded from
+/// `/v1/leases/{id}/sums`; none when 0) on to `to`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PassRange {
+    /// The pass's index in the job's schedule.
+    pub index: u32,
+    pub from: u32,
+    pub to: u32,
+}
+
+/// A job's passes extended to more samples (POST /v1/jobs/{id}/extend).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Extend {
+    /// Further cumulative sample counts, ascending, each above the job's last.
+    pub passes: Vec<u32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -86,6 +115,15 @@ pub struct JobStatus {
     /// Seconds spent writing the merged EXR when the last tile arrived.
     #[serde(default)]
     pub merge_seconds: Option<f64>,
+    /// The job's passes (cumulative samples per pixel) and how many are merged: the
+    /// result holds `samples_per_pixel_done` samples of every pixel (0 before the first
+    /// pass is merged).
+    #[serde(default)]
+    pub passes: Vec<u32>,
+    #[serde(default)]
+    pub passes_done: u32,
+    #[serde(default)]
+    pub samples_per_pixel_done: u32,
 }
 
 /// A tile's pixels in frame coordinates: the wire form of [`kiln_render::TileRect`].
@@ -139,6 +177,7 @@ pub struct Lease {
     pub spec: JobSpec,
     pub tile_index: u32,
     pub tile: Rect,
+    pub pass: PassRange,
     /// Milliseconds the lease lasts without a heartbeat.
     pub ttl_ms: u64,
 }

@@ -111,6 +111,43 @@ impl Client {
         Ok(r.json().await?)
     }
 
+    /// Ends a job after the pass in progress: its result is that pass's whole frame.
+    pub async fn stop_after_pass(&self, job: u64) -> Result<JobStatus> {
+        let r = self
+            .send(self.req(Method::POST, &format!("/v1/jobs/{job}/stop")))
+            .await?;
+        Ok(r.json().await?)
+    }
+
+    /// Adds passes (cumulative samples per pixel) after a job's last.
+    pub async fn extend(&self, job: u64, passes: &[u32]) -> Result<JobStatus> {
+        let body = Extend {
+            passes: passes.to_vec(),
+        };
+        let r = self
+            .send(
+                self.req(Method::POST, &format!("/v1/jobs/{job}/extend"))
+                    .json(&body),
+            )
+            .await?;
+        Ok(r.json().await?)
+    }
+
+    /// The tile EXR a lease's pass continues from; None if its bytes are not those the
+    /// coordinator's digest header gives (damaged on the way).
+    pub async fn lease_sums(&self, lease: u64) -> Result<Option<Vec<u8>>> {
+        let r = self
+            .send(self.req(Method::GET, &format!("/v1/leases/{lease}/sums")))
+            .await?;
+        let sha = r
+            .headers()
+            .get(TILE_DIGEST_HEADER)
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_ascii_lowercase);
+        let bytes = r.bytes().await?.to_vec();
+        Ok((sha.as_deref() == Some(crate::bundle::digest_of(&bytes).as_str())).then_some(bytes))
+    }
+
     pub async fn status(&self, job: u64) -> Result<JobStatus> {
         Ok(self
             .send(self.req(Method::GET, &format!("/v1/jobs/{job}")))

@@ -4,7 +4,7 @@ use crate::api::{JobSpec, Lease, PrepassClaim};
 use crate::bundle;
 use crate::client::{Client, ClientError};
 use kiln_render::shared::{Shared, SharedPrepass};
-use kiln_render::{Renderer, TileRect, render_tile_until};
+use kiln_render::{Integrator, Renderer, TileRect, TileSums, render_tile_pass, render_tile_until};
 use reqwest::StatusCode;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -210,7 +210,9 @@ impl Scenes {
         config: &WorkerConfig,
         spec: &JobSpec,
     ) -> Result<Arc<Loaded>, LoadError> {
-        let key = serde_json::to_string(spec).unwrap_or_default();
+        // What the renderer is built from: a job's passes (stopped early, extended) do not
+        // change it.
+        let key = format!("{} {:?} {:?}", spec.scene, spec.overrides(), spec.tile);
         let loaded = match self.0.get(&key) {
             Some(l) => l.clone(),
             None => Arc::new(load(client, config, spec).await?),
@@ -377,17 +379,41 @@ async fn render_and_upload(
     // job was cancelled or has ended, the lease expired) stops the render between pixels.
     let (beat, lost) = keep_alive(client, lease);
     let rect = TileRect::from(lease.tile);
+    let from = match previous_sums(client, loaded, lease).await {
+        Ok(sums) => sums,
+        Err(why) => {
+            beat.abort();
+            let _ = client.fail(lease.lease, &why).await;
+            return Ok(Outcome::Failed(why));
+        }
+    };
+    let to = lease.pass.to;
     let (pool, loaded2, lost2, stop2) = (pool.clone(), loaded.clone(), lost.clone(), stop.clone());
     let exr = tokio::task::spawn_blocking(move || {
         let halt = || lost2.load(Ordering::Relaxed) || stop2.now.load(Ordering::Relaxed);
-        let Some(result) = pool.install(|| render_tile_until(&loaded2.renderer, rect, &halt))
-        else {
+        let renderer = &loaded2.renderer;
+        let rendered = match &from {
+            Some(from) => pool
+                .install(|| render_tile_pass(renderer, from, to, &halt))
+                .map_err(|e| e.to_string())?,
+            // SPPM: one pass, no sums.
+            None => pool
+                .install(|| render_tile_until(renderer, rect, &halt))
+                .map(|r| (r, TileSums::empty(rect, false))),
+        };
+        let Some((result, sums)) = rendered else {
             return Ok(None);
         };
         if let Some(why) = result.stats.cut_off_error() {
             return Err(why);
         }
-        let buffer = crate::tile_image(result, loaded2.frame, loaded2.renderer.settings());
+        let mut buffer = crate::tile_image(result, loaded2.frame, renderer.settings());
+        if from.is_some() {
+            buffer.words = kiln_image::Words {
+                names: TileSums::word_names(sums.gbuffer),
+                values: sums.to_words(),
+            };
+        }
         kiln_image::encode_exr(&buffer)
             .map(Some)
             .map_err(|e| e.to_string())
@@ -415,6 +441,45 @@ async fn render_and_upload(
     };
     client.upload_tile(lease.lease, exr).await?;
     Ok(Outcome::Uploaded)
+}
+
+/// The running sums a lease's pass continues: none for SPPM (one pass, no sums), empty for
+/// a first pass, else the tile's EXR after its previous pass, downloaded and checked.
+async fn previous_sums(
+    client: &Client,
+    loaded: &Loaded,
+    lease: &Lease,
+) -> Result<Option<TileSums>, String> {
+    let settings = loaded.renderer.settings();
+    let rect = TileRect::from(lease.tile);
+    if let Integrator::Sppm(_) = settings.integrator {
+        return Ok(None);
+    }
+    let gbuffer = settings.gbuffer.is_some();
+    let from = lease.pass.from;
+    if from == 0 {
+        return Ok(Some(TileSums::empty(rect, gbuffer)));
+    }
+    let bytes = client
+        .lease_sums(lease.lease)
+        .await
+        .map_err(|e| format!("cannot download the tile's running sums: {e}"))?
+        .ok_or("the tile's running sums were damaged on the way")?;
+    let tile = kiln_image::decode_exr_limited(&bytes, rect.pixel_count())
+        .map_err(|e| format!("the tile's running sums do not decode: {e}"))?;
+    let place = (tile.x0, tile.y0, tile.width, tile.height);
+    if place != (rect.x0, rect.y0, rect.width, rect.height) {
+        return Err("the running sums downloaded are of another tile".into());
+    }
+    let sums = TileSums::from_words(rect, gbuffer, &tile.words.names, &tile.words.values)
+        .map_err(|e| e.to_string())?;
+    if sums.samples != from {
+        return Err(format!(
+            "the tile's running sums hold {} samples, not the {from} its pass starts from",
+            sums.samples
+        ));
+    }
+    Ok(Some(sums))
 }
 
 #[cfg(test)]

@@ -56,5 +56,5 @@ pub use sums::{SumsError, TileSums};
 pub use tile::{
     PassError, RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names,
     progress_units, render_pixel, render_tile, render_tile_pass, render_tile_until, render_tiles,
-    split_into_tiles,
+    split_into_tiles, texture_footprint,
 };

@@ -71,7 +71,7 @@ impl RenderSettings {
     /// The scale of a pixel's footprint for texture filtering: with many samples per pixel
     /// each filters over less than a pixel, as pbrt-v4 does (1/sqrt(spp), at least 1/8).
     pub fn footprint(&self) -> f32 {
-        (1.0 / (self.samples_per_pixel.max(1) as f32).sqrt()).max(0.125)
+        texture_footprint(self.samples_per_pixel)
     }
 
     /// Settings as the scene file gives them.
@@ -91,6 +91,13 @@ impl RenderSettings {
             gbuffer: desc.film.gbuffer,
         }
     }
+}
+
+/// The texture filter's footprint, in pixels, for a render of `spp` samples per pixel
+/// ([`RenderSettings::footprint`]): the same for every count from 64 up, so a render of 64
+/// or more samples can be extended to more with the same samples.
+pub fn texture_footprint(spp: u32) -> f32 {
+    (1.0 / (spp.max(1) as f32).sqrt()).max(0.125)
 }
 
 /// Everything a tile is rendered from: the scene, the settings, and what the integrator

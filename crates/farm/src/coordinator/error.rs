@@ -55,6 +55,13 @@ pub enum Error {
     Relent(u64),
     #[error("job {0} is no longer running")]
     JobEnded(u64),
+    /// A job that cannot be stopped or extended as asked.
+    #[error("job {id}: {why}")]
+    Passes { id: u64, why: PlanError },
+    #[error("lease {0}'s pass starts from nothing: there are no running sums to download")]
+    NoSums(u64),
+    #[error("job {0} has no merged pass yet")]
+    NoResult(u64),
     #[error("the upload is larger than the {limit} bytes this coordinator accepts")]
     TooLarge { limit: usize },
     #[error("the upload broke off: {0}")]
@@ -122,6 +129,9 @@ pub enum PlanError {
     /// Overrides the scene cannot take (a resolution out of range, ...).
     #[error("{0}")]
     Overrides(String),
+    /// A pass schedule that cannot be rendered, or extended as asked.
+    #[error("passes: {0}")]
+    Passes(String),
 }
 
 /// Why an uploaded tile was refused (the attempt counts as failed).
@@ -138,4 +148,8 @@ pub enum TileRejected {
     NonFinite,
     #[error("the tile's bytes do not have the SHA-256 its upload gives (damaged on the way)")]
     Digest,
+    #[error("{0}")]
+    Sums(kiln_render::SumsError),
+    #[error("the tile's running sums hold {found} samples, not the {expected} of its pass")]
+    SumsSamples { found: u32, expected: u32 },
 }

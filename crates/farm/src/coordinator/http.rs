@@ -43,6 +43,8 @@ pub fn app(c: Coordinator) -> Router {
         .route("/v1/jobs/{id}/result.exr", get(job_result))
         .route("/v1/jobs/{id}/preview.png", get(job_preview))
         .route("/v1/jobs/{id}/cancel", post(cancel_job))
+        .route("/v1/jobs/{id}/stop", post(stop_job))
+        .route("/v1/jobs/{id}/extend", post(extend_job))
         .route("/v1/leases", post(lease))
         .route("/v1/leases/{id}/heartbeat", post(heartbeat))
         .route(
@@ -50,6 +52,7 @@ pub fn app(c: Coordinator) -> Router {
             put(upload_tile).layer(DefaultBodyLimit::max(max_tile)),
         )
         .route("/v1/leases/{id}/fail", post(fail_lease))
+        .route("/v1/leases/{id}/sums", get(lease_sums))
         .route("/v1/openapi.json", get(openapi))
         .route("/metrics", get(metrics))
         .route_layer(middleware::from_fn_with_state(c.clone(), require_token));
@@ -101,7 +104,8 @@ impl Error {
             Error::NoRoute
             | Error::UnknownScene(_)
             | Error::UnknownJob(_)
-            | Error::UnknownPrepass(_) => StatusCode::NOT_FOUND,
+            | Error::UnknownPrepass(_)
+            | Error::NoSums(_) => StatusCode::NOT_FOUND,
             Error::BadId(_)
             | Error::BadBody(_)
             | Error::BadJob(_)
@@ -114,6 +118,8 @@ impl Error {
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
             Error::Unplannable(_) => StatusCode::UNPROCESSABLE_ENTITY,
             Error::NotDone { .. }
+            | Error::NoResult(_)
+            | Error::Passes { .. }
             | Error::UnknownLease(_)
             | Error::StaleTile(_)
             | Error::Relent(_) => StatusCode::CONFLICT,
@@ -340,6 +346,43 @@ async fn cancel_job(
 ) -> Result<Json<JobStatus>, Error> {
     let id = parse_id(&id)?;
     c.cancel(id).map(Json)
+}
+
+/// Ends a job after the pass in progress (POST /v1/jobs/{id}/stop).
+async fn stop_job(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Json<JobStatus>, Error> {
+    let id = parse_id(&id)?;
+    c.stop_after_pass(id).map(Json)
+}
+
+async fn extend_job(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+    body: Bytes,
+) -> Result<Json<JobStatus>, Error> {
+    let id = parse_id(&id)?;
+    let e: Extend = parse_json(&body)?;
+    c.extend(id, &e.passes).map(Json)
+}
+
+/// The tile EXR a lease's pass continues from, with its SHA-256.
+async fn lease_sums(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Response, Error> {
+    let id = parse_id(&id)?;
+    let bytes = c.sums_for(id)?;
+    let sha = crate::bundle::digest_of(&bytes);
+    Ok((
+        [
+            (header::CONTENT_TYPE, "image/x-exr".to_string()),
+            (header::HeaderName::from_static(TILE_DIGEST_HEADER), sha),
+        ],
+        bytes,
+    )
+        .into_response())
 }
 
 async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Error> {

@@ -1,27 +1,30 @@
-//! One job in memory: its tiles and what became of each (pending, lent, done), the queue of
-//! tiles to lend next, attempts and failures, the frame the finished tiles are pasted into,
-//! and the progress it reports.
+//! One job in memory: its tiles and passes, what became of each tile (how many passes it
+//! has done, which lease renders its next), the queue of tiles to lend next, attempts and
+//! failures, the frames the finished tiles are pasted into, and the progress it reports.
+//!
+//! A job renders its frame in passes (cumulative samples per pixel, one pass by default).
+//! A tile's pass continues the running sums its previous pass left (carried in the tile's
+//! EXR as integer channels), so each pixel after N samples is the same bytes as
+//! `kiln render --spp N`. Tiles run at most one pass ahead of the slowest: every tile's
+//! pass p is lent before any tile's pass p + 2. When the last tile of a pass comes back
+//! the whole frame at that pass is complete and is merged.
 //!
 //! Bookkeeping only: it reads the scene once to plan the tiles, and otherwise must never do
 //! I/O, touch the store or the leases, or read a clock (callers pass `now`).
 
 use super::MAX_TILE_ATTEMPTS;
 use super::error::{PlanError, TileRejected};
-use crate::api::{JobSpec, JobState, JobStatus, Rect};
+use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
 use crate::bundle;
 use kiln_image::{RgbBuffer, Windows};
-use kiln_render::{TileRect, split_into_tiles};
-use std::collections::VecDeque;
+use kiln_render::{TileRect, TileSums, split_into_tiles};
+use std::collections::{BTreeMap, VecDeque};
 use std::path::Path;
 use std::sync::Arc;
 use tokio::time::Instant;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum TileState {
-    Pending,
-    Leased(u64),
-    Done,
-}
+/// The most passes a job may have.
+pub const MAX_PASSES: usize = 64;
 
 pub(super) struct Job {
     pub id: u64,
@@ -29,25 +32,52 @@ pub(super) struct Job {
     pub state: JobState,
     pub error: Option<String>,
     pub tiles: Vec<TileRect>,
-    tile_state: Vec<TileState>,
-    /// Tiles to lend next, in order; a tile may appear here after it stopped being
-    /// pending (lending checks), so lending never scans the whole job.
+    /// Cumulative samples per pixel at the end of each pass, ascending.
+    passes: Vec<u32>,
+    /// Whether tiles carry running sums (every integrator but SPPM), and whether those hold
+    /// G-buffer sums: `Some(gbuffer)`, or None for SPPM.
+    sums: Option<bool>,
+    /// Per tile: how many passes it has done.
+    done: Vec<u32>,
+    /// Per tile: the lease rendering its next pass.
+    lent: Vec<Option<u64>>,
+    /// Tiles whose next pass may be lent, in order; a tile may sit here after it stopped
+    /// being lendable (lending checks), so lending never scans the whole job.
     queue: VecDeque<usize>,
+    /// Tiles two passes ahead of the slowest, waiting for it.
+    parked: Vec<usize>,
+    /// Failed attempts at each tile's current pass.
     attempts: Vec<u32>,
     failures: u32,
-    done: u32,
-    /// The finished tiles pasted together. Shared, so a merge or a preview can read it
-    /// after the lock is released (a paste during a preview copies it first).
-    pub frame: Arc<RgbBuffer>,
-    spp: u32,
+    /// The last pass whose every tile is done, and its frame.
+    complete: Option<(u32, Arc<RgbBuffer>)>,
+    /// Frames of passes some tiles have finished, by pass, with how many tiles each holds.
+    /// Each starts as a copy of the newest frame there was, so it is always a whole
+    /// picture. Shared, so a merge or a preview reads it after the lock is released.
+    building: BTreeMap<u32, (Arc<RgbBuffer>, usize)>,
+    /// A black frame with the job's channels: the first pass's starting picture.
+    black: Arc<RgbBuffer>,
+    /// Passes merged into the result file.
+    written: u32,
     started: Instant,
     samples_at_start: u64,
     pub merge_seconds: Option<f64>,
 }
 
+/// What a tile's upload did to its job.
+#[derive(Debug)]
+pub(super) enum Landed {
+    /// It was a pass the job already had (a repeated upload): nothing changed.
+    Nothing,
+    /// The tile moved on by a pass.
+    Tile,
+    /// It was the last tile of pass `pass`: the frame at that pass is complete.
+    Pass { pass: u32, frame: Arc<RgbBuffer> },
+}
+
 impl Job {
-    /// Loads the job's scene (unpacked under `scenes`) to learn its frame and tiles. Parser
-    /// errors name files relative to the bundle, not the data directory.
+    /// Loads the job's scene (unpacked under `scenes`) to learn its frame, tiles and passes.
+    /// Parser errors name files relative to the bundle, not the data directory.
     pub fn plan(
         scenes: &Path,
         id: u64,
@@ -68,6 +98,16 @@ impl Job {
             .map_err(PlanError::Overrides)?;
         desc.check_frame_size(max_frame_pixels)
             .map_err(PlanError::Overrides)?;
+        let spp = desc.sampler.pixel_samples;
+        let passes = spec.passes.clone().unwrap_or_else(|| vec![spp]);
+        check_passes(&passes, 0)?;
+        let sppm = desc.integrator.kind == kiln_scene::IntegratorKind::Sppm;
+        if sppm && passes.len() > 1 {
+            return Err(PlanError::Passes(
+                "SPPM renders in one pass (its photon radius shrinks over all its iterations together): give no passes"
+                    .into(),
+            ));
+        }
         let f = &desc.film;
         let [x0, x1, y0, y1] = f.pixel_bounds;
         let frame = RgbBuffer::new(f.xresolution, f.yresolution, x0, y0, x1 - x0, y1 - y0)
@@ -80,13 +120,18 @@ impl Job {
             state,
             error: None,
             tiles,
-            tile_state: vec![TileState::Pending; n],
+            passes,
+            sums: (!sppm).then_some(f.gbuffer.is_some()),
+            done: vec![0; n],
+            lent: vec![None; n],
             queue: (0..n).collect(),
+            parked: Vec::new(),
             attempts: vec![0; n],
             failures: 0,
-            done: 0,
-            frame: Arc::new(frame),
-            spp: desc.sampler.pixel_samples,
+            complete: None,
+            building: BTreeMap::new(),
+            black: Arc::new(frame),
+            written: 0,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
@@ -109,6 +154,7 @@ impl Job {
             resolution: None,
             tile: 1,
             seed: None,
+            passes: None,
         });
         let state = if state == JobState::Running {
             JobState::Failed
@@ -121,35 +167,50 @@ impl Job {
             state,
             error: Some(reason),
             tiles: Vec::new(),
-            tile_state: Vec::new(),
+            passes: Vec::new(),
+            sums: None,
+            done: Vec::new(),
+            lent: Vec::new(),
             queue: VecDeque::new(),
+            parked: Vec::new(),
             attempts: Vec::new(),
             failures: 0,
-            done: 0,
-            frame: Arc::new(RgbBuffer::new(0, 0, 0, 0, 0, 0)),
-            spp: 0,
+            complete: None,
+            building: BTreeMap::new(),
+            black: Arc::new(RgbBuffer::new(0, 0, 0, 0, 0, 0)),
+            written: 0,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
         }
     }
 
-    fn samples_of(&self, i: usize) -> u64 {
-        self.tiles[i].pixel_count() * self.spp as u64
+    /// The pass the slowest tile is on: every tile has done this many passes.
+    fn frontier(&self) -> u32 {
+        self.done.iter().copied().min().unwrap_or(0)
+    }
+
+    /// Samples per pixel after `done` passes.
+    fn samples_after(&self, done: u32) -> u32 {
+        match done {
+            0 => 0,
+            d => self.passes[(d as usize - 1).min(self.passes.len() - 1)],
+        }
     }
 
     fn samples_done(&self) -> u64 {
         (0..self.tiles.len())
-            .filter(|&i| self.tile_state[i] == TileState::Done)
-            .map(|i| self.samples_of(i))
+            .map(|i| self.tiles[i].pixel_count() * u64::from(self.samples_after(self.done[i])))
             .sum()
     }
 
-    /// Progress as the API reports it; the rate counts samples since the job started or
-    /// the coordinator resumed it.
+    /// Progress as the API reports it; the rate counts samples since the job started, the
+    /// coordinator resumed it, or it was extended.
     pub fn status(&self, now: Instant) -> JobStatus {
-        let samples_total: u64 = (0..self.tiles.len()).map(|i| self.samples_of(i)).sum();
-        let samples_done = self.samples_done();
+        let last = self.passes.last().copied().unwrap_or(0);
+        let samples_total: u64 =
+            self.tiles.iter().map(|t| t.pixel_count()).sum::<u64>() * u64::from(last);
+        let samples_done = self.samples_done().min(samples_total);
         let secs = now
             .saturating_duration_since(self.started)
             .as_secs_f64()
@@ -160,13 +221,18 @@ impl Job {
         } else {
             samples_done as f64 / samples_total as f64
         };
+        let finished = self
+            .done
+            .iter()
+            .filter(|&&d| d as usize >= self.passes.len())
+            .count();
         JobStatus {
             id: self.id,
             state: self.state,
-            width: self.frame.frame_width,
-            height: self.frame.frame_height,
+            width: self.black.frame_width,
+            height: self.black.frame_height,
             tiles_total: self.tiles.len() as u32,
-            tiles_done: self.done,
+            tiles_done: finished as u32,
             samples_total,
             samples_done,
             progress,
@@ -176,44 +242,67 @@ impl Job {
             failures: self.failures,
             error: self.error.clone(),
             merge_seconds: self.merge_seconds,
+            passes: self.passes.clone(),
+            passes_done: self.written,
+            samples_per_pixel_done: self.samples_after(self.written),
         }
     }
 
-    /// Whether every tile is done.
-    pub fn is_complete(&self) -> bool {
-        self.done as usize == self.tiles.len()
+    /// The frame as far as it has come: the newest pass some tiles have finished, over the
+    /// last complete one (black before any tile is back).
+    pub fn frame_so_far(&self) -> Arc<RgbBuffer> {
+        if let Some((_, (frame, _))) = self.building.last_key_value() {
+            return frame.clone();
+        }
+        self.complete
+            .as_ref()
+            .map_or_else(|| self.black.clone(), |(_, f)| f.clone())
     }
 
-    /// Whether the job is running with every tile done: its frame is ready to be written.
-    pub fn is_ready_to_merge(&self) -> bool {
-        self.state == JobState::Running && self.is_complete()
+    /// Whether passes are merged into the result file: a result can be downloaded.
+    pub fn has_result(&self) -> bool {
+        self.written > 0
     }
 
-    /// The next pending tile to lend, taken off the queue.
-    pub fn next_pending(&mut self) -> Option<usize> {
+    /// The next tile to lend and the pass it is to render, taken off the queue.
+    pub fn next_pending(&mut self) -> Option<(usize, PassRange)> {
+        let frontier = self.frontier();
         while let Some(t) = self.queue.pop_front() {
-            if self.tile_state[t] == TileState::Pending {
-                return Some(t);
+            let d = self.done[t];
+            if self.lent[t].is_some() || d as usize >= self.passes.len() {
+                continue;
             }
+            if d > frontier + 1 {
+                self.parked.push(t);
+                continue;
+            }
+            return Some((
+                t,
+                PassRange {
+                    index: d,
+                    from: self.samples_after(d),
+                    to: self.passes[d as usize],
+                },
+            ));
         }
         None
     }
 
     /// Marks `tile` as lent under `lease`.
     pub fn lend(&mut self, tile: usize, lease: u64) {
-        self.tile_state[tile] = TileState::Leased(lease);
+        self.lent[tile] = Some(lease);
     }
 
-    /// Whether `tile` is done.
-    pub fn is_done(&self, tile: usize) -> bool {
-        self.tile_state[tile] == TileState::Done
+    /// Whether `tile` has every pass done.
+    pub fn is_finished(&self, tile: usize) -> bool {
+        self.done[tile] as usize >= self.passes.len()
     }
 
     /// `lease` ended without a result (it expired): if it still holds `tile`, the tile goes
     /// back to the front of the queue, since a job finishes sooner without stragglers.
     pub fn lease_lost(&mut self, tile: usize, lease: u64) {
-        if self.tile_state[tile] == TileState::Leased(lease) {
-            self.tile_state[tile] = TileState::Pending;
+        if self.lent[tile] == Some(lease) {
+            self.lent[tile] = None;
             self.queue.push_front(tile);
         }
     }
@@ -223,7 +312,7 @@ impl Job {
     pub fn attempt_failed(&mut self, tile: usize, reason: &str) -> bool {
         self.failures += 1;
         self.attempts[tile] += 1;
-        self.tile_state[tile] = TileState::Pending;
+        self.lent[tile] = None;
         self.queue.push_front(tile);
         if self.attempts[tile] >= MAX_TILE_ATTEMPTS && self.state == JobState::Running {
             self.state = JobState::Failed;
@@ -237,18 +326,19 @@ impl Job {
         false
     }
 
-    /// Where tile `idx` lies: what an upload of it must match.
-    pub fn spot(&self, idx: usize) -> TileSpot {
+    /// Where tile `idx` lies and what its pass `pass` must hold: what an upload must match.
+    pub fn spot(&self, idx: usize, pass: PassRange) -> TileSpot {
         TileSpot {
-            frame: (self.frame.frame_width, self.frame.frame_height),
+            frame: (self.black.frame_width, self.black.frame_height),
             window: self.tiles[idx].into(),
+            sums: self.sums.map(|g| (g, pass.to)),
         }
     }
 
     /// Which of this job's tiles has the windows `tile`.
     pub fn find_tile(&self, tile: &Windows) -> Option<usize> {
         if (tile.frame_width, tile.frame_height)
-            != (self.frame.frame_width, self.frame.frame_height)
+            != (self.black.frame_width, self.black.frame_height)
         {
             return None;
         }
@@ -256,48 +346,247 @@ impl Job {
         self.tiles.iter().position(|&r| Rect::from(r) == window)
     }
 
-    /// Pastes a checked tile into the frame and marks it done. Returns whether it was
-    /// newly done (a tile already done keeps the pixels it has).
+    /// A checked tile of pass `pass` came back: pasted into that pass's frame, and the tile
+    /// moves on. A pass the tile has already done (a repeated upload), or one past the
+    /// job's last (it was stopped meanwhile), changes nothing.
     pub fn complete_tile(
         &mut self,
         idx: usize,
+        pass: u32,
         tile: &RgbBuffer,
-    ) -> Result<bool, kiln_image::ImageError> {
-        if self.tile_state[idx] == TileState::Done {
-            return Ok(false);
+    ) -> Result<Landed, kiln_image::ImageError> {
+        if self.done[idx] != pass || pass as usize >= self.passes.len() {
+            if self.done[idx] == pass {
+                self.lent[idx] = None;
+            }
+            return Ok(Landed::Nothing);
         }
-        Arc::make_mut(&mut self.frame).paste(tile)?;
-        self.tile_state[idx] = TileState::Done;
-        self.done += 1;
-        Ok(true)
+        let start = self.frame_so_far();
+        let entry = self.building.entry(pass).or_insert_with(|| (start, 0));
+        Arc::make_mut(&mut entry.0).paste(tile)?;
+        entry.1 += 1;
+        let full = entry.1 == self.tiles.len();
+        self.done[idx] += 1;
+        self.attempts[idx] = 0;
+        self.lent[idx] = None;
+        if !self.is_finished(idx) {
+            self.queue.push_back(idx);
+        }
+        if !full {
+            return Ok(Landed::Tile);
+        }
+        let (frame, _) = self.building.remove(&pass).expect("just filled");
+        self.complete = Some((pass, frame.clone()));
+        // The frontier moved: the tiles waiting for it may go on.
+        self.queue.extend(self.parked.drain(..));
+        Ok(Landed::Pass { pass, frame })
     }
 
-    /// Restores a tile kept in the store (on resume). A tile that cannot be read back, or
-    /// is not this job's, stays pending and is rendered again.
-    pub fn restore_tile(&mut self, idx: usize, exr: &[u8]) {
-        if idx >= self.tiles.len() {
-            return;
+    /// Records that pass `pass` is merged into the result file; returns whether it was the
+    /// last pass (the job is done).
+    pub fn merged(&mut self, pass: u32) -> bool {
+        self.written = self.written.max(pass + 1);
+        self.written as usize >= self.passes.len()
+    }
+
+    /// Samples per pixel at the end of pass `pass`.
+    pub fn samples_of_pass(&self, pass: u32) -> u32 {
+        self.passes[(pass as usize).min(self.passes.len() - 1)]
+    }
+
+    /// Whether the result file already holds pass `pass` or a later one.
+    pub fn is_written(&self, pass: u32) -> bool {
+        self.written > pass
+    }
+
+    /// Restores the tiles kept in the store (on resume): `rows` are (tile, samples, EXR).
+    /// Each tile resumes after the last pass it has a readable row for, and the frames are
+    /// pasted together again from the rows of the passes in progress. A tile whose rows do
+    /// not add up (one cannot be read, or is not this job's) starts again from nothing.
+    pub fn restore(&mut self, rows: Vec<(usize, u32, Vec<u8>)>) {
+        let n = self.tiles.len();
+        let mut kept: Vec<BTreeMap<u32, RgbBuffer>> = vec![BTreeMap::new(); n];
+        for (idx, samples, exr) in rows {
+            if idx >= n {
+                continue;
+            }
+            let Some(pass) = self.passes.iter().position(|&p| p == samples) else {
+                continue;
+            };
+            let Ok(tile) = kiln_image::decode_exr(&exr) else {
+                continue;
+            };
+            let range = PassRange {
+                index: pass as u32,
+                from: self.samples_after(pass as u32),
+                to: samples,
+            };
+            if self.spot(idx, range).check(&tile).is_ok() {
+                kept[idx].insert(pass as u32, tile);
+            }
         }
-        let Ok(tile) = kiln_image::decode_exr(exr) else {
-            return;
+        for (idx, rows) in kept.iter().enumerate() {
+            self.done[idx] = rows.keys().next_back().map_or(0, |p| p + 1);
+        }
+        // Every pass from the last complete one on is pasted from its rows; a tile missing
+        // one of those starts again, which may lower the frontier, so repeat until it holds.
+        let frontier = loop {
+            let f = self.frontier();
+            let first = f.saturating_sub(1);
+            let broken: Vec<usize> = (0..n)
+                .filter(|&i| (first..self.done[i]).any(|p| !kept[i].contains_key(&p)))
+                .collect();
+            if broken.is_empty() {
+                break f;
+            }
+            for i in broken {
+                self.done[i] = 0;
+            }
         };
-        if self.spot(idx).check(&tile).is_ok() {
-            let _ = self.complete_tile(idx, &tile);
+        let newest = self.done.iter().copied().max().unwrap_or(0);
+        let mut picture = self.black.clone();
+        for pass in frontier.saturating_sub(1)..newest {
+            let mut frame = (*picture).clone();
+            let mut count = 0;
+            for (idx, rows) in kept.iter().enumerate() {
+                if let Some(tile) = rows.get(&pass)
+                    && self.done[idx] > pass
+                    && frame.paste(tile).is_ok()
+                {
+                    count += 1;
+                }
+            }
+            picture = Arc::new(frame);
+            if count == n {
+                self.complete = Some((pass, picture.clone()));
+            } else {
+                self.building.insert(pass, (picture.clone(), count));
+            }
+        }
+        self.queue = (0..n).filter(|&i| !self.is_finished(i)).collect();
+        self.parked.clear();
+        self.lent = vec![None; n];
+        // A job that ended had its last complete pass merged before it ended; a running
+        // one is merged again on resume, which records it.
+        if self.state != JobState::Running {
+            self.written = self.complete.as_ref().map_or(0, |(p, _)| p + 1);
         }
     }
 
-    /// Starts counting the rate from here (the tiles done so far were done before).
+    /// The complete pass to merge after a restore, if the result file may lack it.
+    pub fn to_merge(&self) -> Option<(u32, Arc<RgbBuffer>)> {
+        self.complete.clone()
+    }
+
+    /// Starts counting the rate from here (the samples done so far were done before).
     pub fn restart_rate(&mut self, now: Instant) {
         self.samples_at_start = self.samples_done();
         self.started = now;
     }
+
+    /// Ends the job after the pass its slowest tile is on. Returns whether the schedule
+    /// changed (the spec is updated to say so).
+    pub fn stop_after_pass(&mut self) -> bool {
+        // The pass in progress ends the job; the renderer keeps the footprint of the
+        // samples it was created for (see set_spec_passes), so the pass's tiles still to
+        // come are rendered as those already back were.
+        let f = self.frontier() as usize;
+        if self.state != JobState::Running || f + 1 >= self.passes.len() {
+            return false;
+        }
+        self.passes.truncate(f + 1);
+        self.building.retain(|&p, _| (p as usize) <= f);
+        self.set_spec_passes();
+        true
+    }
+
+    /// The spec this job would have with `more` passes after its last, or why it cannot
+    /// have them.
+    pub fn check_extend(&self, more: &[u32]) -> Result<JobSpec, PlanError> {
+        let Some(last) = self.passes.last().copied() else {
+            return Err(PlanError::Passes("this job has no tiles to extend".into()));
+        };
+        if self.sums.is_none() {
+            return Err(PlanError::Passes(
+                "an SPPM job cannot be extended: its photon radius shrinks over all its iterations together".into(),
+            ));
+        }
+        if !matches!(self.state, JobState::Running | JobState::Done) {
+            return Err(PlanError::Passes(format!(
+                "a {} job cannot be extended",
+                self.state.as_str()
+            )));
+        }
+        check_passes(more, last)?;
+        let new_last = *more.last().expect("checked: not empty");
+        // The renderer's footprint is the one the job was created with (its pinned spp).
+        let planned = self.spec.spp.unwrap_or(last);
+        if kiln_render::texture_footprint(planned) != kiln_render::texture_footprint(new_last) {
+            return Err(PlanError::Passes(format!(
+                "a job created for {planned} samples per pixel cannot be extended to {new_last}: textures are filtered over a footprint that shrinks with the total up to 64 samples (as pbrt-v4 does), so its samples would not be those of a {new_last}-sample render; submit a new job"
+            )));
+        }
+        if self.passes.len() + more.len() > MAX_PASSES {
+            return Err(PlanError::Passes(format!(
+                "a job has at most {MAX_PASSES} passes"
+            )));
+        }
+        let mut spec = self.spec.clone();
+        spec.passes = Some(self.passes.iter().chain(more).copied().collect());
+        Ok(spec)
+    }
+
+    /// Adds passes beyond the last ([`Job::check_extend`] says whether it may): a done job
+    /// runs again from where it ended.
+    pub fn extend(&mut self, more: &[u32], now: Instant) -> Result<(), PlanError> {
+        self.check_extend(more)?;
+        self.passes.extend_from_slice(more);
+        self.set_spec_passes();
+        if self.state == JobState::Done {
+            self.state = JobState::Running;
+        }
+        self.queue = (0..self.tiles.len())
+            .filter(|&i| !self.is_finished(i) && self.lent[i].is_none())
+            .collect();
+        self.restart_rate(now);
+        Ok(())
+    }
+
+    /// Records the schedule in the spec. Its `spp` stays what the job was created with:
+    /// it sets the renderer's texture footprint, which every pass of the job must share.
+    fn set_spec_passes(&mut self) {
+        self.spec.passes = Some(self.passes.clone());
+    }
 }
 
-/// A tile's place: its frame's size and its window in it.
+/// Checks a schedule of cumulative sample counts: 1 to [`MAX_PASSES`] of them, ascending,
+/// the first above `after`.
+fn check_passes(passes: &[u32], after: u32) -> Result<(), PlanError> {
+    if passes.is_empty() || passes.len() > MAX_PASSES {
+        return Err(PlanError::Passes(format!(
+            "give 1 to {MAX_PASSES} passes, not {}",
+            passes.len()
+        )));
+    }
+    let mut prev = after;
+    for &p in passes {
+        if p <= prev {
+            return Err(PlanError::Passes(format!(
+                "passes are cumulative samples per pixel, each above the one before (and above {after}): {passes:?}"
+            )));
+        }
+        prev = p;
+    }
+    Ok(())
+}
+
+/// A tile's place: its frame's size, its window in it, and the running sums it must carry
+/// (with a G-buffer's or not, and after how many samples).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct TileSpot {
     frame: (u32, u32),
     window: Rect,
+    sums: Option<(bool, u32)>,
 }
 
 impl TileSpot {
@@ -306,7 +595,8 @@ impl TileSpot {
         u64::from(self.window.width) * u64::from(self.window.height)
     }
 
-    /// Checks that an uploaded tile has this place's windows and finite pixels.
+    /// Checks that an uploaded tile has this place's windows, finite pixels, and running
+    /// sums of its pass.
     pub fn check(&self, tile: &RgbBuffer) -> Result<(), TileRejected> {
         let frame = (tile.frame_width, tile.frame_height);
         let window = data_window(&tile.windows());
@@ -315,6 +605,17 @@ impl TileSpot {
         }
         if tile.pixels.iter().any(|p| p.iter().any(|v| !v.is_finite())) {
             return Err(TileRejected::NonFinite);
+        }
+        if let Some((gbuffer, samples)) = self.sums {
+            let rect = kiln_render::TileRect::from(self.window);
+            let sums = TileSums::from_words(rect, gbuffer, &tile.words.names, &tile.words.values)
+                .map_err(TileRejected::Sums)?;
+            if sums.samples != samples {
+                return Err(TileRejected::SumsSamples {
+                    found: sums.samples,
+                    expected: samples,
+                });
+            }
         }
         Ok(())
     }

@@ -6,7 +6,7 @@
 
 use super::job::Job;
 use super::metrics::Snapshot;
-use super::{Coordinator, Error};
+use super::{Coordinator, Error, PlanError};
 use crate::api::{JobSpec, JobState, JobStatus};
 
 impl Coordinator {
@@ -89,6 +89,21 @@ impl Coordinator {
         {
             return Ok((id, false));
         }
+        // With passes, the job's samples per pixel are the last pass's, and are pinned in the
+        // spec: they set the renderer's texture footprint for the job's whole life, through
+        // stops and extensions.
+        let mut spec = spec;
+        if let Some(last) = spec.passes.as_ref().and_then(|p| p.last().copied()) {
+            match spec.spp {
+                None => spec.spp = Some(last),
+                Some(spp) if spp != last => {
+                    return Err(Error::Unplannable(PlanError::Passes(format!(
+                        "spp {spp} is not the last pass's {last}"
+                    ))));
+                }
+                Some(_) => {}
+            }
+        }
         let (scenes, now) = (self.files().scenes(), self.now());
         let max_pixels = self.config().max_frame_pixels;
         let spec2 = spec.clone();
@@ -130,17 +145,68 @@ impl Coordinator {
         Ok(status)
     }
 
-    /// The merged EXR of a finished job.
+    /// Ends a running job after the pass its slowest tile is on: its result will be that
+    /// pass's whole frame. Returns its status.
+    pub fn stop_after_pass(&self, id: u64) -> Result<JobStatus, Error> {
+        let now = self.now();
+        let status = {
+            let mut state = self.lock();
+            let job = state.jobs.get_mut(&id).ok_or(Error::UnknownJob(id))?;
+            if job.stop_after_pass() {
+                let spec = job.spec.clone();
+                state.store.set_spec(id, &spec)?;
+            }
+            state.jobs[&id].status(now)
+        };
+        self.notify(id);
+        Ok(status)
+    }
+
+    /// Adds passes to a running or done job (a done one runs again, from the samples it
+    /// has). Returns its status.
+    pub fn extend(&self, id: u64, more: &[u32]) -> Result<JobStatus, Error> {
+        let now = self.now();
+        let status = {
+            let mut state = self.lock();
+            let job = state.jobs.get_mut(&id).ok_or(Error::UnknownJob(id))?;
+            let spec = job
+                .check_extend(more)
+                .map_err(|why| Error::Passes { id, why })?;
+            // Recorded first: a job is never extended in memory only.
+            state.store.set_spec(id, &spec)?;
+            let job = state.jobs.get_mut(&id).expect("found above");
+            job.extend(more, now)
+                .map_err(|why| Error::Passes { id, why })?;
+            state.persist(id);
+            state.jobs[&id].status(now)
+        };
+        self.notify(id);
+        Ok(status)
+    }
+
+    /// The merged EXR of a job's last merged pass (a done job's whole render).
     pub async fn result(&self, id: u64) -> Result<Vec<u8>, Error> {
-        let status = self.status(id).ok_or(Error::UnknownJob(id))?;
-        if status.state != JobState::Done {
-            return Err(Error::NotDone {
-                id,
-                state: status.state,
-            });
+        let (has, state) = self
+            .lock()
+            .jobs
+            .get(&id)
+            .map(|j| (j.has_result(), j.state))
+            .ok_or(Error::UnknownJob(id))?;
+        // A job that ended keeps the result it had, whether or not its tiles could be
+        // read back at a restart.
+        if !has && state == JobState::Running {
+            return Err(Error::NotDone { id, state });
         }
         let path = self.files().result_path(id);
-        tokio::fs::read(&path).await.map_err(|e| Error::io(path, e))
+        match tokio::fs::read(&path).await {
+            Ok(bytes) => Ok(bytes),
+            // An ended job that never merged a pass has none (one that did and lost the
+            // file is the operator's problem, below).
+            Err(e) if !has && e.kind() == std::io::ErrorKind::NotFound => {
+                Err(Error::NotDone { id, state })
+            }
+            Err(e) => Err(Error::io(path, e)),
+        }
     }
 
     /// The frame so far as an sRGB PNG.
@@ -149,7 +215,7 @@ impl Coordinator {
             .lock()
             .jobs
             .get(&id)
-            .map(|j| j.frame.clone())
+            .map(|j| j.frame_so_far())
             .ok_or(Error::UnknownJob(id))?;
         tokio::task::spawn_blocking(move || kiln_image::encode_png(&frame, 0.0))
             .await?

@@ -6,6 +6,7 @@
 //! jobs, the store or HTTP: the coordinator tells jobs what happened to their tiles.
 
 use super::MAX_WORKER_FAILURES;
+use crate::api::PassRange;
 use std::collections::HashMap;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -15,6 +16,7 @@ use tokio::time::Instant;
 pub(super) struct Held {
     pub job: u64,
     pub tile: usize,
+    pub pass: PassRange,
     pub worker: String,
     deadline: Instant,
 }
@@ -46,8 +48,15 @@ impl Leases {
         self.ttl
     }
 
-    /// Lends `tile` of `job` to `worker` until `now + ttl`; returns the lease's id.
-    pub fn grant(&mut self, job: u64, tile: usize, worker: &str, now: Instant) -> u64 {
+    /// Lends pass `pass` of `tile` of `job` to `worker` until `now + ttl`; returns the lease's id.
+    pub fn grant(
+        &mut self,
+        job: u64,
+        tile: usize,
+        pass: PassRange,
+        worker: &str,
+        now: Instant,
+    ) -> u64 {
         let id = self.next;
         self.next += 1;
         self.held.insert(
@@ -55,6 +64,7 @@ impl Leases {
             Held {
                 job,
                 tile,
+                pass,
                 worker: worker.to_string(),
                 deadline: now + self.ttl,
             },
@@ -134,6 +144,11 @@ impl Workers {
 
 #[cfg(test)]
 mod tests {
+    const P: crate::api::PassRange = crate::api::PassRange {
+        index: 0,
+        from: 0,
+        to: 1,
+    };
     use super::*;
 
     const TTL: Duration = Duration::from_secs(20);
@@ -143,8 +158,8 @@ mod tests {
     fn a_lease_expires_only_after_its_deadline_and_renewals_move_it() {
         let t0 = Instant::now();
         let mut leases = Leases::new(TTL, 1);
-        let a = leases.grant(7, 3, "w", t0);
-        let b = leases.grant(7, 4, "w", t0 + 5 * TTL / 20);
+        let a = leases.grant(7, 3, P, "w", t0);
+        let b = leases.grant(7, 4, P, "w", t0 + 5 * TTL / 20);
         assert!(
             leases.expire(t0 + TTL).is_empty(),
             "due at t0 + ttl, not before"
@@ -164,13 +179,13 @@ mod tests {
     fn lease_ids_are_never_reused() {
         let t0 = Instant::now();
         let mut leases = Leases::new(TTL, 1);
-        let a = leases.grant(1, 0, "w", t0);
+        let a = leases.grant(1, 0, P, "w", t0);
         assert!(leases.remove(a).is_some());
         assert!(leases.remove(a).is_none());
-        let b = leases.grant(1, 0, "w", t0);
+        let b = leases.grant(1, 0, P, "w", t0);
         assert!(b > a);
         leases.expire(t0 + 2 * TTL);
-        assert!(leases.grant(1, 0, "w", t0) > b);
+        assert!(leases.grant(1, 0, P, "w", t0) > b);
     }
 
     #[test]

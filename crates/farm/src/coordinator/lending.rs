@@ -7,12 +7,12 @@
 //! `Coordinator::now`.
 
 use super::error::TileRejected;
+use super::job::Landed;
 use super::{Coordinator, Error, State};
 use crate::api::{JobState, Lease};
 use crate::bundle;
 use axum::body::Bytes;
 use kiln_image::{RgbBuffer, Windows};
-use std::sync::Arc;
 
 impl Coordinator {
     /// Lends `worker` the next pending tile of the oldest running job that has one;
@@ -31,10 +31,10 @@ impl Coordinator {
             .values_mut()
             .filter(|j| j.state == JobState::Running)
         {
-            let Some(tile) = job.next_pending() else {
+            let Some((tile, pass)) = job.next_pending() else {
                 continue;
             };
-            let id = state.leases.grant(job.id, tile, worker, now);
+            let id = state.leases.grant(job.id, tile, pass, worker, now);
             job.lend(tile, id);
             state.metrics.leases_issued += 1;
             return Ok(Some(Lease {
@@ -43,6 +43,7 @@ impl Coordinator {
                 spec: job.spec.clone(),
                 tile_index: tile as u32,
                 tile: job.tiles[tile].into(),
+                pass,
                 ttl_ms: ttl.as_millis() as u64,
             }));
         }
@@ -80,7 +81,7 @@ impl Coordinator {
             state
                 .leases
                 .get(lease)
-                .map(|h| (h.job, state.jobs[&h.job].spot(h.tile)))
+                .map(|h| (h.job, state.jobs[&h.job].spot(h.tile, h.pass)))
         };
         let Some((job, spot)) = target else {
             // Which tile was it? The upload's header says, and its bytes are compared with
@@ -108,13 +109,27 @@ impl Coordinator {
                 return Err(Error::RejectedTile(why));
             }
         };
-        let last = self.lock().commit_tile(lease, &exr, &tile)?;
+        let landed = self.lock().commit_tile(lease, &exr, &tile)?;
         self.notify(job);
-        // The last tile's upload is answered once the frame is written (off the lock).
-        if let Some(frame) = last {
-            self.merge(job, frame).await;
+        // A pass's last tile's upload is answered once the frame is written (off the lock).
+        if let Landed::Pass { pass, frame } = landed {
+            self.merge(job, pass, frame).await;
         }
         Ok(())
+    }
+
+    /// The running sums the pass lent under `lease` continues: the tile's EXR after its
+    /// previous pass, as its worker uploaded it.
+    pub fn sums_for(&self, lease: u64) -> Result<Vec<u8>, Error> {
+        let state = self.lock();
+        let held = state.leases.get(lease).ok_or(Error::UnknownLease(lease))?;
+        if held.pass.from == 0 {
+            return Err(Error::NoSums(lease));
+        }
+        state
+            .store
+            .tile(held.job, held.tile, held.pass.from)?
+            .ok_or(Error::NoSums(lease))
     }
 
     /// Records a failed attempt reported by the worker holding `lease`.
@@ -138,23 +153,20 @@ impl State {
     /// Keeps a checked tile uploaded under `lease`: in the store first (if that fails the
     /// lease stays, and expires), then in the job. Returns the job's frame if this was its
     /// last tile, to be merged. A lease that expired meanwhile is judged as a stale upload.
-    fn commit_tile(
-        &mut self,
-        lease: u64,
-        exr: &[u8],
-        tile: &RgbBuffer,
-    ) -> Result<Option<Arc<RgbBuffer>>, Error> {
+    fn commit_tile(&mut self, lease: u64, exr: &[u8], tile: &RgbBuffer) -> Result<Landed, Error> {
         let Some(held) = self.leases.get(lease) else {
-            return self.judge_stale(lease, &tile.windows(), exr).map(|()| None);
+            return self
+                .judge_stale(lease, &tile.windows(), exr)
+                .map(|()| Landed::Nothing);
         };
-        let (job, idx) = (held.job, held.tile);
-        self.store.insert_tile(job, idx, exr)?;
+        let (job, idx, pass) = (held.job, held.tile, held.pass);
+        self.store.insert_tile(job, idx, pass.to, exr)?;
         let held = self.leases.remove(lease).expect("checked above");
         self.metrics.tiles_accepted += 1;
         self.workers.succeeded(&held.worker);
         let job = self.jobs.get_mut(&job).expect("leased jobs exist");
-        let newly_done = job.complete_tile(idx, tile).map_err(Error::Image)?;
-        Ok((newly_done && job.is_ready_to_merge()).then(|| job.frame.clone()))
+        job.complete_tile(idx, pass.index, tile)
+            .map_err(Error::Image)
     }
 
     /// An upload under an unknown or expired lease: fine if it is the very tile already
@@ -164,15 +176,11 @@ impl State {
             let Some(idx) = job.find_tile(tile) else {
                 continue;
             };
-            if !job.is_done(idx) {
-                return Err(Error::Relent(lease));
-            }
-            if self
-                .store
-                .tile(job.id, idx)?
-                .is_some_and(|kept| kept == exr)
-            {
+            if self.store.holds_tile(job.id, idx, exr)? {
                 return Ok(());
+            }
+            if !job.is_finished(idx) {
+                return Err(Error::Relent(lease));
             }
         }
         Err(Error::StaleTile(lease))

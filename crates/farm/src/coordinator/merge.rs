@@ -1,10 +1,13 @@
-//! Finishing a job: its merged frame is encoded and written with no lock held, then the
-//! outcome (done, or failed if the file cannot be written) is committed under the lock.
+//! Merging a complete pass: its frame is encoded and written beside the result with no lock
+//! held, then, under the lock, renamed over the result (unless a later pass got there
+//! first) and the outcome committed: the next pass goes on, or after the last the job is
+//! done (or failed, if the file cannot be written).
 //!
-//! The frame is shared, not copied: once every tile is done nothing pastes into it, so the
-//! merge reads it while other requests go on. This must never hold the lock while encoding
-//! or writing, nor mark a job done before its result file is in place. A crash before the
-//! commit loses nothing: every tile is in the store, and resuming merges the frame again.
+//! The frame is shared, not copied: once a pass's every tile is done nothing pastes into
+//! its frame, so the merge reads it while other requests go on. This must never hold the
+//! lock while encoding or writing, nor mark a job done before its result file is in place.
+//! A crash before the commit loses nothing: every tile pass is in the store, and resuming
+//! merges the frame again.
 
 use super::{Coordinator, Error};
 use crate::api::JobState;
@@ -13,51 +16,70 @@ use std::sync::Arc;
 use std::time::Duration;
 
 impl Coordinator {
-    /// Writes `frame` as job `id`'s result on a blocking thread and commits the outcome.
-    /// The work goes on to its end even if the caller stops waiting.
-    pub(super) async fn merge(&self, id: u64, frame: Arc<RgbBuffer>) {
+    /// Writes `frame`, job `id`'s pass `pass`, as its result on a blocking thread and
+    /// commits the outcome. The work goes on to its end even if the caller stops waiting.
+    pub(super) async fn merge(&self, id: u64, pass: u32, frame: Arc<RgbBuffer>) {
         let c = self.clone();
         let task = tokio::spawn(async move {
             let c2 = c.clone();
-            let merged = tokio::task::spawn_blocking(move || c2.merge_blocking(id, &frame)).await;
+            let merged =
+                tokio::task::spawn_blocking(move || c2.merge_blocking(id, pass, &frame)).await;
             if let Err(e) = merged {
-                c.commit_merge(id, Err(Error::Task(e)), Duration::ZERO);
+                c.commit_merge(id, pass, Err(Error::Task(e)), Duration::ZERO);
             }
         });
         let _ = task.await;
     }
 
     /// Encodes and writes the merged frame, then commits. Blocking; locks only to commit.
-    pub(super) fn merge_blocking(&self, id: u64, frame: &RgbBuffer) {
+    pub(super) fn merge_blocking(&self, id: u64, pass: u32, frame: &RgbBuffer) {
         #[cfg(test)]
         self.before_merge();
         // Real time: this measures work done, it decides nothing.
         let start = std::time::Instant::now();
-        let written = kiln_image::encode_exr(frame)
+        let staged = kiln_image::encode_exr(frame)
             .map_err(Error::Image)
-            .and_then(|bytes| self.files().write_result(id, &bytes));
-        self.commit_merge(id, written, start.elapsed());
+            .and_then(|bytes| self.files().stage_result(id, pass, &bytes));
+        self.commit_merge(id, pass, staged, start.elapsed());
     }
 
-    fn commit_merge(&self, id: u64, written: Result<(), Error>, took: Duration) {
-        if let Err(e) = &written {
-            tracing::error!("job {id}: cannot write the result: {e}");
-        }
+    fn commit_merge(
+        &self,
+        id: u64,
+        pass: u32,
+        staged: Result<std::path::PathBuf, Error>,
+        took: Duration,
+    ) {
         {
             let mut state = self.lock();
+            let state = &mut *state;
             let Some(job) = state.jobs.get_mut(&id) else {
                 return;
             };
-            // A job cancelled while its frame was written stays cancelled.
-            if job.state != JobState::Running {
+            // A later pass's merge that landed first wins; so does a cancellation.
+            if job.is_written(pass) || job.state != JobState::Running {
+                if let Ok(path) = &staged {
+                    let _ = std::fs::remove_file(path);
+                }
                 return;
             }
-            match written {
+            let published = staged.and_then(|path| self.files().publish_result(id, &path));
+            match published {
                 Ok(()) => {
-                    job.state = JobState::Done;
                     job.merge_seconds = Some(took.as_secs_f64());
+                    if job.merged(pass) {
+                        job.state = JobState::Done;
+                    }
+                    let samples = job.samples_of_pass(pass);
+                    // Nothing continues from the passes before this one any more.
+                    if pass > 0
+                        && let Err(e) = state.store.drop_passes_before(id, samples)
+                    {
+                        tracing::warn!("job {id}: cannot forget its earlier passes: {e}");
+                    }
                 }
                 Err(e) => {
+                    tracing::error!("job {id}: cannot write the result: {e}");
                     job.state = JobState::Failed;
                     job.error = Some(format!("cannot write the result: {e}"));
                 }

@@ -30,7 +30,7 @@ mod tests;
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
 
-use crate::api::JobStatus;
+use crate::api::{JobState, JobStatus};
 use job::Job;
 use leases::{Leases, Workers};
 use metrics::Metrics;
@@ -177,16 +177,18 @@ impl Coordinator {
                 }
             };
             job.error = s.error;
-            let kept = self.lock().store.tiles(id)?;
-            for (idx, exr) in kept {
-                job.restore_tile(idx, &exr);
-            }
+            let total = job.status(self.now()).passes.last().copied().unwrap_or(0);
+            let kept = self.lock().store.tiles(id, total)?;
+            job.restore(kept);
             job.restart_rate(self.now());
-            let ready = job.is_ready_to_merge().then(|| job.frame.clone());
+            // The last complete pass is merged again: the coordinator may have stopped
+            // before writing it. (A job that ended keeps its result as it is.)
+            let merge = (job.state == JobState::Running)
+                .then(|| job.to_merge())
+                .flatten();
             self.lock().jobs.insert(id, job);
-            // Its last tile was kept but the coordinator stopped before writing the frame.
-            if let Some(frame) = ready {
-                self.merge_blocking(id, &frame);
+            if let Some((pass, frame)) = merge {
+                self.merge_blocking(id, pass, &frame);
             }
         }
         Ok(())

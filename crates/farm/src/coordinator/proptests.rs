@@ -110,6 +110,7 @@ fn run(ops: Vec<Op>) {
             resolution: None,
             tile: 8,
             seed: None,
+            passes: None,
         };
         let (job, _) = c.create_job(spec, None).await.unwrap();
         let mut held: Vec<Lease> = Vec::new();

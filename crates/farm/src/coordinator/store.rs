@@ -1,5 +1,5 @@
-//! The job store: what survives a restart. Jobs and every finished tile's EXR live in
-//! SQLite (`kiln.sqlite`, [`Store`]); scene bundles (unpacked under `scenes/<digest>`) and
+//! The job store: what survives a restart. Jobs and every finished tile pass's EXR (with
+//! its running sums) live in SQLite (`kiln.sqlite`, [`Store`]); scene bundles (unpacked under `scenes/<digest>`) and
 //! merged frames (`jobs/<id>/result.exr`) are files ([`DataDir`]), written atomically.
 //!
 //! It records and reads back; it must never decide anything about jobs or leases, and it
@@ -92,23 +92,28 @@ impl DataDir {
             .map_err(|_| Error::UnknownScene(digest.to_string()))
     }
 
-    /// Writes a job's merged EXR: to a temporary file, synced, then renamed over the result,
-    /// so a reader or a crash sees the old file or the new one, never half of one. Blocking.
-    pub fn write_result(&self, job: u64, bytes: &[u8]) -> Result<(), Error> {
-        let path = self.result_path(job);
+    /// Writes a job's merged EXR after pass `pass` beside its result, synced, and returns
+    /// where: [`DataDir::publish_result`] then renames it over the result, so a reader or a
+    /// crash sees one whole file or the other. Blocking.
+    pub fn stage_result(&self, job: u64, pass: u32, bytes: &[u8]) -> Result<PathBuf, Error> {
+        let path = self
+            .result_path(job)
+            .with_extension(format!("pass-{pass}.tmp"));
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
-        write_atomically(&path, bytes).map_err(|e| Error::io(&path, e))
+        let mut file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
+        file.write_all(bytes)
+            .and_then(|()| file.sync_all())
+            .map_err(|e| Error::io(&path, e))?;
+        Ok(path)
     }
-}
 
-fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let tmp = path.with_extension("tmp");
-    let mut file = std::fs::File::create(&tmp)?;
-    file.write_all(bytes)?;
-    file.sync_all()?;
-    std::fs::rename(&tmp, path)
+    /// Makes a staged merge the job's result (a rename: quick, and atomic).
+    pub fn publish_result(&self, job: u64, staged: &Path) -> Result<(), Error> {
+        let path = self.result_path(job);
+        std::fs::rename(staged, &path).map_err(|e| Error::io(&path, e))
+    }
 }
 
 /// A job as the store keeps it.
@@ -133,6 +138,7 @@ impl Store {
              PRAGMA synchronous = NORMAL;
              CREATE TABLE IF NOT EXISTS jobs (id INTEGER PRIMARY KEY, spec TEXT NOT NULL, state TEXT NOT NULL, error TEXT, idempotency_key TEXT UNIQUE);
              CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx));
+             CREATE TABLE IF NOT EXISTS tile_passes (job INTEGER NOT NULL, idx INTEGER NOT NULL, samples INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx, samples));
              CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);",
         )?;
         Ok(Store { db })
@@ -195,30 +201,79 @@ impl Store {
         Ok(jobs)
     }
 
-    /// A job's kept tiles: (index, EXR). Rows that cannot be read are left out.
-    pub fn tiles(&self, job: u64) -> Result<Vec<(usize, Vec<u8>)>, Error> {
+    /// A job's kept tile passes: (index, samples, EXR). Rows that cannot be read are left
+    /// out. Tiles kept before passes existed (the `tiles` table) come as passes of
+    /// `legacy_samples`.
+    pub fn tiles(
+        &self,
+        job: u64,
+        legacy_samples: u32,
+    ) -> Result<Vec<(usize, u32, Vec<u8>)>, Error> {
         let mut stmt = self
             .db
-            .prepare("SELECT idx, exr FROM tiles WHERE job = ?1")?;
-        let tiles = stmt
+            .prepare("SELECT idx, samples, exr FROM tile_passes WHERE job = ?1")?;
+        let mut tiles: Vec<(usize, u32, Vec<u8>)> = stmt
             .query_map([job as i64], |r| {
-                Ok((r.get::<_, i64>(0)? as usize, r.get::<_, Vec<u8>>(1)?))
+                Ok((
+                    r.get::<_, i64>(0)? as usize,
+                    r.get::<_, i64>(1)? as u32,
+                    r.get::<_, Vec<u8>>(2)?,
+                ))
             })?
             .filter_map(|r| r.ok())
             .collect();
+        let mut legacy = self
+            .db
+            .prepare("SELECT idx, exr FROM tiles WHERE job = ?1")?;
+        tiles.extend(
+            legacy
+                .query_map([job as i64], |r| {
+                    Ok((
+                        r.get::<_, i64>(0)? as usize,
+                        legacy_samples,
+                        r.get::<_, Vec<u8>>(1)?,
+                    ))
+                })?
+                .filter_map(|r| r.ok()),
+        );
         Ok(tiles)
     }
 
-    /// The EXR kept for a finished tile.
-    pub fn tile(&self, job: u64, idx: usize) -> Result<Option<Vec<u8>>, Error> {
+    /// The EXR kept for a tile after `samples` samples.
+    pub fn tile(&self, job: u64, idx: usize, samples: u32) -> Result<Option<Vec<u8>>, Error> {
         Ok(self
             .db
             .query_row(
-                "SELECT exr FROM tiles WHERE job = ?1 AND idx = ?2",
-                params![job as i64, idx as i64],
+                "SELECT exr FROM tile_passes WHERE job = ?1 AND idx = ?2 AND samples = ?3",
+                params![job as i64, idx as i64, samples],
                 |r| r.get(0),
             )
             .optional()?)
+    }
+
+    /// Whether `exr` is, byte for byte, one kept for the tile (any pass, or from before
+    /// passes existed).
+    pub fn holds_tile(&self, job: u64, idx: usize, exr: &[u8]) -> Result<bool, Error> {
+        let found: Option<i64> = self
+            .db
+            .query_row(
+                "SELECT 1 FROM tile_passes WHERE job = ?1 AND idx = ?2 AND exr = ?3
+                 UNION ALL SELECT 1 FROM tiles WHERE job = ?1 AND idx = ?2 AND exr = ?3 LIMIT 1",
+                params![job as i64, idx as i64, exr],
+                |r| r.get(0),
+            )
+            .optional()?;
+        Ok(found.is_some())
+    }
+
+    /// Forgets a job's tile passes of fewer than `samples` samples: once every tile has done
+    /// the pass of `samples`, nothing continues from them or pastes them again.
+    pub fn drop_passes_before(&self, job: u64, samples: u32) -> Result<(), Error> {
+        self.db.execute(
+            "DELETE FROM tile_passes WHERE job = ?1 AND samples < ?2",
+            params![job as i64, samples],
+        )?;
+        Ok(())
     }
 
     /// The job created earlier under this idempotency key.
@@ -244,11 +299,22 @@ impl Store {
         Ok(self.db.last_insert_rowid() as u64)
     }
 
-    /// Keeps a finished tile's EXR. The first one kept for a tile stays.
-    pub fn insert_tile(&self, job: u64, idx: usize, exr: &[u8]) -> Result<(), Error> {
+    /// Keeps a tile's EXR after `samples` samples. The first one kept for a tile's pass
+    /// stays.
+    pub fn insert_tile(&self, job: u64, idx: usize, samples: u32, exr: &[u8]) -> Result<(), Error> {
         self.db.execute(
-            "INSERT OR IGNORE INTO tiles (job, idx, exr) VALUES (?1, ?2, ?3)",
-            params![job as i64, idx as i64, exr],
+            "INSERT OR IGNORE INTO tile_passes (job, idx, samples, exr) VALUES (?1, ?2, ?3, ?4)",
+            params![job as i64, idx as i64, samples, exr],
+        )?;
+        Ok(())
+    }
+
+    /// Records a job's changed spec (its passes stopped early or extended).
+    pub fn set_spec(&self, job: u64, spec: &JobSpec) -> Result<(), Error> {
+        let spec_json = serde_json::to_string(spec).expect("a JobSpec serializes");
+        self.db.execute(
+            "UPDATE jobs SET spec = ?1 WHERE id = ?2",
+            params![spec_json, job as i64],
         )?;
         Ok(())
     }

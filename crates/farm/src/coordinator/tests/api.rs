@@ -156,6 +156,7 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
             resolution,
             tile: 32,
             seed: None,
+            passes: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -221,6 +222,7 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
                 resolution: None,
                 tile: 8,
                 seed: None,
+                passes: None,
             };
             let key = key.clone();
             tokio::spawn(async move {
@@ -268,6 +270,7 @@ async fn a_job_scene_must_be_a_digest() {
             resolution: None,
             tile: 8,
             seed: None,
+            passes: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

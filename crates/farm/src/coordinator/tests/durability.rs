@@ -70,7 +70,7 @@ async fn a_restarted_coordinator_keeps_acknowledged_tiles_and_merges_a_finished_
         let files = crate::coordinator::store::DataDir::create(&data).unwrap();
         let store = crate::coordinator::store::Store::open(&files).unwrap();
         store
-            .insert_tile(job, b.tile_index as usize, &exr(&tile_b))
+            .insert_tile(job, b.tile_index as usize, b.pass.to, &exr(&tile_b))
             .unwrap();
     }
     let (_c, app) = open(&data, None);
@@ -108,6 +108,7 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
             resolution: Some((8, 8)),
             tile: 8,
             seed: None,
+            passes: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

@@ -19,6 +19,7 @@ use tower::ServiceExt;
 mod api;
 mod durability;
 mod lending;
+mod passes;
 
 const TTL: Duration = Duration::from_secs(20);
 
@@ -95,6 +96,17 @@ fn error_of(body: &[u8]) -> String {
 
 /// Uploads a `width x height` scene and creates a job of `tile` px tiles; returns its id.
 async fn submit(f: &Farm, width: u32, height: u32, tile: u32) -> u64 {
+    submit_passes(f, width, height, tile, None).await
+}
+
+/// [`submit`] with a pass schedule.
+async fn submit_passes(
+    f: &Farm,
+    width: u32,
+    height: u32,
+    tile: u32,
+    passes: Option<Vec<u32>>,
+) -> u64 {
     let scene = f.dir.path().join(format!("scene-{width}x{height}"));
     std::fs::create_dir_all(&scene).unwrap();
     std::fs::write(
@@ -109,10 +121,11 @@ async fn submit(f: &Farm, width: u32, height: u32, tile: u32) -> u64 {
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let spec = JobSpec {
         scene: bundle.digest,
-        spp: Some(1),
+        spp: passes.is_none().then_some(1),
         resolution: None,
         tile,
         seed: None,
+        passes,
     };
     let (status, body) = call(
         &f.app,
@@ -190,6 +203,13 @@ fn tile_of(lease: &Lease, frame: (u32, u32), value: f32) -> RgbBuffer {
     let t = lease.tile;
     let mut tile = RgbBuffer::new(frame.0, frame.1, t.x0, t.y0, t.width, t.height);
     tile.pixels.iter_mut().for_each(|p| *p = [value; 3]);
+    // The running sums its pass must carry (their values are the worker's business).
+    let mut sums = kiln_render::TileSums::empty(t.into(), false);
+    sums.samples = lease.pass.to;
+    tile.words = kiln_image::Words {
+        names: kiln_render::TileSums::word_names(false),
+        values: sums.to_words(),
+    };
     tile
 }
 
