@@ -832,7 +832,8 @@ fn cancel_and_a_second_sigterm_reach_a_worker_mid_tile() {
 /// Chaos: jobs on a farm of three workers while a driver kills (SIGKILL) a random worker
 /// or the coordinator at random moments and starts it again. No tile is lost: each job
 /// ends done, its merged EXR byte-identical to `kiln render`'s. The kills follow a fixed
-/// seed, so a failure can be replayed; the counts are printed.
+/// seed, so a failure can be replayed; the counts are printed. The second job runs in
+/// progressive passes, so kills land between passes and in them.
 #[test]
 fn chaos_random_kills_of_workers_and_the_coordinator_lose_nothing() {
     const ROUNDS: u32 = 2;
@@ -871,7 +872,17 @@ fn chaos_random_kills_of_workers_and_the_coordinator_lose_nothing() {
             seed.as_str(),
         ];
         let direct = render(&path, dir.path(), &format!("direct{round}"), &settings);
-        let id = submit(&url, &path, &[&settings[..], &["--tile", "16"]].concat());
+        // The second round in passes: kills land between passes and in them.
+        let passes: &[&str] = if round == 1 {
+            &["--passes", "64,256,512"]
+        } else {
+            &[]
+        };
+        let id = submit(
+            &url,
+            &path,
+            &[&settings[..], &["--tile", "16"], passes].concat(),
+        );
         let start = Instant::now();
         loop {
             if let Ok(s) = rt.block_on(client.status(id))
