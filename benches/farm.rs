@@ -100,6 +100,9 @@ fn scale(workers: usize) {
         tile: 16,
         seed: None,
         passes: None,
+        verify: None,
+        priority: 0,
+        webhook: None,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let total = rt.block_on(client.status(id)).unwrap().tiles_total;

@@ -331,6 +331,9 @@ fn new_job(
         tile,
         seed: None,
         passes: None,
+        verify: None,
+        priority: 0,
+        webhook: None,
     };
     rt.block_on(client.create_job(&spec, None)).unwrap()
 }
@@ -502,6 +505,9 @@ fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
                 tile: 8,
                 seed: None,
                 passes: None,
+                verify: None,
+                priority: 0,
+                webhook: None,
             },
             None,
         ))
@@ -569,6 +575,9 @@ fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
         tile: 8,
         seed: None,
         passes: None,
+        verify: None,
+        priority: 0,
+        webhook: None,
     };
     let a = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
     let b = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
@@ -715,6 +724,9 @@ fn a_medium_too_dense_to_track_fails_its_job_with_the_reason() {
         tile: 8,
         seed: None,
         passes: None,
+        verify: None,
+        priority: 0,
+        webhook: None,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let _worker = start_worker(
@@ -1027,6 +1039,9 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
         tile: 8,
         seed: None,
         passes: Some(vec![64, 72, 80, 88, 96]),
+        verify: None,
+        priority: 0,
+        webhook: None,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let _worker = start_worker(
@@ -1075,4 +1090,140 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
         result == render_at(104),
         "extended to 104: not kiln render's bytes"
     );
+}
+
+/// Verified workers on real processes: a worker started in a fault-injection mode (it
+/// flips the lowest bit of some pixels it uploads) is caught on its first tile and set
+/// aside with the reason, two honest workers finish the job with `kiln render`'s bytes,
+/// and no honest worker is ever flagged, here or on a job of honest workers alone.
+#[test]
+fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let url = in_process(&rt, &dir.path().join("data"), None);
+    let client = Client::new(&url, None);
+    let path = scene("materials/scene.pbrt");
+    let bundle = kiln_farm::bundle::pack(&path).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = |passes: Vec<u32>| JobSpec {
+        scene: digest.clone(),
+        spp: None,
+        resolution: Some((48, 32)),
+        tile: 16,
+        seed: None,
+        passes: Some(passes),
+        verify: Some(1.0),
+        priority: 0,
+        webhook: None,
+    };
+    let workers = |rt: &tokio::runtime::Runtime| -> Vec<kiln_farm::api::WorkerStatus> {
+        let http = reqwest::Client::new();
+        rt.block_on(async {
+            http.get(format!("{url}/v1/workers"))
+                .send()
+                .await
+                .unwrap()
+                .json()
+                .await
+                .unwrap()
+        })
+    };
+    // Honest workers alone: every tile pass verified, nobody set aside.
+    let honest_job = rt
+        .block_on(client.create_job(&spec(vec![2, 4]), None))
+        .unwrap();
+    let cache = dir.path().join("cache");
+    let mut honest: Vec<Guard> = (0..2)
+        .map(|i| {
+            start_worker(
+                &url,
+                &format!("h{i}"),
+                &cache,
+                &dir.path().join(format!("h{i}.log")),
+            )
+        })
+        .collect();
+    let s = wait_done(&rt, &client, honest_job, Duration::from_secs(120));
+    assert_eq!(s.state, JobState::Done, "{s:?}");
+    assert_eq!(
+        s.tile_passes_verified,
+        6 * 2,
+        "every tile pass of 6 tiles x 2 passes"
+    );
+    assert!(workers(&rt).iter().all(|w| w.set_aside.is_none()));
+    // Now a bad worker takes the first tiles of a new job before the honest ones come.
+    for w in &mut honest {
+        w.kill().unwrap();
+        w.wait().unwrap();
+    }
+    let job = rt
+        .block_on(client.create_job(&spec(vec![3]), None))
+        .unwrap();
+    let bad_log = dir.path().join("bad.log");
+    let mut bad = Guard(
+        kiln()
+            .args([
+                "worker",
+                "--coordinator",
+                &url,
+                "--threads",
+                "1",
+                "--name",
+                "bad",
+            ])
+            .args(["--inject-fault", "flip-low-bit"])
+            .arg("--cache-dir")
+            .arg(&cache)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&bad_log).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let start = Instant::now();
+    while rendered_lines(&bad_log) == 0 {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the bad worker rendered nothing"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _honest: Vec<Guard> = (2..4)
+        .map(|i| {
+            start_worker(
+                &url,
+                &format!("h{i}"),
+                &cache,
+                &dir.path().join(format!("h{i}.log")),
+            )
+        })
+        .collect();
+    let s = wait_done(&rt, &client, job, Duration::from_secs(120));
+    assert_eq!(s.state, JobState::Done, "{s:?}");
+    let direct = render(
+        &path,
+        dir.path(),
+        "direct",
+        &["--spp", "3", "--resolution", "48x32"],
+    );
+    let merged = rt.block_on(client.result(job)).unwrap();
+    assert!(
+        merged == direct.bytes,
+        "the verified job is not kiln render's bytes"
+    );
+    let ws = workers(&rt);
+    for w in &ws {
+        match w.name.as_str() {
+            "bad" => {
+                let why = w.set_aside.as_deref().expect("the bad worker is set aside");
+                assert!(why.contains("differs, bit for bit"), "{why}");
+            }
+            name => assert!(w.set_aside.is_none(), "honest {name} was flagged: {w:?}"),
+        }
+    }
+    // Refused, the bad worker leaves with the reason.
+    let status = wait_exit(&mut bad.0, Duration::from_secs(30));
+    assert!(!status.success());
+    let log = std::fs::read_to_string(&bad_log).unwrap();
+    assert!(log.contains("set aside"), "{log}");
 }

@@ -99,6 +99,17 @@ pub struct WorkerArgs {
     /// Exit after the coordinator has been unreachable for this many seconds.
     #[arg(long, default_value_t = 600.0)]
     give_up_after: f64,
+    /// For testing verified jobs only: upload wrong pixels on purpose ("flip-low-bit"
+    /// flips the lowest bit of some pixels), as a bad host would.
+    #[arg(long, value_parser = parse_fault)]
+    inject_fault: Option<worker::Fault>,
+}
+
+fn parse_fault(s: &str) -> std::result::Result<worker::Fault, String> {
+    match s {
+        "flip-low-bit" => Ok(worker::Fault::FlipLowBit),
+        other => Err(format!("unknown fault '{other}' (known: flip-low-bit)")),
+    }
 }
 
 pub fn worker(args: WorkerArgs) -> Result<()> {
@@ -123,6 +134,7 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
         cache_dir,
         poll: Duration::from_millis(100),
         give_up_after: Duration::from_secs_f64(args.give_up_after.max(0.0)),
+        fault: args.inject_fault,
     };
     rt.block_on(async move {
         let stop = Arc::new(worker::Stop::default());
@@ -163,6 +175,17 @@ pub struct JobArgs {
     /// the job's samples per pixel.
     #[arg(long, value_delimiter = ',')]
     passes: Option<Vec<u32>>,
+    /// Render this fraction (0 to 1) of tile passes twice, on different workers, and
+    /// compare them bit for bit: a worker whose render two others contradict is set aside.
+    #[arg(long)]
+    verify: Option<f64>,
+    /// Higher runs first; jobs of equal priority share the workers.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    priority: i32,
+    /// A URL the coordinator POSTs the job's status to when it ends (retried until it
+    /// answers 2xx).
+    #[arg(long)]
+    webhook: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -195,6 +218,9 @@ async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> 
         tile: job.tile,
         seed: job.seed,
         passes: job.passes.clone(),
+        verify: job.verify,
+        priority: job.priority,
+        webhook: job.webhook.clone(),
     };
     // The same scene and settings submitted twice (a retry) make one job.
     let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);

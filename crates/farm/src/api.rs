@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 /// What to render: a scene bundle and the settings that override the scene's own.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobSpec {
     /// Digest of an uploaded scene bundle.
     pub scene: String,
@@ -22,6 +22,23 @@ pub struct JobSpec {
     /// pass of `spp` (or the scene's count).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub passes: Option<Vec<u32>>,
+    /// Verified workers: the fraction (0 to 1) of tile passes rendered twice, on different
+    /// workers, and compared bit for bit. Renders are deterministic, so a difference proves
+    /// a worker wrong: a third render decides which, that worker is set aside with the
+    /// reason, and what it rendered unchecked is rendered again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verify: Option<f64>,
+    /// Higher runs first; jobs of equal priority share the workers.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub priority: i32,
+    /// Called (POST, the job's status as JSON) when the job ends: done, failed or
+    /// cancelled. Retried with backoff until it answers 2xx.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub webhook: Option<String>,
+}
+
+fn is_zero(v: &i32) -> bool {
+    *v == 0
 }
 
 fn default_tile() -> u32 {
@@ -124,6 +141,34 @@ pub struct JobStatus {
     pub passes_done: u32,
     #[serde(default)]
     pub samples_per_pixel_done: u32,
+    /// Tile passes two workers rendered with the same bits before one was kept.
+    #[serde(default)]
+    pub tile_passes_verified: u64,
+    #[serde(default)]
+    pub priority: i32,
+}
+
+/// A worker as the coordinator knows it (GET /v1/workers).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorkerStatus {
+    pub name: String,
+    /// Tile passes it rendered and uploaded.
+    pub tiles_done: u64,
+    pub failures: u64,
+    /// Seconds since it last asked for work, renewed a lease or uploaded.
+    pub last_seen_seconds: Option<f64>,
+    /// Why it gets no more leases, if it does not.
+    pub set_aside: Option<String>,
+    /// What it is rendering now.
+    pub leases: Vec<WorkerLease>,
+}
+
+/// A lease a worker holds, as [`WorkerStatus`] lists it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorkerLease {
+    pub job: u64,
+    pub tile_index: u32,
+    pub pass: PassRange,
 }
 
 /// A tile's pixels in frame coordinates: the wire form of [`kiln_render::TileRect`].

@@ -56,6 +56,28 @@ pub struct WorkerConfig {
     pub poll: Duration,
     /// Stop after the coordinator has been unreachable this long (a farm that is gone).
     pub give_up_after: Duration,
+    /// A fault to inject, to test that verification catches it.
+    pub fault: Option<Fault>,
+}
+
+/// A fault a worker can be told to inject into what it uploads: how a verified job is
+/// tested against a bad host (a flaky memory bit, a miscompiled math library).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fault {
+    /// Flips the lowest bit of the red channel of every seventh pixel of each tile.
+    FlipLowBit,
+}
+
+impl Fault {
+    fn apply(self, tile: &mut kiln_image::RgbBuffer) {
+        match self {
+            Fault::FlipLowBit => {
+                for p in tile.pixels.iter_mut().step_by(7) {
+                    p[0] = f32::from_bits(p[0].to_bits() ^ 1);
+                }
+            }
+        }
+    }
 }
 
 /// A loaded scene, ready to render tiles of one job spec.
@@ -107,7 +129,7 @@ pub async fn run(config: WorkerConfig, stop: Arc<Stop>) -> Result<u64, WorkerErr
             }
         };
         let (name, job, tile) = (&config.name, lease.job, lease.tile_index);
-        match render_and_upload(&client, &pool, &loaded, &lease, &stop).await {
+        match render_and_upload(&client, &pool, &loaded, &lease, &stop, config.fault).await {
             Ok(Outcome::Uploaded) => {
                 rendered += 1;
                 eprintln!("kiln worker {name}: rendered job {job} tile {tile}");
@@ -374,6 +396,7 @@ async fn render_and_upload(
     loaded: &Arc<Loaded>,
     lease: &Lease,
     stop: &Arc<Stop>,
+    fault: Option<Fault>,
 ) -> Result<Outcome, ClientError> {
     // Heartbeats keep the lease while the tile renders; one the coordinator refuses (the
     // job was cancelled or has ended, the lease expired) stops the render between pixels.
@@ -408,6 +431,9 @@ async fn render_and_upload(
             return Err(why);
         }
         let mut buffer = crate::tile_image(result, loaded2.frame, renderer.settings());
+        if let Some(fault) = fault {
+            fault.apply(&mut buffer);
+        }
         if from.is_some() {
             buffer.words = kiln_image::Words {
                 names: TileSums::word_names(sums.gbuffer),

@@ -7,7 +7,6 @@
 //! Messages carry their cause's text (`"job store: {0}"`) and causes are not chained as
 //! `source()`, so a `{:#}` print (the CLI's) says each thing once.
 
-use super::MAX_WORKER_FAILURES;
 use crate::api::{JobState, Rect};
 use crate::bundle::BundleError;
 use kiln_image::ImageError;
@@ -40,8 +39,8 @@ pub enum Error {
     Unplannable(PlanError),
     #[error("job {id} is {}, not done", state.as_str())]
     NotDone { id: u64, state: JobState },
-    #[error("worker '{0}' failed {MAX_WORKER_FAILURES} tiles in a row and is set aside")]
-    SetAside(String),
+    #[error("worker '{worker}' is set aside: {reason}")]
+    SetAside { worker: String, reason: String },
     #[error("lease {0} has expired or is unknown")]
     UnknownLease(u64),
     /// An upload under an expired lease that is not the tile already kept.
@@ -129,6 +128,8 @@ pub enum PlanError {
     /// Overrides the scene cannot take (a resolution out of range, ...).
     #[error("{0}")]
     Overrides(String),
+    #[error("verify is the fraction of tile passes rendered twice, 0 to 1, not {0}")]
+    Verify(f64),
     /// A pass schedule that cannot be rendered, or extended as asked.
     #[error("passes: {0}")]
     Passes(String),

@@ -45,6 +45,7 @@ pub fn app(c: Coordinator) -> Router {
         .route("/v1/jobs/{id}/cancel", post(cancel_job))
         .route("/v1/jobs/{id}/stop", post(stop_job))
         .route("/v1/jobs/{id}/extend", post(extend_job))
+        .route("/v1/workers", get(list_workers))
         .route("/v1/leases", post(lease))
         .route("/v1/leases/{id}/heartbeat", post(heartbeat))
         .route(
@@ -123,7 +124,7 @@ impl Error {
             | Error::UnknownLease(_)
             | Error::StaleTile(_)
             | Error::Relent(_) => StatusCode::CONFLICT,
-            Error::SetAside(_) => StatusCode::FORBIDDEN,
+            Error::SetAside { .. } => StatusCode::FORBIDDEN,
             Error::JobEnded(_) => StatusCode::GONE,
             Error::Store(_)
             | Error::LostJobs(_)
@@ -264,6 +265,10 @@ async fn create_job(
 
 async fn list_jobs(State(c): State<Coordinator>) -> Json<Vec<JobStatus>> {
     Json(c.statuses())
+}
+
+async fn list_workers(State(c): State<Coordinator>) -> Json<Vec<WorkerStatus>> {
+    Json(c.worker_statuses())
 }
 
 async fn get_job(

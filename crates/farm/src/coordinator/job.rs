@@ -14,11 +14,12 @@
 
 use super::MAX_TILE_ATTEMPTS;
 use super::error::{PlanError, TileRejected};
+use super::verify::{Candidate, Checks, Verdict, is_checked};
 use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
 use crate::bundle;
 use kiln_image::{RgbBuffer, Windows};
 use kiln_render::{TileRect, TileSums, split_into_tiles};
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
 use std::sync::Arc;
 use tokio::time::Instant;
@@ -59,9 +60,28 @@ pub(super) struct Job {
     black: Arc<RgbBuffer>,
     /// Passes merged into the result file.
     written: u32,
+    /// The fraction of tile passes rendered twice and compared, and those renders waiting
+    /// for a second.
+    verify: f64,
+    checks: Checks,
+    /// Per tile: the workers whose renders, not compared with another's, its sums hold.
+    unchecked_by: Vec<BTreeSet<String>>,
+    /// Tile passes kept after two workers agreed on them.
+    pub verified: u64,
     started: Instant,
     samples_at_start: u64,
     pub merge_seconds: Option<f64>,
+}
+
+/// A tile pass as the store keeps it.
+#[derive(Debug, Clone)]
+pub(super) struct KeptTile {
+    pub idx: usize,
+    /// Samples per pixel its sums hold.
+    pub samples: u32,
+    pub exr: Vec<u8>,
+    /// The workers whose unchecked renders its sums hold.
+    pub unchecked_by: BTreeSet<String>,
 }
 
 /// What a tile's upload did to its job.
@@ -114,6 +134,10 @@ impl Job {
             .with_aovs(kiln_render::aov_names(f.gbuffer));
         let tiles = split_into_tiles(f.pixel_bounds, spec.tile);
         let n = tiles.len();
+        let verify = spec.verify.unwrap_or(0.0);
+        if !(0.0..=1.0).contains(&verify) {
+            return Err(PlanError::Verify(verify));
+        }
         Ok(Job {
             id,
             spec,
@@ -132,6 +156,10 @@ impl Job {
             building: BTreeMap::new(),
             black: Arc::new(frame),
             written: 0,
+            verify,
+            checks: Checks::default(),
+            unchecked_by: vec![BTreeSet::new(); n],
+            verified: 0,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
@@ -155,6 +183,9 @@ impl Job {
             tile: 1,
             seed: None,
             passes: None,
+            verify: None,
+            priority: 0,
+            webhook: None,
         });
         let state = if state == JobState::Running {
             JobState::Failed
@@ -179,6 +210,10 @@ impl Job {
             building: BTreeMap::new(),
             black: Arc::new(RgbBuffer::new(0, 0, 0, 0, 0, 0)),
             written: 0,
+            verify: 0.0,
+            checks: Checks::default(),
+            unchecked_by: Vec::new(),
+            verified: 0,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
@@ -245,6 +280,8 @@ impl Job {
             passes: self.passes.clone(),
             passes_done: self.written,
             samples_per_pixel_done: self.samples_after(self.written),
+            tile_passes_verified: self.verified,
+            priority: self.spec.priority,
         }
     }
 
@@ -264,10 +301,15 @@ impl Job {
         self.written > 0
     }
 
-    /// The next tile to lend and the pass it is to render, taken off the queue.
-    pub fn next_pending(&mut self) -> Option<(usize, PassRange)> {
+    /// The next tile to lend `worker` and the pass it is to render, taken off the queue.
+    /// A checked pass `worker` has rendered already waits for another worker.
+    pub fn next_pending(&mut self, worker: &str) -> Option<(usize, PassRange)> {
         let frontier = self.frontier();
-        while let Some(t) = self.queue.pop_front() {
+        let mut not_for_this_one = Vec::new();
+        let found = loop {
+            let Some(t) = self.queue.pop_front() else {
+                break None;
+            };
             let d = self.done[t];
             if self.lent[t].is_some() || d as usize >= self.passes.len() {
                 continue;
@@ -276,16 +318,76 @@ impl Job {
                 self.parked.push(t);
                 continue;
             }
-            return Some((
-                t,
-                PassRange {
-                    index: d,
-                    from: self.samples_after(d),
-                    to: self.passes[d as usize],
-                },
-            ));
+            if self.checks.has_rendered(t, d, worker) {
+                not_for_this_one.push(t);
+                continue;
+            }
+            break Some(t);
+        };
+        for t in not_for_this_one.into_iter().rev() {
+            self.queue.push_front(t);
         }
-        None
+        let t = found?;
+        let d = self.done[t];
+        Some((
+            t,
+            PassRange {
+                index: d,
+                from: self.samples_after(d),
+                to: self.passes[d as usize],
+            },
+        ))
+    }
+
+    /// Whether an upload of `tile`'s pass `pass` would move the tile on (it is the pass the
+    /// tile is on, and the job still has it).
+    pub fn expects(&self, tile: usize, pass: u32) -> bool {
+        self.done[tile] == pass && (pass as usize) < self.passes.len()
+    }
+
+    /// Judges `worker`'s render of `tile`'s pass `pass`: kept at once if the pass is not
+    /// checked; else held until another worker's render agrees with it (the tile goes back
+    /// to the front of the queue for that). Returns the verdict, and with `Keep` the
+    /// workers whose unchecked renders the kept sums then hold.
+    pub fn judge(
+        &mut self,
+        tile: usize,
+        pass: u32,
+        render: Candidate,
+    ) -> (Verdict, BTreeSet<String>) {
+        let mut chain = self.unchecked_by[tile].clone();
+        if !is_checked(self.verify, tile, pass) {
+            chain.insert(render.worker.clone());
+            let agreeing = vec![render.worker.clone()];
+            let keep = Verdict::Keep {
+                render: Box::new(render),
+                agreeing,
+                wrong: Vec::new(),
+            };
+            return (keep, chain);
+        }
+        let verdict = self.checks.judge(tile, pass, render);
+        match &verdict {
+            Verdict::Keep { .. } => self.verified += 1,
+            Verdict::Held => {
+                self.lent[tile] = None;
+                self.queue.push_front(tile);
+            }
+            Verdict::Chaos => {}
+        }
+        (verdict, chain)
+    }
+
+    /// The tiles whose sums hold `worker`'s unchecked renders.
+    pub fn tiles_unchecked_by(&self, worker: &str) -> Vec<usize> {
+        (0..self.tiles.len())
+            .filter(|&t| self.unchecked_by[t].contains(worker))
+            .collect()
+    }
+
+    /// Forgets the renders of checked passes `worker` gave (it was set aside).
+    pub fn forget_worker(&mut self, worker: &str) {
+        self.checks.forget_worker(worker);
     }
 
     /// Marks `tile` as lent under `lease`.
@@ -354,6 +456,7 @@ impl Job {
         idx: usize,
         pass: u32,
         tile: &RgbBuffer,
+        unchecked_by: BTreeSet<String>,
     ) -> Result<Landed, kiln_image::ImageError> {
         if self.done[idx] != pass || pass as usize >= self.passes.len() {
             if self.done[idx] == pass {
@@ -366,6 +469,7 @@ impl Job {
         Arc::make_mut(&mut entry.0).paste(tile)?;
         entry.1 += 1;
         let full = entry.1 == self.tiles.len();
+        self.unchecked_by[idx] = unchecked_by;
         self.done[idx] += 1;
         self.attempts[idx] = 0;
         self.lent[idx] = None;
@@ -389,9 +493,19 @@ impl Job {
         self.written as usize >= self.passes.len()
     }
 
+    /// Samples per pixel at the end of the last pass.
+    pub fn last_samples(&self) -> u32 {
+        self.passes.last().copied().unwrap_or(0)
+    }
+
     /// Samples per pixel at the end of pass `pass`.
     pub fn samples_of_pass(&self, pass: u32) -> u32 {
         self.passes[(pass as usize).min(self.passes.len() - 1)]
+    }
+
+    /// Whether every tile has done pass `pass` (or a later one).
+    pub fn has_complete(&self, pass: u32) -> bool {
+        self.complete.as_ref().is_some_and(|(p, _)| *p >= pass)
     }
 
     /// Whether the result file already holds pass `pass` or a later one.
@@ -399,30 +513,34 @@ impl Job {
         self.written > pass
     }
 
-    /// Restores the tiles kept in the store (on resume): `rows` are (tile, samples, EXR).
-    /// Each tile resumes after the last pass it has a readable row for, and the frames are
-    /// pasted together again from the rows of the passes in progress. A tile whose rows do
-    /// not add up (one cannot be read, or is not this job's) starts again from nothing.
-    pub fn restore(&mut self, rows: Vec<(usize, u32, Vec<u8>)>) {
+    /// Restores the tiles kept in the store (on resume, or after a worker was set aside and
+    /// its tiles' rows were dropped). Each tile resumes after the last pass it has a
+    /// readable row for, and the frames are pasted together again from the rows of the
+    /// passes in progress. A tile whose rows do not add up (one cannot be read, or is not
+    /// this job's) starts again from nothing.
+    pub fn restore(&mut self, rows: Vec<KeptTile>) {
         let n = self.tiles.len();
-        let mut kept: Vec<BTreeMap<u32, RgbBuffer>> = vec![BTreeMap::new(); n];
-        for (idx, samples, exr) in rows {
+        self.complete = None;
+        self.building.clear();
+        let mut kept: Vec<BTreeMap<u32, (RgbBuffer, BTreeSet<String>)>> = vec![BTreeMap::new(); n];
+        for row in rows {
+            let idx = row.idx;
             if idx >= n {
                 continue;
             }
-            let Some(pass) = self.passes.iter().position(|&p| p == samples) else {
+            let Some(pass) = self.passes.iter().position(|&p| p == row.samples) else {
                 continue;
             };
-            let Ok(tile) = kiln_image::decode_exr(&exr) else {
+            let Ok(tile) = kiln_image::decode_exr(&row.exr) else {
                 continue;
             };
             let range = PassRange {
                 index: pass as u32,
                 from: self.samples_after(pass as u32),
-                to: samples,
+                to: row.samples,
             };
             if self.spot(idx, range).check(&tile).is_ok() {
-                kept[idx].insert(pass as u32, tile);
+                kept[idx].insert(pass as u32, (tile, row.unchecked_by));
             }
         }
         for (idx, rows) in kept.iter().enumerate() {
@@ -449,7 +567,7 @@ impl Job {
             let mut frame = (*picture).clone();
             let mut count = 0;
             for (idx, rows) in kept.iter().enumerate() {
-                if let Some(tile) = rows.get(&pass)
+                if let Some((tile, _)) = rows.get(&pass)
                     && self.done[idx] > pass
                     && frame.paste(tile).is_ok()
                 {
@@ -463,6 +581,13 @@ impl Job {
                 self.building.insert(pass, (picture.clone(), count));
             }
         }
+        for (idx, rows) in kept.iter_mut().enumerate() {
+            let last = self.done[idx].checked_sub(1);
+            self.unchecked_by[idx] = last
+                .and_then(|p| rows.remove(&p))
+                .map(|(_, by)| by)
+                .unwrap_or_default();
+        }
         self.queue = (0..n).filter(|&i| !self.is_finished(i)).collect();
         self.parked.clear();
         self.lent = vec![None; n];
@@ -471,6 +596,17 @@ impl Job {
         if self.state != JobState::Running {
             self.written = self.complete.as_ref().map_or(0, |(p, _)| p + 1);
         }
+    }
+
+    /// Restores the job from `rows` after some of its tiles' rows were dropped (a worker
+    /// whose renders were in them was set aside). The result file may hold those renders:
+    /// it no longer counts until the next pass is merged.
+    pub fn rebuild(&mut self, rows: Vec<KeptTile>, tiles: &[usize]) {
+        for &t in tiles {
+            self.checks.forget_tile(t);
+        }
+        self.restore(rows);
+        self.written = 0;
     }
 
     /// The complete pass to merge after a restore, if the result file may lack it.

@@ -7,7 +7,7 @@
 use super::job::Job;
 use super::metrics::Snapshot;
 use super::{Coordinator, Error, PlanError};
-use crate::api::{JobSpec, JobState, JobStatus};
+use crate::api::{JobSpec, JobState, JobStatus, WorkerLease, WorkerStatus};
 
 impl Coordinator {
     /// Keeps an uploaded scene bundle; returns its digest.
@@ -220,6 +220,39 @@ impl Coordinator {
         tokio::task::spawn_blocking(move || kiln_image::encode_png(&frame, 0.0))
             .await?
             .map_err(Error::Image)
+    }
+
+    /// Every worker seen, with what it is rendering now.
+    pub fn worker_statuses(&self) -> Vec<WorkerStatus> {
+        let now = self.now();
+        let state = self.lock();
+        state
+            .workers
+            .iter()
+            .map(|(name, r)| {
+                let mut leases: Vec<WorkerLease> = state
+                    .leases
+                    .iter()
+                    .filter(|(_, h)| &h.worker == name)
+                    .map(|(_, h)| WorkerLease {
+                        job: h.job,
+                        tile_index: h.tile as u32,
+                        pass: h.pass,
+                    })
+                    .collect();
+                leases.sort_by_key(|l| (l.job, l.tile_index));
+                WorkerStatus {
+                    name: name.clone(),
+                    tiles_done: r.tiles_done,
+                    failures: r.failures,
+                    last_seen_seconds: r
+                        .last_seen
+                        .map(|t| now.saturating_duration_since(t).as_secs_f64()),
+                    set_aside: state.workers.set_aside_reason(name),
+                    leases,
+                }
+            })
+            .collect()
     }
 
     /// The Prometheus text of the coordinator's counters and gauges.

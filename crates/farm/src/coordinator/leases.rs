@@ -106,39 +106,91 @@ impl Leases {
     pub fn len(&self) -> usize {
         self.held.len()
     }
+
+    /// Ends every lease `which` picks; returns them.
+    pub fn remove_where(&mut self, which: impl Fn(&Held) -> bool) -> Vec<(u64, Held)> {
+        let ids: Vec<u64> = self
+            .held
+            .iter()
+            .filter(|(_, h)| which(h))
+            .map(|(&id, _)| id)
+            .collect();
+        ids.into_iter()
+            .filter_map(|id| Some((id, self.held.remove(&id)?)))
+            .collect()
+    }
+
+    /// Every lease held, by id.
+    pub fn iter(&self) -> impl Iterator<Item = (&u64, &Held)> {
+        self.held.iter()
+    }
 }
 
-/// Workers' records: how many of their attempts failed in a row.
+/// One worker as the coordinator knows it.
+#[derive(Debug, Clone, Default)]
+pub(super) struct WorkerRecord {
+    /// Failed attempts since its last success.
+    pub consecutive_failures: u32,
+    pub tiles_done: u64,
+    pub failures: u64,
+    /// When it last asked for work, renewed a lease or uploaded.
+    pub last_seen: Option<Instant>,
+    /// Why it gets no more leases, if it does not.
+    pub set_aside: Option<String>,
+}
+
+/// Workers' records: what they did, when they were last heard from, and whether they are
+/// set aside (too many failures in a row, or a render that disagreed with others').
 #[derive(Default)]
 pub(super) struct Workers {
-    consecutive_failures: HashMap<String, u32>,
+    records: std::collections::BTreeMap<String, WorkerRecord>,
 }
 
 impl Workers {
-    /// Whether the worker failed too often in a row to get more leases.
-    pub fn is_set_aside(&self, worker: &str) -> bool {
-        self.consecutive_failures
-            .get(worker)
-            .is_some_and(|&n| n >= MAX_WORKER_FAILURES)
+    /// Why the worker gets no more leases: None if it does.
+    pub fn set_aside_reason(&self, worker: &str) -> Option<String> {
+        let r = self.records.get(worker)?;
+        if let Some(why) = &r.set_aside {
+            return Some(why.clone());
+        }
+        (r.consecutive_failures >= MAX_WORKER_FAILURES)
+            .then(|| format!("it failed {MAX_WORKER_FAILURES} tiles in a row"))
     }
 
-    pub fn seen(&mut self, worker: &str) {
-        self.consecutive_failures
-            .entry(worker.to_string())
-            .or_default();
+    #[cfg(test)]
+    pub fn is_set_aside(&self, worker: &str) -> bool {
+        self.set_aside_reason(worker).is_some()
+    }
+
+    fn record(&mut self, worker: &str) -> &mut WorkerRecord {
+        self.records.entry(worker.to_string()).or_default()
+    }
+
+    pub fn seen(&mut self, worker: &str, now: Instant) {
+        self.record(worker).last_seen = Some(now);
     }
 
     pub fn failed(&mut self, worker: &str) {
-        *self
-            .consecutive_failures
-            .entry(worker.to_string())
-            .or_default() += 1;
+        let r = self.record(worker);
+        r.consecutive_failures += 1;
+        r.failures += 1;
     }
 
-    pub fn succeeded(&mut self, worker: &str) {
-        if let Some(n) = self.consecutive_failures.get_mut(worker) {
-            *n = 0;
-        }
+    pub fn succeeded(&mut self, worker: &str, now: Instant) {
+        let r = self.record(worker);
+        r.consecutive_failures = 0;
+        r.tiles_done += 1;
+        r.last_seen = Some(now);
+    }
+
+    /// Gives the worker no more leases, for `reason` (the first reason stays).
+    pub fn set_aside(&mut self, worker: &str, reason: String) {
+        self.record(worker).set_aside.get_or_insert(reason);
+    }
+
+    /// Every worker seen, by name.
+    pub fn iter(&self) -> impl Iterator<Item = (&String, &WorkerRecord)> {
+        self.records.iter()
     }
 }
 
@@ -191,11 +243,12 @@ mod tests {
     #[test]
     fn a_worker_is_set_aside_after_failures_in_a_row_only() {
         let mut workers = Workers::default();
-        workers.seen("w");
+        let t0 = Instant::now();
+        workers.seen("w", t0);
         for _ in 1..MAX_WORKER_FAILURES {
             workers.failed("w");
         }
-        workers.succeeded("w");
+        workers.succeeded("w", t0);
         for _ in 1..MAX_WORKER_FAILURES {
             workers.failed("w");
         }
@@ -206,5 +259,8 @@ mod tests {
         workers.failed("w");
         assert!(workers.is_set_aside("w"));
         assert!(!workers.is_set_aside("other"));
+        workers.set_aside("v", "it disagreed".into());
+        workers.set_aside("v", "later".into());
+        assert_eq!(workers.set_aside_reason("v").unwrap(), "it disagreed");
     }
 }

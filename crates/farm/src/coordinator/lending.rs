@@ -8,11 +8,13 @@
 
 use super::error::TileRejected;
 use super::job::Landed;
+use super::verify::{Candidate, MAX_CANDIDATES, Verdict};
 use super::{Coordinator, Error, State};
 use crate::api::{JobState, Lease};
 use crate::bundle;
 use axum::body::Bytes;
 use kiln_image::{RgbBuffer, Windows};
+use tokio::time::Instant;
 
 impl Coordinator {
     /// Lends `worker` the next pending tile of the oldest running job that has one;
@@ -21,17 +23,20 @@ impl Coordinator {
         let now = self.now();
         let mut state = self.lock();
         let state = &mut *state;
-        if state.workers.is_set_aside(worker) {
-            return Err(Error::SetAside(worker.to_string()));
+        if let Some(reason) = state.workers.set_aside_reason(worker) {
+            return Err(Error::SetAside {
+                worker: worker.to_string(),
+                reason,
+            });
         }
-        state.workers.seen(worker);
+        state.workers.seen(worker, now);
         let ttl = state.leases.ttl();
         for job in state
             .jobs
             .values_mut()
             .filter(|j| j.state == JobState::Running)
         {
-            let Some((tile, pass)) = job.next_pending() else {
+            let Some((tile, pass)) = job.next_pending(worker) else {
                 continue;
             };
             let id = state.leases.grant(job.id, tile, pass, worker, now);
@@ -55,11 +60,12 @@ impl Coordinator {
     pub fn heartbeat(&self, lease: u64) -> Result<(), Error> {
         let now = self.now();
         let mut state = self.lock();
-        let job = state
+        let held = state
             .leases
             .renew(lease, now)
-            .ok_or(Error::UnknownLease(lease))?
-            .job;
+            .ok_or(Error::UnknownLease(lease))?;
+        let (job, worker) = (held.job, held.worker.clone());
+        state.workers.seen(&worker, now);
         if state
             .jobs
             .get(&job)
@@ -109,7 +115,8 @@ impl Coordinator {
                 return Err(Error::RejectedTile(why));
             }
         };
-        let landed = self.lock().commit_tile(lease, &exr, &tile)?;
+        let now = self.now();
+        let landed = self.lock().commit_tile(lease, &exr, tile, now)?;
         self.notify(job);
         // A pass's last tile's upload is answered once the frame is written (off the lock).
         if let Landed::Pass { pass, frame } = landed {
@@ -151,22 +158,137 @@ impl Coordinator {
 
 impl State {
     /// Keeps a checked tile uploaded under `lease`: in the store first (if that fails the
-    /// lease stays, and expires), then in the job. Returns the job's frame if this was its
-    /// last tile, to be merged. A lease that expired meanwhile is judged as a stale upload.
-    fn commit_tile(&mut self, lease: u64, exr: &[u8], tile: &RgbBuffer) -> Result<Landed, Error> {
+    /// lease stays, and expires), then in the job. A tile pass the job verifies is held
+    /// until another worker's render agrees with it, and a worker whose render two others
+    /// contradict is set aside. Returns what the upload did to the job (a pass it completed
+    /// is merged by the caller). A lease that expired meanwhile is judged as a stale upload.
+    fn commit_tile(
+        &mut self,
+        lease: u64,
+        exr: &[u8],
+        tile: RgbBuffer,
+        now: Instant,
+    ) -> Result<Landed, Error> {
         let Some(held) = self.leases.get(lease) else {
             return self
                 .judge_stale(lease, &tile.windows(), exr)
                 .map(|()| Landed::Nothing);
         };
-        let (job, idx, pass) = (held.job, held.tile, held.pass);
-        self.store.insert_tile(job, idx, pass.to, exr)?;
-        let held = self.leases.remove(lease).expect("checked above");
+        let (job_id, idx, pass, worker) = (held.job, held.tile, held.pass, held.worker.clone());
+        let job = self.jobs.get_mut(&job_id).expect("leased jobs exist");
+        if !job.expects(idx, pass.index) {
+            // A pass the job no longer wants: it was stopped before it, or the tile starts
+            // again. Nothing is kept.
+            self.leases.remove(lease);
+            job.lease_lost(idx, lease);
+            self.workers.succeeded(&worker, now);
+            return Ok(Landed::Nothing);
+        }
+        let render = Candidate {
+            worker: worker.clone(),
+            exr: exr.to_vec(),
+            tile,
+        };
+        let (verdict, chain) = job.judge(idx, pass.index, render);
+        let (render, agreeing, wrong) = match verdict {
+            Verdict::Held => {
+                self.leases.remove(lease);
+                self.workers.succeeded(&worker, now);
+                self.metrics.tiles_held += 1;
+                return Ok(Landed::Nothing);
+            }
+            Verdict::Chaos => {
+                let why =
+                    format!("no two of {MAX_CANDIDATES} workers' renders of this tile pass agree");
+                self.release_failed(lease, &why);
+                return Ok(Landed::Nothing);
+            }
+            Verdict::Keep {
+                render,
+                agreeing,
+                wrong,
+            } => (render, agreeing, wrong),
+        };
+        self.store
+            .insert_tile(job_id, idx, pass.to, &render.exr, &chain)?;
+        if agreeing.len() > 1 {
+            self.store.add_verified(job_id)?;
+        }
+        self.leases.remove(lease);
         self.metrics.tiles_accepted += 1;
-        self.workers.succeeded(&held.worker);
-        let job = self.jobs.get_mut(&job).expect("leased jobs exist");
-        job.complete_tile(idx, pass.index, tile)
-            .map_err(Error::Image)
+        self.workers.succeeded(&worker, now);
+        let job = self.jobs.get_mut(&job_id).expect("leased jobs exist");
+        let mut landed = job
+            .complete_tile(idx, pass.index, &render.tile, chain)
+            .map_err(Error::Image)?;
+        for w in wrong {
+            let reason = format!(
+                "its render of job {job_id} tile {idx} pass {} ({} samples) differs, bit for bit, from the render {} and {} agree on",
+                pass.index, pass.to, agreeing[0], agreeing[1]
+            );
+            if self.set_aside(&w, reason).contains(&job_id) {
+                // Its tiles start again: the pass this upload completed is not whole.
+                landed = Landed::Nothing;
+            }
+        }
+        Ok(landed)
+    }
+
+    /// Sets `worker` aside for `reason`: it gets no more leases, the ones it holds end, its
+    /// renders waiting to be compared are dropped, and every tile whose sums hold its
+    /// unchecked renders, in running jobs, is rendered again from nothing. (The job is
+    /// rebuilt from the store under the lock: slow for a big job, and rare.)
+    /// Returns the jobs whose tiles start again.
+    fn set_aside(&mut self, worker: &str, reason: String) -> Vec<u64> {
+        tracing::warn!("worker {worker} is set aside: {reason}");
+        self.workers.set_aside(worker, reason);
+        self.metrics.workers_set_aside += 1;
+        for (id, held) in self.leases.remove_where(|h| h.worker == worker) {
+            if let Some(job) = self.jobs.get_mut(&held.job) {
+                job.lease_lost(held.tile, id);
+            }
+        }
+        let running: Vec<u64> = self
+            .jobs
+            .values()
+            .filter(|j| j.state == JobState::Running)
+            .map(|j| j.id)
+            .collect();
+        let mut rebuilt = Vec::new();
+        for id in running {
+            let job = self.jobs.get_mut(&id).expect("listed above");
+            job.forget_worker(worker);
+            let tiles = job.tiles_unchecked_by(worker);
+            if tiles.is_empty() {
+                continue;
+            }
+            let legacy = job.last_samples();
+            let rows = self
+                .store
+                .drop_tiles(id, &tiles)
+                .and_then(|()| self.store.tiles(id, legacy));
+            let rows = match rows {
+                Ok(rows) => rows,
+                Err(e) => {
+                    tracing::error!("job {id}: cannot render {worker}'s tiles again: {e}");
+                    continue;
+                }
+            };
+            for (lease, held) in self
+                .leases
+                .remove_where(|h| h.job == id && tiles.contains(&h.tile))
+            {
+                tracing::info!("lease {lease} ends: its tile {} starts again", held.tile);
+            }
+            let job = self.jobs.get_mut(&id).expect("listed above");
+            job.rebuild(rows, &tiles);
+            rebuilt.push(id);
+            tracing::warn!(
+                "job {id}: {} tiles holding {worker}'s unchecked renders start again",
+                tiles.len()
+            );
+        }
+        rebuilt
     }
 
     /// An upload under an unknown or expired lease: fine if it is the very tile already

@@ -56,8 +56,9 @@ impl Coordinator {
             let Some(job) = state.jobs.get_mut(&id) else {
                 return;
             };
-            // A later pass's merge that landed first wins; so does a cancellation.
-            if job.is_written(pass) || job.state != JobState::Running {
+            // A later pass's merge that landed first wins; so does a cancellation, and tiles
+            // that started again meanwhile (a worker set aside).
+            if job.is_written(pass) || job.state != JobState::Running || !job.has_complete(pass) {
                 if let Ok(path) = &staged {
                     let _ = std::fs::remove_file(path);
                 }

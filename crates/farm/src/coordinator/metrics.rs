@@ -11,6 +11,10 @@ pub(super) struct Metrics {
     pub leases_expired: u64,
     pub tiles_accepted: u64,
     pub tiles_rejected: u64,
+    /// Renders of verified tile passes held for another worker's to compare with.
+    pub tiles_held: u64,
+    /// Workers set aside because their render disagreed with two others'.
+    pub workers_set_aside: u64,
 }
 
 /// The counters and gauges at one moment.
@@ -63,6 +67,16 @@ impl Snapshot {
                 "Tile uploads rejected as corrupt.",
                 m.tiles_rejected,
             ),
+            (
+                "kiln_tiles_held_total",
+                "Renders of verified tile passes held for a second worker's.",
+                m.tiles_held,
+            ),
+            (
+                "kiln_workers_set_aside_total",
+                "Workers set aside because their render disagreed with two others'.",
+                m.workers_set_aside,
+            ),
         ] {
             out.push_str(&format!(
                 "# HELP {name} {help}\n# TYPE {name} counter\n{name} {value}\n"
@@ -91,6 +105,8 @@ mod tests {
             leases_expired: 1,
             tiles_accepted: 5,
             tiles_rejected: 2,
+            tiles_held: 4,
+            workers_set_aside: 1,
         };
         let states = [JobState::Done, JobState::Running, JobState::Done];
         let text = Snapshot::new(&counters, states.into_iter(), 3).render();
@@ -107,6 +123,12 @@ kiln_tiles_accepted_total 5
 # HELP kiln_tiles_rejected_total Tile uploads rejected as corrupt.
 # TYPE kiln_tiles_rejected_total counter
 kiln_tiles_rejected_total 2
+# HELP kiln_tiles_held_total Renders of verified tile passes held for a second worker's.
+# TYPE kiln_tiles_held_total counter
+kiln_tiles_held_total 4
+# HELP kiln_workers_set_aside_total Workers set aside because their render disagreed with two others'.
+# TYPE kiln_workers_set_aside_total counter
+kiln_workers_set_aside_total 1
 # HELP kiln_jobs Jobs by state.
 # TYPE kiln_jobs gauge
 kiln_jobs{state=\"running\"} 1

@@ -26,6 +26,7 @@ mod proptests;
 mod store;
 #[cfg(test)]
 mod tests;
+mod verify;
 
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
@@ -178,8 +179,12 @@ impl Coordinator {
             };
             job.error = s.error;
             let total = job.status(self.now()).passes.last().copied().unwrap_or(0);
-            let kept = self.lock().store.tiles(id, total)?;
+            let (kept, verified) = {
+                let state = self.lock();
+                (state.store.tiles(id, total)?, state.store.verified(id)?)
+            };
             job.restore(kept);
+            job.verified = verified;
             job.restart_rate(self.now());
             // The last complete pass is merged again: the coordinator may have stopped
             // before writing it. (A job that ended keeps its result as it is.)

@@ -74,7 +74,7 @@ fn assert_not_internal(r: &Result<(), Error>) {
                     | Error::StaleTile(_)
                     | Error::Relent(_)
                     | Error::RejectedTile(_)
-                    | Error::SetAside(_)
+                    | Error::SetAside { .. }
                     | Error::JobEnded(_)
             ),
             "internal error: {e:?}"
@@ -111,6 +111,9 @@ fn run(ops: Vec<Op>) {
             tile: 8,
             seed: None,
             passes: None,
+            verify: None,
+            priority: 0,
+            webhook: None,
         };
         let (job, _) = c.create_job(spec, None).await.unwrap();
         let mut held: Vec<Lease> = Vec::new();

@@ -6,6 +6,7 @@
 //! keeps no state in memory beyond the connection.
 
 use super::Error;
+use super::job::KeptTile;
 use crate::api::{JobSpec, JobState};
 use crate::bundle;
 use rusqlite::{Connection, OptionalExtension, params};
@@ -138,7 +139,7 @@ impl Store {
              PRAGMA synchronous = NORMAL;
              CREATE TABLE IF NOT EXISTS jobs (id INTEGER PRIMARY KEY, spec TEXT NOT NULL, state TEXT NOT NULL, error TEXT, idempotency_key TEXT UNIQUE);
              CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx));
-             CREATE TABLE IF NOT EXISTS tile_passes (job INTEGER NOT NULL, idx INTEGER NOT NULL, samples INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx, samples));
+             CREATE TABLE IF NOT EXISTS tile_passes (job INTEGER NOT NULL, idx INTEGER NOT NULL, samples INTEGER NOT NULL, exr BLOB NOT NULL, unchecked_by TEXT NOT NULL DEFAULT '[]', PRIMARY KEY (job, idx, samples));
              CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);",
         )?;
         Ok(Store { db })
@@ -201,24 +202,21 @@ impl Store {
         Ok(jobs)
     }
 
-    /// A job's kept tile passes: (index, samples, EXR). Rows that cannot be read are left
-    /// out. Tiles kept before passes existed (the `tiles` table) come as passes of
-    /// `legacy_samples`.
-    pub fn tiles(
-        &self,
-        job: u64,
-        legacy_samples: u32,
-    ) -> Result<Vec<(usize, u32, Vec<u8>)>, Error> {
+    /// A job's kept tile passes. Rows that cannot be read are left out. Tiles kept before
+    /// passes existed (the `tiles` table) come as passes of `legacy_samples`.
+    pub fn tiles(&self, job: u64, legacy_samples: u32) -> Result<Vec<KeptTile>, Error> {
         let mut stmt = self
             .db
-            .prepare("SELECT idx, samples, exr FROM tile_passes WHERE job = ?1")?;
-        let mut tiles: Vec<(usize, u32, Vec<u8>)> = stmt
+            .prepare("SELECT idx, samples, exr, unchecked_by FROM tile_passes WHERE job = ?1")?;
+        let mut tiles: Vec<KeptTile> = stmt
             .query_map([job as i64], |r| {
-                Ok((
-                    r.get::<_, i64>(0)? as usize,
-                    r.get::<_, i64>(1)? as u32,
-                    r.get::<_, Vec<u8>>(2)?,
-                ))
+                let by: String = r.get(3)?;
+                Ok(KeptTile {
+                    idx: r.get::<_, i64>(0)? as usize,
+                    samples: r.get::<_, i64>(1)? as u32,
+                    exr: r.get(2)?,
+                    unchecked_by: serde_json::from_str(&by).unwrap_or_default(),
+                })
             })?
             .filter_map(|r| r.ok())
             .collect();
@@ -228,15 +226,56 @@ impl Store {
         tiles.extend(
             legacy
                 .query_map([job as i64], |r| {
-                    Ok((
-                        r.get::<_, i64>(0)? as usize,
-                        legacy_samples,
-                        r.get::<_, Vec<u8>>(1)?,
-                    ))
+                    Ok(KeptTile {
+                        idx: r.get::<_, i64>(0)? as usize,
+                        samples: legacy_samples,
+                        exr: r.get(1)?,
+                        unchecked_by: Default::default(),
+                    })
                 })?
                 .filter_map(|r| r.ok()),
         );
         Ok(tiles)
+    }
+
+    /// Forgets every kept pass of the job's `tiles`: they are rendered again from nothing.
+    pub fn drop_tiles(&self, job: u64, tiles: &[usize]) -> Result<(), Error> {
+        let tx = self.db.unchecked_transaction()?;
+        for &t in tiles {
+            tx.execute(
+                "DELETE FROM tile_passes WHERE job = ?1 AND idx = ?2",
+                params![job as i64, t as i64],
+            )?;
+            tx.execute(
+                "DELETE FROM tiles WHERE job = ?1 AND idx = ?2",
+                params![job as i64, t as i64],
+            )?;
+        }
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Counts a tile pass of the job that two workers agreed on.
+    pub fn add_verified(&self, job: u64) -> Result<(), Error> {
+        self.db.execute(
+            "INSERT INTO meta (key, value) VALUES (?1, 1)
+             ON CONFLICT (key) DO UPDATE SET value = value + 1",
+            [format!("verified:{job}")],
+        )?;
+        Ok(())
+    }
+
+    /// How many of the job's tile passes two workers agreed on.
+    pub fn verified(&self, job: u64) -> Result<u64, Error> {
+        Ok(self
+            .db
+            .query_row(
+                "SELECT value FROM meta WHERE key = ?1",
+                [format!("verified:{job}")],
+                |r| r.get::<_, i64>(0),
+            )
+            .optional()?
+            .unwrap_or(0) as u64)
     }
 
     /// The EXR kept for a tile after `samples` samples.
@@ -301,10 +340,18 @@ impl Store {
 
     /// Keeps a tile's EXR after `samples` samples. The first one kept for a tile's pass
     /// stays.
-    pub fn insert_tile(&self, job: u64, idx: usize, samples: u32, exr: &[u8]) -> Result<(), Error> {
+    pub fn insert_tile(
+        &self,
+        job: u64,
+        idx: usize,
+        samples: u32,
+        exr: &[u8],
+        unchecked_by: &std::collections::BTreeSet<String>,
+    ) -> Result<(), Error> {
+        let by = serde_json::to_string(unchecked_by).expect("names serialize");
         self.db.execute(
-            "INSERT OR IGNORE INTO tile_passes (job, idx, samples, exr) VALUES (?1, ?2, ?3, ?4)",
-            params![job as i64, idx as i64, samples, exr],
+            "INSERT OR IGNORE INTO tile_passes (job, idx, samples, exr, unchecked_by) VALUES (?1, ?2, ?3, ?4, ?5)",
+            params![job as i64, idx as i64, samples, exr, by],
         )?;
         Ok(())
     }

@@ -157,6 +157,9 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
             tile: 32,
             seed: None,
             passes: None,
+            verify: None,
+            priority: 0,
+            webhook: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -223,6 +226,9 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
                 tile: 8,
                 seed: None,
                 passes: None,
+                verify: None,
+                priority: 0,
+                webhook: None,
             };
             let key = key.clone();
             tokio::spawn(async move {
@@ -271,6 +277,9 @@ async fn a_job_scene_must_be_a_digest() {
             tile: 8,
             seed: None,
             passes: None,
+            verify: None,
+            priority: 0,
+            webhook: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

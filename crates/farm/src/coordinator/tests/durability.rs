@@ -70,7 +70,13 @@ async fn a_restarted_coordinator_keeps_acknowledged_tiles_and_merges_a_finished_
         let files = crate::coordinator::store::DataDir::create(&data).unwrap();
         let store = crate::coordinator::store::Store::open(&files).unwrap();
         store
-            .insert_tile(job, b.tile_index as usize, b.pass.to, &exr(&tile_b))
+            .insert_tile(
+                job,
+                b.tile_index as usize,
+                b.pass.to,
+                &exr(&tile_b),
+                &Default::default(),
+            )
             .unwrap();
     }
     let (_c, app) = open(&data, None);
@@ -109,6 +115,9 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
             tile: 8,
             seed: None,
             passes: None,
+            verify: None,
+            priority: 0,
+            webhook: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

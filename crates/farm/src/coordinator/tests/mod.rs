@@ -20,6 +20,7 @@ mod api;
 mod durability;
 mod lending;
 mod passes;
+mod verify;
 
 const TTL: Duration = Duration::from_secs(20);
 
@@ -107,6 +108,21 @@ async fn submit_passes(
     tile: u32,
     passes: Option<Vec<u32>>,
 ) -> u64 {
+    submit_with(f, width, height, tile, |s| {
+        s.spp = passes.is_none().then_some(1);
+        s.passes = passes;
+    })
+    .await
+}
+
+/// [`submit`] with the spec changed by `edit`.
+async fn submit_with(
+    f: &Farm,
+    width: u32,
+    height: u32,
+    tile: u32,
+    edit: impl FnOnce(&mut JobSpec),
+) -> u64 {
     let scene = f.dir.path().join(format!("scene-{width}x{height}"));
     std::fs::create_dir_all(&scene).unwrap();
     std::fs::write(
@@ -119,14 +135,18 @@ async fn submit_passes(
     let bundle = crate::bundle::pack(&scene.join("scene.pbrt")).unwrap();
     let (status, body) = call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
-    let spec = JobSpec {
+    let mut spec = JobSpec {
         scene: bundle.digest,
-        spp: passes.is_none().then_some(1),
+        spp: Some(1),
         resolution: None,
         tile,
         seed: None,
-        passes,
+        passes: None,
+        verify: None,
+        priority: 0,
+        webhook: None,
     };
+    edit(&mut spec);
     let (status, body) = call(
         &f.app,
         "POST",
