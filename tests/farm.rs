@@ -1227,3 +1227,115 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
     let log = std::fs::read_to_string(&bad_log).unwrap();
     assert!(log.contains("set aside"), "{log}");
 }
+
+/// A job's webhook is called when it ends, with its status, and retried with backoff until
+/// it answers 2xx; one that never answers is given up on after its attempts, saying why.
+#[test]
+fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
+    use std::sync::{Arc, Mutex};
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    // A receiver that fails its first two calls.
+    let calls: Arc<Mutex<Vec<(String, serde_json::Value)>>> = Arc::default();
+    let seen = calls.clone();
+    let hook = rt
+        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+        .unwrap();
+    let hook_url = format!("http://{}/hook", hook.local_addr().unwrap());
+    let receiver = axum::Router::new().route(
+        "/hook",
+        axum::routing::post(
+            move |headers: axum::http::HeaderMap, body: axum::Json<serde_json::Value>| {
+                let seen = seen.clone();
+                async move {
+                    let event = headers
+                        .get("x-kiln-event")
+                        .and_then(|v| v.to_str().ok())
+                        .unwrap_or("")
+                        .to_string();
+                    let mut calls = seen.lock().unwrap();
+                    calls.push((event, body.0));
+                    if calls.len() <= 2 {
+                        axum::http::StatusCode::INTERNAL_SERVER_ERROR
+                    } else {
+                        axum::http::StatusCode::NO_CONTENT
+                    }
+                }
+            },
+        ),
+    );
+    rt.spawn(async move { axum::serve(hook, receiver).await });
+    let mut config = Config::new(dir.path().join("data"));
+    config.webhook_backoff = Duration::from_millis(20);
+    let c = Coordinator::open(config).unwrap();
+    let listener = rt
+        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+        .unwrap();
+    let url = format!("http://{}", listener.local_addr().unwrap());
+    rt.spawn(coordinator::serve(listener, c, std::future::pending()));
+    let client = Client::new(&url, None);
+    let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
+    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let spec = |webhook: &str| JobSpec {
+        scene: digest.clone(),
+        spp: Some(1),
+        resolution: Some((16, 16)),
+        tile: 16,
+        seed: None,
+        passes: None,
+        verify: None,
+        priority: 0,
+        webhook: Some(webhook.to_string()),
+    };
+    let bad = JobSpec {
+        webhook: Some("ftp://x/".into()),
+        ..spec(&hook_url)
+    };
+    let err = rt.block_on(client.create_job(&bad, None)).unwrap_err();
+    assert!(err.to_string().contains("not an http(s) URL"), "{err}");
+    let done = rt
+        .block_on(client.create_job(&spec(&hook_url), None))
+        .unwrap();
+    // Nothing listens here.
+    let nowhere = format!("http://127.0.0.1:{}/hook", free_port());
+    let cancelled = rt
+        .block_on(client.create_job(&spec(&nowhere), None))
+        .unwrap();
+    rt.block_on(client.cancel(cancelled)).unwrap();
+    let _w = start_worker(
+        &url,
+        "w",
+        &dir.path().join("cache"),
+        &dir.path().join("w.log"),
+    );
+    wait_done(&rt, &client, done, Duration::from_secs(60));
+    let start = Instant::now();
+    let webhook_of = |id| rt.block_on(client.status(id)).unwrap().webhook;
+    while webhook_of(done).as_deref() != Some("delivered after 3 call(s)")
+        || !webhook_of(cancelled).is_some_and(|w| w.starts_with("gave up"))
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{:?} {:?}",
+            webhook_of(done),
+            webhook_of(cancelled)
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let calls = calls.lock().unwrap();
+    assert_eq!(
+        calls.len(),
+        3,
+        "two failures, then one answer: no more calls"
+    );
+    for (event, body) in calls.iter() {
+        assert_eq!(event, "job.done");
+        assert_eq!(body["id"], done);
+        assert_eq!(body["state"], "done");
+    }
+    let why = webhook_of(cancelled).unwrap();
+    assert!(
+        why.contains("gave up after 8 calls") && why.contains("127.0.0.1"),
+        "{why}"
+    );
+}

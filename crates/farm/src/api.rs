@@ -146,6 +146,9 @@ pub struct JobStatus {
     pub tile_passes_verified: u64,
     #[serde(default)]
     pub priority: i32,
+    /// What became of the job's webhook call, once it has ended.
+    #[serde(default)]
+    pub webhook: Option<String>,
 }
 
 /// A worker as the coordinator knows it (GET /v1/workers).

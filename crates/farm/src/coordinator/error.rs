@@ -128,6 +128,8 @@ pub enum PlanError {
     /// Overrides the scene cannot take (a resolution out of range, ...).
     #[error("{0}")]
     Overrides(String),
+    #[error("{0}")]
+    Webhook(String),
     #[error("verify is the fraction of tile passes rendered twice, 0 to 1, not {0}")]
     Verify(f64),
     /// A pass schedule that cannot be rendered, or extended as asked.

@@ -15,6 +15,7 @@
 use super::MAX_TILE_ATTEMPTS;
 use super::error::{PlanError, TileRejected};
 use super::verify::{Candidate, Checks, Verdict, is_checked};
+use super::webhooks::Delivery;
 use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
 use crate::bundle;
 use kiln_image::{RgbBuffer, Windows};
@@ -68,6 +69,11 @@ pub(super) struct Job {
     unchecked_by: Vec<BTreeSet<String>>,
     /// Tile passes kept after two workers agreed on them.
     pub verified: u64,
+    /// The id of the last lease this job granted (0 for none): jobs of equal priority
+    /// take turns by it.
+    pub last_lent: u64,
+    /// Where the job's webhook call stands.
+    pub webhook: Delivery,
     started: Instant,
     samples_at_start: u64,
     pub merge_seconds: Option<f64>,
@@ -160,6 +166,8 @@ impl Job {
             checks: Checks::default(),
             unchecked_by: vec![BTreeSet::new(); n],
             verified: 0,
+            last_lent: 0,
+            webhook: Delivery::Waiting,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
@@ -214,6 +222,8 @@ impl Job {
             checks: Checks::default(),
             unchecked_by: Vec::new(),
             verified: 0,
+            last_lent: 0,
+            webhook: Delivery::Waiting,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
@@ -282,6 +292,7 @@ impl Job {
             samples_per_pixel_done: self.samples_after(self.written),
             tile_passes_verified: self.verified,
             priority: self.spec.priority,
+            webhook: self.webhook.describe(),
         }
     }
 
@@ -685,6 +696,8 @@ impl Job {
             .filter(|&i| !self.is_finished(i) && self.lent[i].is_none())
             .collect();
         self.restart_rate(now);
+        // It will end again: its webhook is called again then.
+        self.webhook = Delivery::Waiting;
         Ok(())
     }
 

@@ -89,6 +89,10 @@ impl Coordinator {
         {
             return Ok((id, false));
         }
+        if let Some(url) = &spec.webhook {
+            super::webhooks::check_url(url)
+                .map_err(|e| Error::Unplannable(PlanError::Webhook(e)))?;
+        }
         // With passes, the job's samples per pixel are the last pass's, and are pinned in the
         // spec: they set the renderer's texture footprint for the job's whole life, through
         // stops and extensions.
@@ -174,6 +178,7 @@ impl Coordinator {
                 .map_err(|why| Error::Passes { id, why })?;
             // Recorded first: a job is never extended in memory only.
             state.store.set_spec(id, &spec)?;
+            state.store.set_webhook_delivered(id, false)?;
             let job = state.jobs.get_mut(&id).expect("found above");
             job.extend(more, now)
                 .map_err(|why| Error::Passes { id, why })?;

@@ -99,7 +99,7 @@ impl Leases {
             .collect();
         expired
             .into_iter()
-            .filter_map(|id| Some((id, self.held.remove(&id)?)))
+            .filter_map(|id| Some((id, self.remove(id)?)))
             .collect()
     }
 
@@ -116,7 +116,7 @@ impl Leases {
             .map(|(&id, _)| id)
             .collect();
         ids.into_iter()
-            .filter_map(|id| Some((id, self.held.remove(&id)?)))
+            .filter_map(|id| Some((id, self.remove(id)?)))
             .collect()
     }
 

@@ -17,8 +17,9 @@ use kiln_image::{RgbBuffer, Windows};
 use tokio::time::Instant;
 
 impl Coordinator {
-    /// Lends `worker` the next pending tile of the oldest running job that has one;
-    /// `None` if there is no work now.
+    /// Lends `worker` the next pending tile pass: of the running job of highest priority
+    /// that has one, sharing workers between jobs of equal priority; `None` if there is no
+    /// work now.
     pub fn lease(&self, worker: &str) -> Result<Option<Lease>, Error> {
         let now = self.now();
         let mut state = self.lock();
@@ -31,19 +32,26 @@ impl Coordinator {
         }
         state.workers.seen(worker, now);
         let ttl = state.leases.ttl();
-        for job in state
+        // Higher priority first; among equals, the job lent to longest ago (lease ids only
+        // grow), so jobs of one priority take turns, tile by tile; then the oldest.
+        let mut order: Vec<(i32, u64, u64)> = state
             .jobs
-            .values_mut()
+            .values()
             .filter(|j| j.state == JobState::Running)
-        {
+            .map(|j| (-j.spec.priority, j.last_lent, j.id))
+            .collect();
+        order.sort_unstable();
+        for (_, _, id) in order {
+            let job = state.jobs.get_mut(&id).expect("listed above");
             let Some((tile, pass)) = job.next_pending(worker) else {
                 continue;
             };
-            let id = state.leases.grant(job.id, tile, pass, worker, now);
-            job.lend(tile, id);
+            let lease = state.leases.grant(job.id, tile, pass, worker, now);
+            job.lend(tile, lease);
+            job.last_lent = lease;
             state.metrics.leases_issued += 1;
             return Ok(Some(Lease {
-                lease: id,
+                lease,
                 job: job.id,
                 spec: job.spec.clone(),
                 tile_index: tile as u32,

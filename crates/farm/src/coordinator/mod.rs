@@ -27,6 +27,7 @@ mod store;
 #[cfg(test)]
 mod tests;
 mod verify;
+mod webhooks;
 
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
@@ -58,6 +59,9 @@ pub struct Config {
     /// The most pixels a job's frame (its crop window) may hold: the frame is allocated
     /// when the job is created. 16384 x 16384 by default (3 GiB of float RGB).
     pub max_frame_pixels: u64,
+    /// The pause before a failed webhook call is retried; it doubles after each failure,
+    /// up to a minute.
+    pub webhook_backoff: Duration,
 }
 
 impl Config {
@@ -69,6 +73,7 @@ impl Config {
             max_scene_bytes: 2 << 30,
             max_tile_bytes: 256 << 20,
             max_frame_pixels: kiln_image::MAX_PIXELS,
+            webhook_backoff: Duration::from_secs(1),
         }
     }
 }
@@ -267,17 +272,20 @@ impl State {
     }
 }
 
-/// Serves [`app`] on a bound listener until `shutdown` resolves, expiring leases meanwhile.
+/// Serves [`app`] on a bound listener until `shutdown` resolves, expiring leases and
+/// calling webhooks meanwhile.
 pub async fn serve(
     listener: tokio::net::TcpListener,
     c: Coordinator,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let task = tokio::spawn(expire_leases_every_tick(c.clone()));
+    let hooks = tokio::spawn(webhooks::deliver_webhooks_forever(c.clone()));
     let result = axum::serve(listener, app(c))
         .with_graceful_shutdown(shutdown)
         .await;
     task.abort();
+    hooks.abort();
     result
 }
 

@@ -265,6 +265,30 @@ impl Store {
         Ok(())
     }
 
+    /// Whether the job's webhook answered 2xx (since the job last ended).
+    pub fn webhook_delivered(&self, job: u64) -> Result<bool, Error> {
+        Ok(self
+            .db
+            .query_row(
+                "SELECT value FROM meta WHERE key = ?1",
+                [format!("webhook:{job}")],
+                |r| r.get::<_, i64>(0),
+            )
+            .optional()?
+            .is_some_and(|v| v != 0))
+    }
+
+    /// Records that the job's webhook answered (or, with `false`, that it must be called
+    /// again: the job was extended).
+    pub fn set_webhook_delivered(&self, job: u64, delivered: bool) -> Result<(), Error> {
+        self.db.execute(
+            "INSERT INTO meta (key, value) VALUES (?1, ?2)
+             ON CONFLICT (key) DO UPDATE SET value = ?2",
+            params![format!("webhook:{job}"), i64::from(delivered)],
+        )?;
+        Ok(())
+    }
+
     /// How many of the job's tile passes two workers agreed on.
     pub fn verified(&self, job: u64) -> Result<u64, Error> {
         Ok(self

@@ -20,6 +20,7 @@ mod api;
 mod durability;
 mod lending;
 mod passes;
+mod queue;
 mod verify;
 
 const TTL: Duration = Duration::from_secs(20);
