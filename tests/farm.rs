@@ -85,7 +85,7 @@ fn farm_images_with_photon_maps_are_bit_identical_to_kiln_render() {
 }
 
 /// A child process that is killed when dropped, so a failing test leaves none behind.
-struct Guard(Child);
+pub(crate) struct Guard(pub(crate) Child);
 
 impl Drop for Guard {
     fn drop(&mut self) {
@@ -301,7 +301,7 @@ fn a_killed_coordinator_resumes_without_rendering_finished_tiles_again() {
 }
 
 /// An in-process coordinator on a free port, for API tests.
-fn in_process(rt: &tokio::runtime::Runtime, data: &Path, token: Option<&str>) -> String {
+pub(crate) fn in_process(rt: &tokio::runtime::Runtime, data: &Path, token: Option<&str>) -> String {
     let mut config = Config::new(data.to_path_buf());
     config.token = token.map(String::from);
     let c = Coordinator::open(config).unwrap();

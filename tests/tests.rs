@@ -4,6 +4,7 @@ mod util;
 
 mod analytic;
 mod cli;
+mod dashboard;
 mod determinism;
 mod errors;
 mod estimators;

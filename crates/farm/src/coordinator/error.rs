@@ -30,6 +30,8 @@ pub enum Error {
     BadBundle(BundleError),
     #[error("a digest is hexadecimal")]
     BadDigest,
+    #[error("exposure is a number of stops from -20 to 20")]
+    BadExposure,
     #[error("no scene with digest '{0}'")]
     UnknownScene(String),
     #[error("no job {0}")]

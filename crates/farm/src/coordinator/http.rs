@@ -59,6 +59,12 @@ pub fn app(c: Coordinator) -> Router {
         .route_layer(middleware::from_fn_with_state(c.clone(), require_token));
     Router::new()
         .route("/healthz", get(|| async { "ok\n" }))
+        // The dashboard's page and code hold no secrets: served without the token, which
+        // the page asks for and sends with every API call.
+        .route("/", get(dashboard_page))
+        .route("/dashboard/app.js", get(dashboard_js))
+        .route("/dashboard/app.css", get(dashboard_css))
+        .route("/v1/token/check", post(check_token))
         .merge(api)
         .fallback(|| async { Error::NoRoute })
         .layer(middleware::map_response(json_errors))
@@ -112,6 +118,7 @@ impl Error {
             | Error::BadJob(_)
             | Error::BadBundle(_)
             | Error::BadDigest
+            | Error::BadExposure
             | Error::NoTileDigest
             | Error::BadPrepassName
             | Error::PrepassDigest
@@ -156,16 +163,39 @@ async fn require_token(
     next: Next,
 ) -> Result<Response, Error> {
     if let Some(token) = &c.config().token {
-        let ok = req
+        let given = req
             .headers()
             .get(header::AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
-            .is_some_and(|v| v.strip_prefix("Bearer ") == Some(token.as_str()));
-        if !ok {
+            .and_then(|v| v.strip_prefix("Bearer "));
+        if !given.is_some_and(|g| same_secret(g, token)) {
             return Err(Error::Unauthorized);
         }
     }
     Ok(next.run(req).await)
+}
+
+/// Compares a given token with the coordinator's in time that does not depend on where
+/// they first differ.
+fn same_secret(given: &str, token: &str) -> bool {
+    let (a, b) = (given.as_bytes(), token.as_bytes());
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |d, (x, y)| d | (x ^ y)) == 0
+}
+
+/// The dashboard's sign-in: whether a token is the coordinator's, answered 200 either way
+/// (`{"valid": bool}`), so that a mistyped token is a message, not a failed request.
+async fn check_token(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Error> {
+    #[derive(serde::Deserialize)]
+    struct Given {
+        token: String,
+    }
+    let given: Given = parse_json(&body)?;
+    let valid = c
+        .config()
+        .token
+        .as_ref()
+        .is_none_or(|t| same_secret(&given.token, t));
+    Ok(Json(serde_json::json!({ "valid": valid })).into_response())
 }
 
 /// Ids in paths, parsed here so a bad one gets a JSON error like every other.
@@ -336,12 +366,24 @@ async fn job_result(
     Ok(([(header::CONTENT_TYPE, "image/x-exr")], bytes).into_response())
 }
 
+/// `?exposure=` for a preview: stops, -20 to 20 (0 by default).
+#[derive(Debug, serde::Deserialize)]
+struct PreviewQuery {
+    #[serde(default)]
+    exposure: f32,
+}
+
 async fn job_preview(
     State(c): State<Coordinator>,
     UrlPath(id): UrlPath<String>,
+    query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Response, Error> {
     let id = parse_id(&id)?;
-    let png = c.preview(id).await?;
+    let exposure = match query {
+        Ok(q) if q.exposure.is_finite() && q.exposure.abs() <= 20.0 => q.exposure,
+        _ => return Err(Error::BadExposure),
+    };
+    let png = c.preview(id, exposure).await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
 
@@ -439,6 +481,44 @@ async fn metrics(State(c): State<Coordinator>) -> Response {
         c.metrics_text(),
     )
         .into_response()
+}
+
+/// Security headers for the dashboard: its own code and styles only, images from the
+/// object URLs its code makes, calls to this coordinator only.
+const DASHBOARD_CSP: &str = "default-src 'self'; img-src 'self' blob: data:; script-src 'self'; style-src 'self'; connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'none'";
+
+fn dashboard_file(content_type: &'static str, body: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, content_type),
+            (header::CONTENT_SECURITY_POLICY, DASHBOARD_CSP),
+            (header::X_CONTENT_TYPE_OPTIONS, "nosniff"),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+async fn dashboard_page() -> Response {
+    dashboard_file(
+        "text/html; charset=utf-8",
+        include_str!("../dashboard/index.html"),
+    )
+}
+
+async fn dashboard_js() -> Response {
+    dashboard_file(
+        "text/javascript; charset=utf-8",
+        include_str!("../dashboard/app.js"),
+    )
+}
+
+async fn dashboard_css() -> Response {
+    dashboard_file(
+        "text/css; charset=utf-8",
+        include_str!("../dashboard/app.css"),
+    )
 }
 
 async fn openapi() -> Response {

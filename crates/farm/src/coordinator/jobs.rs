@@ -214,15 +214,15 @@ impl Coordinator {
         }
     }
 
-    /// The frame so far as an sRGB PNG.
-    pub async fn preview(&self, id: u64) -> Result<Vec<u8>, Error> {
+    /// The frame so far as an sRGB PNG, `exposure` stops brighter.
+    pub async fn preview(&self, id: u64, exposure: f32) -> Result<Vec<u8>, Error> {
         let frame = self
             .lock()
             .jobs
             .get(&id)
             .map(|j| j.frame_so_far())
             .ok_or(Error::UnknownJob(id))?;
-        tokio::task::spawn_blocking(move || kiln_image::encode_png(&frame, 0.0))
+        tokio::task::spawn_blocking(move || kiln_image::encode_png(&frame, exposure))
             .await?
             .map_err(Error::Image)
     }

@@ -291,3 +291,46 @@ async fn a_job_scene_must_be_a_digest() {
         );
     }
 }
+
+/// The dashboard's files are served without the token, with a content security policy;
+/// its sign-in check answers 200 either way; a preview's exposure is checked.
+#[tokio::test]
+async fn the_dashboard_is_served_and_its_sign_in_checks_the_token() {
+    let f = farm(Some("tok"));
+    for (path, kind) in [
+        ("/", "text/html"),
+        ("/dashboard/app.js", "text/javascript"),
+        ("/dashboard/app.css", "text/css"),
+    ] {
+        let req = Request::builder().uri(path).body(Body::empty()).unwrap();
+        let r = f.app.clone().oneshot(req).await.unwrap();
+        assert_eq!(r.status(), StatusCode::OK, "{path}");
+        let h = r.headers();
+        assert!(h[header::CONTENT_TYPE].to_str().unwrap().starts_with(kind));
+        assert!(
+            h[header::CONTENT_SECURITY_POLICY]
+                .to_str()
+                .unwrap()
+                .contains("default-src 'self'")
+        );
+    }
+    for (token, valid) in [("tok", true), ("tok2", false), ("", false), ("to", false)] {
+        let body = format!(r#"{{"token":"{token}"}}"#);
+        let (status, text) = call(&f.app, "POST", "/v1/token/check", None, body).await;
+        assert_eq!(status, StatusCode::OK);
+        let v: serde_json::Value = json(&text);
+        assert_eq!(v["valid"], valid, "{token}");
+    }
+    let f = farm(None);
+    let job = submit(&f, 8, 8, 8).await;
+    for (q, ok) in [
+        ("", true),
+        ("?exposure=2.5", true),
+        ("?exposure=abc", false),
+        ("?exposure=99", false),
+    ] {
+        let path = format!("/v1/jobs/{job}/preview.png{q}");
+        let (status, _) = call(&f.app, "GET", &path, None, Body::empty()).await;
+        assert_eq!(status == StatusCode::OK, ok, "{q}: {status}");
+    }
+}

@@ -1,0 +1,311 @@
+// Kiln's farm dashboard: signs in with the coordinator's token, then polls the HTTP API
+// (GET /v1/jobs, /v1/workers) once a second and draws what it says. Images and downloads
+// are fetched with the token and shown through object URLs, since an <img> or <a> cannot
+// send an Authorization header. No framework, no build step: this file is served as is.
+"use strict";
+
+const POLL_MS = 1000;
+const $ = (id) => document.getElementById(id);
+
+const state = {
+  token: sessionStorage.getItem("kiln-token"),
+  selected: null, // the job shown
+  shown: null, // what the frame on screen was drawn from
+  frameUrl: null,
+  timer: null,
+};
+
+/// Calls the API; returns the response, or throws an Error with the server's message.
+async function api(method, path, body) {
+  const headers = {};
+  if (state.token) headers["Authorization"] = "Bearer " + state.token;
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  const r = await fetch(path, {
+    method,
+    headers,
+    body: body === undefined ? undefined : JSON.stringify(body),
+  });
+  if (!r.ok) {
+    let message = r.status + " " + r.statusText;
+    try {
+      message = (await r.json()).error || message;
+    } catch (_) {
+      // Not JSON: keep the status line.
+    }
+    const e = new Error(message);
+    e.status = r.status;
+    throw e;
+  }
+  return r;
+}
+
+function say(text) {
+  $("message").textContent = text;
+}
+
+function fmtSeconds(s) {
+  if (s === null || s === undefined || !isFinite(s)) return "–";
+  if (s < 90) return Math.round(s) + " s";
+  if (s < 5400) return Math.round(s / 60) + " min";
+  return (s / 3600).toFixed(1) + " h";
+}
+
+function cell(tr, content) {
+  const td = document.createElement("td");
+  if (content instanceof Node) td.appendChild(content);
+  else td.textContent = content;
+  tr.appendChild(td);
+  return td;
+}
+
+// ---- signing in -----------------------------------------------------------------------
+
+async function signIn(token) {
+  try {
+    const r = await api("POST", "/v1/token/check", { token: token || "" });
+    if (!(await r.json()).valid) {
+      $("sign-in-error").textContent = "That token is not the coordinator's.";
+      return;
+    }
+  } catch (e) {
+    $("sign-in-error").textContent = "Cannot reach the coordinator: " + e.message;
+    return;
+  }
+  state.token = token || null;
+  if (token) sessionStorage.setItem("kiln-token", token);
+  else sessionStorage.removeItem("kiln-token");
+  $("sign-in-error").textContent = "";
+  $("sign-in").hidden = true;
+  $("farm").hidden = false;
+  $("sign-out").hidden = false;
+  say("Signed in.");
+  poll();
+}
+
+function signOut() {
+  sessionStorage.removeItem("kiln-token");
+  state.token = null;
+  state.selected = null;
+  clearTimeout(state.timer);
+  $("farm").hidden = true;
+  $("sign-out").hidden = true;
+  $("sign-in").hidden = false;
+  $("token").value = "";
+  $("token").focus();
+  say("Signed out.");
+}
+
+// ---- polling ------------------------------------------------------------------------
+
+async function poll() {
+  clearTimeout(state.timer);
+  try {
+    const [jobs, workers] = await Promise.all([
+      api("GET", "/v1/jobs").then((r) => r.json()),
+      api("GET", "/v1/workers").then((r) => r.json()),
+    ]);
+    drawJobs(jobs);
+    drawWorkers(workers);
+    const job = jobs.find((j) => j.id === state.selected);
+    if (job) await drawJob(job);
+  } catch (e) {
+    if (e.status === 401) {
+      signOut();
+      $("sign-in-error").textContent = "The coordinator no longer takes that token.";
+      return;
+    }
+    say("Cannot reach the coordinator: " + e.message);
+  }
+  if (state.token !== undefined && !$("farm").hidden) state.timer = setTimeout(poll, POLL_MS);
+}
+
+function drawJobs(jobs) {
+  const body = $("jobs").tBodies[0];
+  body.replaceChildren();
+  $("no-jobs").hidden = jobs.length > 0;
+  // Newest first.
+  for (const j of [...jobs].reverse()) {
+    const tr = document.createElement("tr");
+    tr.dataset.job = j.id;
+    if (j.id === state.selected) tr.className = "selected";
+    const pick = document.createElement("button");
+    pick.type = "button";
+    pick.className = "link";
+    pick.textContent = "Job " + j.id;
+    pick.setAttribute("aria-label", "Show job " + j.id);
+    pick.addEventListener("click", () => select(j.id));
+    cell(tr, pick);
+    cell(tr, j.state).className = "state-" + j.state;
+    const bar = document.createElement("progress");
+    bar.max = 1;
+    bar.value = j.progress;
+    bar.setAttribute("aria-label", "Job " + j.id + " progress");
+    const td = cell(tr, bar);
+    td.append(" " + Math.floor(j.progress * 100) + "%");
+    cell(tr, j.samples_per_pixel_done + " / " + (j.passes[j.passes.length - 1] || 0));
+    cell(tr, j.passes_done + " / " + j.passes.length);
+    cell(tr, j.state === "running" ? fmtSeconds(j.eta_seconds) : "–");
+    cell(tr, String(j.priority));
+    body.appendChild(tr);
+  }
+}
+
+function drawWorkers(workers) {
+  const body = $("workers").tBodies[0];
+  body.replaceChildren();
+  $("no-workers").hidden = workers.length > 0;
+  for (const w of workers) {
+    const tr = document.createElement("tr");
+    cell(tr, w.name);
+    cell(
+      tr,
+      w.leases.length
+        ? w.leases.map((l) => `job ${l.job} tile ${l.tile_index} pass ${l.pass.index + 1}`).join(", ")
+        : "idle",
+    );
+    cell(tr, String(w.tiles_done));
+    cell(tr, String(w.failures));
+    cell(tr, w.last_seen_seconds === null ? "never" : fmtSeconds(w.last_seen_seconds) + " ago");
+    const aside = cell(tr, w.set_aside || "–");
+    if (w.set_aside) aside.className = "error";
+    body.appendChild(tr);
+  }
+}
+
+// ---- one job ------------------------------------------------------------------------
+
+function select(id) {
+  state.selected = id;
+  state.shown = null;
+  $("job").hidden = false;
+  $("job-title").textContent = "Job " + id;
+  for (const tr of $("jobs").tBodies[0].rows) {
+    tr.className = Number(tr.dataset.job) === id ? "selected" : "";
+  }
+  poll();
+  $("job-title").scrollIntoView({ block: "nearest" });
+}
+
+async function drawJob(j) {
+  const facts = [
+    ["State", j.state + (j.error ? ": " + j.error : "")],
+    ["Frame", j.width + " × " + j.height + ", " + j.tiles_done + " / " + j.tiles_total + " tiles"],
+    ["Samples", j.samples_done.toLocaleString() + " / " + j.samples_total.toLocaleString()],
+    ["Passes", j.passes.join(", ") + " (" + j.passes_done + " merged)"],
+    ["Rate", (j.samples_per_second / 1e6).toFixed(2) + " M samples/s"],
+    ["ETA", j.state === "running" ? fmtSeconds(j.eta_seconds) : "–"],
+    ["Verified", j.tile_passes_verified + " tile passes"],
+    ["Failures", String(j.failures)],
+  ];
+  if (j.webhook) facts.push(["Webhook", j.webhook]);
+  const dl = $("job-facts");
+  dl.replaceChildren();
+  for (const [k, v] of facts) {
+    const dt = document.createElement("dt");
+    dt.textContent = k;
+    const dd = document.createElement("dd");
+    dd.textContent = v;
+    dd.dataset.fact = k.toLowerCase();
+    dl.append(dt, dd);
+  }
+  const running = j.state === "running";
+  $("stop").disabled = !running || j.passes_done + 1 >= j.passes.length;
+  $("cancel").disabled = !running;
+  $("download-exr").setAttribute("aria-disabled", String(j.passes_done === 0));
+  // A new frame when tiles or passes land, or the exposure moved.
+  const key = [j.id, j.samples_done, j.passes_done, j.state, $("exposure").value].join(":");
+  if (key !== state.shown) {
+    state.shown = key;
+    await drawFrame(j.id);
+  }
+}
+
+async function drawFrame(id) {
+  const exposure = $("exposure").value;
+  try {
+    const r = await api("GET", `/v1/jobs/${id}/preview.png?exposure=${exposure}`);
+    const blob = await r.blob();
+    if (state.selected !== id) return;
+    const url = URL.createObjectURL(blob);
+    const img = $("frame");
+    img.src = url;
+    img.dataset.job = id;
+    if (state.frameUrl) URL.revokeObjectURL(state.frameUrl);
+    state.frameUrl = url;
+  } catch (e) {
+    say("Cannot load the frame: " + e.message);
+  }
+}
+
+async function act(what, path, body, done) {
+  try {
+    await api("POST", path, body);
+    say(done);
+    poll();
+  } catch (e) {
+    say(what + " failed: " + e.message);
+  }
+}
+
+async function download(kind) {
+  const id = state.selected;
+  if (id === null) return;
+  const path = kind === "exr" ? `/v1/jobs/${id}/result.exr` : `/v1/jobs/${id}/preview.png?exposure=${$("exposure").value}`;
+  try {
+    const blob = await (await api("GET", path)).blob();
+    const a = document.createElement("a");
+    a.href = URL.createObjectURL(blob);
+    a.download = `job-${id}.${kind}`;
+    document.body.appendChild(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+    say(`Downloaded job ${id}'s ${kind.toUpperCase()}.`);
+  } catch (e) {
+    say("Download failed: " + e.message);
+  }
+}
+
+// ---- wiring -------------------------------------------------------------------------
+
+$("sign-in-form").addEventListener("submit", (e) => {
+  e.preventDefault();
+  signIn($("token").value.trim());
+});
+$("sign-out").addEventListener("click", signOut);
+$("exposure").addEventListener("input", () => {
+  $("exposure-value").textContent = $("exposure").value;
+  if (state.selected !== null) {
+    state.shown = null;
+    poll();
+  }
+});
+$("stop").addEventListener("click", () =>
+  act("Stop", `/v1/jobs/${state.selected}/stop`, undefined, `Job ${state.selected} ends after this pass.`),
+);
+$("cancel").addEventListener("click", () => {
+  if (confirm(`Cancel job ${state.selected}?`)) {
+    act("Cancel", `/v1/jobs/${state.selected}/cancel`, undefined, `Job ${state.selected} cancelled.`);
+  }
+});
+$("extend-form").addEventListener("submit", (e) => {
+  e.preventDefault();
+  const passes = $("extend-passes")
+    .value.split(",")
+    .map((s) => Number(s.trim()))
+    .filter((n) => n > 0);
+  if (!passes.length) {
+    say("Give the new passes as samples per pixel, e.g. 4096.");
+    return;
+  }
+  act("Extend", `/v1/jobs/${state.selected}/extend`, { passes }, `Job ${state.selected} extended to ${passes.join(", ")}.`);
+});
+for (const kind of ["exr", "png"]) {
+  $("download-" + kind).addEventListener("click", (e) => {
+    e.preventDefault();
+    download(kind);
+  });
+}
+
+if (state.token !== null) signIn(state.token);
+else $("token").focus();
