@@ -5,12 +5,12 @@
 //! cancels another job, checks a narrow screen, a screenshot that is not blank and a
 //! console without errors. Where Chromium or Selenium is missing it prints SKIPPED.
 
-use crate::farm::{Guard, in_process};
-use crate::util::{kiln, repo, scene};
+use crate::farm::{in_process, start_worker_with};
+use crate::util::{repo, scene};
 use kiln_farm::api::{JobSpec, JobState};
 use kiln_farm::client::Client;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 /// Why the browser test cannot run here, if it cannot.
 fn missing() -> Option<String> {
@@ -66,25 +66,12 @@ fn the_dashboard_works_in_a_real_browser() {
     let cancel = rt
         .block_on(client.create_job(&spec(vec![4096], -1), None))
         .unwrap();
-    let _worker = Guard(
-        kiln()
-            .args([
-                "worker",
-                "--coordinator",
-                &url,
-                "--threads",
-                "1",
-                "--name",
-                "w1",
-            ])
-            .args(["--token", token])
-            .arg("--cache-dir")
-            .arg(dir.path().join("cache"))
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(dir.path().join("w.log")).unwrap())
-            .spawn()
-            .unwrap(),
+    let _worker = start_worker_with(
+        &url,
+        "w1",
+        &dir.path().join("cache"),
+        &dir.path().join("w.log"),
+        &["--token", token],
     );
     let shot = dir.path().join("dashboard.png");
     let out = Command::new("python3")

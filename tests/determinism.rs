@@ -16,7 +16,7 @@ use std::path::Path;
 /// The tile sizes and thread counts every scene is rendered with.
 const SPLITS: [(u32, usize); 6] = [(16, 1), (16, 2), (37, 2), (64, 1), (64, 2), (100_000, 1)];
 
-fn load(path: &Path, spp: u32, resolution: Option<(u32, u32)>) -> Renderer {
+pub(crate) fn load(path: &Path, spp: u32, resolution: Option<(u32, u32)>) -> Renderer {
     let mut desc = kiln_scene::load_file(path).unwrap();
     desc.apply_overrides(&Overrides {
         resolution,

@@ -85,7 +85,7 @@ fn farm_images_with_photon_maps_are_bit_identical_to_kiln_render() {
 }
 
 /// A child process that is killed when dropped, so a failing test leaves none behind.
-pub(crate) struct Guard(pub(crate) Child);
+pub(crate) struct Guard(Child);
 
 impl Drop for Guard {
     fn drop(&mut self) {
@@ -149,6 +149,17 @@ fn start_coordinator(data: &Path, port: u16) -> CoordinatorProcess {
 }
 
 fn start_worker(url: &str, name: &str, cache: &Path, log: &Path) -> Guard {
+    start_worker_with(url, name, cache, log, &[])
+}
+
+/// A one-thread `kiln worker` named `name`, with `extra` arguments, logging to `log`.
+pub(crate) fn start_worker_with(
+    url: &str,
+    name: &str,
+    cache: &Path,
+    log: &Path,
+    extra: &[&str],
+) -> Guard {
     Guard(
         kiln()
             .args([
@@ -160,6 +171,7 @@ fn start_worker(url: &str, name: &str, cache: &Path, log: &Path) -> Guard {
                 "--name",
                 name,
             ])
+            .args(extra)
             .arg("--cache-dir")
             .arg(cache)
             .stdin(Stdio::null())
@@ -1160,25 +1172,12 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
         .block_on(client.create_job(&spec(vec![3]), None))
         .unwrap();
     let bad_log = dir.path().join("bad.log");
-    let mut bad = Guard(
-        kiln()
-            .args([
-                "worker",
-                "--coordinator",
-                &url,
-                "--threads",
-                "1",
-                "--name",
-                "bad",
-            ])
-            .args(["--inject-fault", "flip-low-bit"])
-            .arg("--cache-dir")
-            .arg(&cache)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(&bad_log).unwrap())
-            .spawn()
-            .unwrap(),
+    let mut bad = start_worker_with(
+        &url,
+        "bad",
+        &cache,
+        &bad_log,
+        &["--inject-fault", "flip-low-bit"],
     );
     let start = Instant::now();
     while rendered_lines(&bad_log) == 0 {
@@ -1222,7 +1221,7 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
         }
     }
     // Refused, the bad worker leaves with the reason.
-    let status = wait_exit(&mut bad.0, Duration::from_secs(30));
+    let status = wait_exit(&mut bad, Duration::from_secs(30));
     assert!(!status.success());
     let log = std::fs::read_to_string(&bad_log).unwrap();
     assert!(log.contains("set aside"), "{log}");

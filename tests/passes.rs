@@ -2,21 +2,9 @@
 //! integer words (as the farm carries them), is the same bytes as the tile rendered in one
 //! go, for any pass schedule and tile size.
 
+use crate::determinism::load;
 use crate::util::{scene, write_scene};
 use kiln_render::{Renderer, TileRect, TileSums, render_tile, render_tile_pass, split_into_tiles};
-use kiln_scene::Overrides;
-use std::path::Path;
-
-fn load(path: &Path, spp: u32, resolution: Option<(u32, u32)>) -> Renderer {
-    let mut desc = kiln_scene::load_file(path).unwrap();
-    desc.apply_overrides(&Overrides {
-        resolution,
-        spp: Some(spp),
-        seed: None,
-    })
-    .unwrap();
-    Renderer::build(&desc).unwrap()
-}
 
 /// A tile's pixels and further channels, as bits.
 fn bits(pixels: &[[f32; 3]], aovs: &[f32]) -> (Vec<[u32; 3]>, Vec<u32>) {

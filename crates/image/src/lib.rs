@@ -239,37 +239,18 @@ pub fn encode_exr(buffer: &RgbBuffer) -> Result<Vec<u8>, ImageError> {
         )
     };
     let mut list = vec![channel("B", 2), channel("G", 1), channel("R", 0)];
-    let n = buffer.aovs.names.len();
-    for (c, name) in buffer.aovs.names.iter().enumerate() {
-        list.push(AnyChannel::new(
-            name.as_str(),
-            FlatSamples::F32(
-                buffer
-                    .aovs
-                    .values
-                    .iter()
-                    .skip(c)
-                    .step_by(n)
-                    .copied()
-                    .collect(),
-            ),
-        ));
+    // Channel c of values interleaved n to a pixel.
+    fn column<T: Copy>(values: &[T], c: usize, n: usize) -> Vec<T> {
+        values.iter().skip(c).step_by(n).copied().collect()
     }
-    let n = buffer.words.names.len();
-    for (c, name) in buffer.words.names.iter().enumerate() {
-        list.push(AnyChannel::new(
-            name.as_str(),
-            FlatSamples::U32(
-                buffer
-                    .words
-                    .values
-                    .iter()
-                    .skip(c)
-                    .step_by(n)
-                    .copied()
-                    .collect(),
-            ),
-        ));
+    let (aovs, words) = (&buffer.aovs, &buffer.words);
+    for (c, name) in aovs.names.iter().enumerate() {
+        let samples = FlatSamples::F32(column(&aovs.values, c, aovs.names.len()));
+        list.push(AnyChannel::new(name.as_str(), samples));
+    }
+    for (c, name) in words.names.iter().enumerate() {
+        let samples = FlatSamples::U32(column(&words.values, c, words.names.len()));
+        list.push(AnyChannel::new(name.as_str(), samples));
     }
     let channels = AnyChannels::sort(smallvec_of(list));
     let size = Vec2(buffer.width as usize, buffer.height as usize);

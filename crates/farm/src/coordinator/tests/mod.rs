@@ -116,14 +116,9 @@ async fn submit_passes(
     .await
 }
 
-/// [`submit`] with the spec changed by `edit`.
-async fn submit_with(
-    f: &Farm,
-    width: u32,
-    height: u32,
-    tile: u32,
-    edit: impl FnOnce(&mut JobSpec),
-) -> u64 {
+/// Uploads a `width x height` scene (an environment light, no geometry); returns its
+/// digest.
+async fn upload_scene(f: &Farm, width: u32, height: u32) -> String {
     let scene = f.dir.path().join(format!("scene-{width}x{height}"));
     std::fs::create_dir_all(&scene).unwrap();
     std::fs::write(
@@ -136,8 +131,19 @@ async fn submit_with(
     let bundle = crate::bundle::pack(&scene.join("scene.pbrt")).unwrap();
     let (status, body) = call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    bundle.digest
+}
+
+/// [`submit`] with the spec changed by `edit`.
+async fn submit_with(
+    f: &Farm,
+    width: u32,
+    height: u32,
+    tile: u32,
+    edit: impl FnOnce(&mut JobSpec),
+) -> u64 {
     let mut spec = JobSpec {
-        scene: bundle.digest,
+        scene: upload_scene(f, width, height).await,
         spp: Some(1),
         resolution: None,
         tile,

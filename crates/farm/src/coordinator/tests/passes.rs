@@ -178,15 +178,7 @@ async fn an_upload_with_the_wrong_sums_is_refused() {
 #[tokio::test]
 async fn bad_schedules_are_refused_with_the_reason() {
     let f = farm(None);
-    let scene = f.dir.path().join("s");
-    std::fs::create_dir_all(&scene).unwrap();
-    std::fs::write(
-        scene.join("scene.pbrt"),
-        "Film \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\nWorldBegin\nLightSource \"infinite\"\n",
-    )
-    .unwrap();
-    let bundle = crate::bundle::pack(&scene.join("scene.pbrt")).unwrap();
-    call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
+    let digest = upload_scene(&f, 8, 8).await;
     for (passes, spp, says) in [
         ("[4, 4]", "null", "each above the one before"),
         ("[]", "null", "give 1 to 64 passes"),
@@ -194,7 +186,7 @@ async fn bad_schedules_are_refused_with_the_reason() {
     ] {
         let body = format!(
             r#"{{"scene":"{}","tile":8,"passes":{passes},"spp":{spp}}}"#,
-            bundle.digest
+            digest
         );
         let (status, text) = post_json(&f.app, "/v1/jobs", &body).await;
         assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{passes}");

@@ -151,16 +151,8 @@ async fn what_a_caught_worker_rendered_unchecked_is_rendered_again() {
 #[tokio::test]
 async fn a_fraction_outside_0_to_1_is_refused() {
     let f = farm(None);
-    let scene = f.dir.path().join("s");
-    std::fs::create_dir_all(&scene).unwrap();
-    std::fs::write(
-        scene.join("scene.pbrt"),
-        "Film \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\nWorldBegin\nLightSource \"infinite\"\n",
-    )
-    .unwrap();
-    let bundle = crate::bundle::pack(&scene.join("scene.pbrt")).unwrap();
-    call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
-    let body = format!(r#"{{"scene":"{}","verify":1.5}}"#, bundle.digest);
+    let digest = upload_scene(&f, 8, 8).await;
+    let body = format!(r#"{{"scene":"{}","verify":1.5}}"#, digest);
     let (status, text) = call(&f.app, "POST", "/v1/jobs", None, body).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
     assert!(
