@@ -1145,16 +1145,15 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
         .block_on(client.create_job(&spec(vec![2, 4]), None))
         .unwrap();
     let cache = dir.path().join("cache");
-    let mut honest: Vec<Guard> = (0..2)
-        .map(|i| {
-            start_worker(
-                &url,
-                &format!("h{i}"),
-                &cache,
-                &dir.path().join(format!("h{i}.log")),
-            )
-        })
-        .collect();
+    let honest_workers = |names: std::ops::Range<usize>| -> Vec<Guard> {
+        names
+            .map(|i| {
+                let log = dir.path().join(format!("h{i}.log"));
+                start_worker(&url, &format!("h{i}"), &cache, &log)
+            })
+            .collect()
+    };
+    let mut honest = honest_workers(0..2);
     let s = wait_done(&rt, &client, honest_job, Duration::from_secs(120));
     assert_eq!(s.state, JobState::Done, "{s:?}");
     assert_eq!(
@@ -1187,16 +1186,7 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    let _honest: Vec<Guard> = (2..4)
-        .map(|i| {
-            start_worker(
-                &url,
-                &format!("h{i}"),
-                &cache,
-                &dir.path().join(format!("h{i}.log")),
-            )
-        })
-        .collect();
+    let _honest = honest_workers(2..4);
     let s = wait_done(&rt, &client, job, Duration::from_secs(120));
     assert_eq!(s.state, JobState::Done, "{s:?}");
     let direct = render(

@@ -74,6 +74,8 @@ pub(super) struct Job {
     pub last_lent: u64,
     /// Where the job's webhook call stands.
     pub webhook: Delivery,
+    /// Whether tiles kept before passes existed (without running sums) are in its frame.
+    legacy: bool,
     started: Instant,
     samples_at_start: u64,
     pub merge_seconds: Option<f64>,
@@ -88,6 +90,8 @@ pub(super) struct KeptTile {
     pub exr: Vec<u8>,
     /// The workers whose unchecked renders its sums hold.
     pub unchecked_by: BTreeSet<String>,
+    /// Kept before passes existed: a finished tile without running sums.
+    pub legacy: bool,
 }
 
 /// What a tile's upload did to its job.
@@ -168,6 +172,7 @@ impl Job {
             verified: 0,
             last_lent: 0,
             webhook: Delivery::Waiting,
+            legacy: false,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
@@ -224,6 +229,7 @@ impl Job {
             verified: 0,
             last_lent: 0,
             webhook: Delivery::Waiting,
+            legacy: false,
             started: now,
             samples_at_start: 0,
             merge_seconds: None,
@@ -550,7 +556,14 @@ impl Job {
                 from: self.samples_after(pass as u32),
                 to: row.samples,
             };
-            if self.spot(idx, range).check(&tile).is_ok() {
+            let mut spot = self.spot(idx, range);
+            if row.legacy {
+                // Its pixels are the tile's; it has no sums to continue, so the job
+                // cannot be extended (check_extend says so).
+                spot.sums = None;
+                self.legacy = true;
+            }
+            if spot.check(&tile).is_ok() {
                 kept[idx].insert(pass as u32, (tile, row.unchecked_by));
             }
         }
@@ -653,6 +666,11 @@ impl Job {
         let Some(last) = self.passes.last().copied() else {
             return Err(PlanError::Passes("this job has no tiles to extend".into()));
         };
+        if self.legacy {
+            return Err(PlanError::Passes(
+                "this job was rendered before passes existed: its tiles keep no running sums to continue; submit a new job".into(),
+            ));
+        }
         if self.sums.is_none() {
             return Err(PlanError::Passes(
                 "an SPPM job cannot be extended: its photon radius shrinks over all its iterations together".into(),

@@ -216,6 +216,7 @@ impl Store {
                     samples: r.get::<_, i64>(1)? as u32,
                     exr: r.get(2)?,
                     unchecked_by: serde_json::from_str(&by).unwrap_or_default(),
+                    legacy: false,
                 })
             })?
             .filter_map(|r| r.ok())
@@ -231,6 +232,7 @@ impl Store {
                         samples: legacy_samples,
                         exr: r.get(1)?,
                         unchecked_by: Default::default(),
+                        legacy: true,
                     })
                 })?
                 .filter_map(|r| r.ok()),

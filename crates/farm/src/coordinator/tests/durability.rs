@@ -242,3 +242,52 @@ async fn damage_is_reported_and_the_rest_of_the_coordinator_serves() {
     );
     drop(dir);
 }
+
+/// A data directory from before passes: tiles kept in the old `tiles` table, without
+/// running sums, resume as done (not rendered again); only the job's extension is refused,
+/// saying why.
+#[tokio::test]
+async fn tiles_kept_before_passes_existed_resume_as_done() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    let job = submit_with(&f, 16, 8, 8, |s| s.spp = Some(64)).await;
+    let a = lease(&f.app, "w").await.unwrap();
+    let mut old = tile_of(&a, (16, 8), 0.5);
+    old.words = kiln_image::Words::default();
+    let Farm { dir, c, app } = f;
+    drop((c, app));
+    let db = rusqlite::Connection::open(data.join("kiln.sqlite")).unwrap();
+    db.execute(
+        "INSERT INTO tiles (job, idx, exr) VALUES (?1, ?2, ?3)",
+        rusqlite::params![job as i64, a.tile_index as i64, exr(&old)],
+    )
+    .unwrap();
+    drop(db);
+    let (_c, app) = open(&data, None);
+    let s = job_status(&app, job).await;
+    assert_eq!((s.state, s.tiles_done), (JobState::Running, 1));
+    let b = lease(&app, "w").await.unwrap();
+    assert_ne!(
+        b.tile_index, a.tile_index,
+        "the kept tile is not rendered again"
+    );
+    assert!(lease(&app, "w").await.is_none());
+    let (status, _) = upload(&app, b.lease, exr(&tile_of(&b, (16, 8), 1.0))).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(job_status(&app, job).await.state, JobState::Done);
+    let (status, body) = call(
+        &app,
+        "POST",
+        &format!("/v1/jobs/{job}/extend"),
+        None,
+        r#"{"passes":[128]}"#.to_string(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::CONFLICT);
+    assert!(
+        error_of(&body).contains("before passes existed"),
+        "{}",
+        error_of(&body)
+    );
+    drop(dir);
+}
