@@ -72,8 +72,8 @@ async function signIn(token) {
     return;
   }
   state.token = token || null;
-  if (token) sessionStorage.setItem("kiln-token", token);
-  else sessionStorage.removeItem("kiln-token");
+  // Kept for this tab only (an empty one too, for a coordinator without a token).
+  sessionStorage.setItem("kiln-token", token || "");
   $("sign-in-error").textContent = "";
   $("sign-in").hidden = true;
   $("farm").hidden = false;
