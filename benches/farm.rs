@@ -116,6 +116,13 @@ fn scale(workers: usize) {
                 let mut tile =
                     kiln_image::RgbBuffer::new(2880, 1920, r.x0, r.y0, r.width, r.height);
                 tile.pixels.iter_mut().for_each(|p| *p = [0.5; 3]);
+                // The running sums a real worker's tile carries (one pass of 1 sample).
+                let mut sums = kiln_render::TileSums::empty(*r, false);
+                sums.samples = 1;
+                tile.words = kiln_image::Words {
+                    names: kiln_render::TileSums::word_names(false),
+                    values: sums.to_words(),
+                };
                 kiln_image::encode_exr(&tile).unwrap()
             })
             .collect(),

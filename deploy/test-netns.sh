@@ -23,6 +23,11 @@ work="$(mktemp -d)"
 pids=()
 cleanup() {
     for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+    # $! of a backgrounded `on` is the subshell, not kiln: end the processes themselves
+    # (every one names $work), or they outlive the test for their give-up time.
+    pkill -TERM -f -- "$work" 2>/dev/null || true
+    for _ in $(seq 50); do pgrep -f -- "$work" >/dev/null || break; sleep 0.2; done
+    pkill -KILL -f -- "$work" 2>/dev/null || true
     wait 2>/dev/null || true
     for h in "${hosts[@]}"; do ip netns del "$tag-$h" 2>/dev/null || true; done
     ip netns del "$sw" 2>/dev/null || true

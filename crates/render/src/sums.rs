@@ -58,6 +58,8 @@ pub enum SumsError {
     },
     #[error("the running sums' pixels disagree on how many samples they hold")]
     Samples,
+    #[error("the tile's running sums hold {found} samples, not the {expected} of its pass")]
+    SampleCount { found: u32, expected: u32 },
 }
 
 /// The name of the channel holding the sample count, and the prefix of the others.
@@ -92,6 +94,55 @@ impl TileSums {
         names
     }
 
+    /// [`TileSums::word_names`], made once.
+    fn names_of(gbuffer: bool) -> &'static [String] {
+        static PLAIN: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+        static GBUFFER: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+        let cell = if gbuffer { &GBUFFER } else { &PLAIN };
+        cell.get_or_init(|| TileSums::word_names(gbuffer))
+    }
+
+    /// Checks, without decoding them, that `values` (with `names`) are the sums of a tile
+    /// `rect` after `samples` samples: the channels, their count and every pixel's sample
+    /// count. What a coordinator asks of an upload.
+    pub fn check_words(
+        rect: TileRect,
+        gbuffer: bool,
+        names: &[String],
+        values: &[u32],
+        samples: u32,
+    ) -> Result<(), SumsError> {
+        let expected = TileSums::names_of(gbuffer);
+        if names != expected {
+            return Err(SumsError::Channels {
+                found: names.to_vec(),
+                expected: expected.len(),
+            });
+        }
+        let per = expected.len();
+        let pixels = rect.pixel_count() as usize;
+        if values.len() != pixels * per {
+            return Err(SumsError::Size {
+                found: values.len(),
+                expected: pixels * per,
+                width: rect.width,
+                height: rect.height,
+            });
+        }
+        let mut counts = values.iter().skip(per - 1).step_by(per);
+        if let Some(&found) = counts.clone().find(|&&n| n != samples) {
+            return Err(if counts.all(|&n| n == found) {
+                SumsError::SampleCount {
+                    found,
+                    expected: samples,
+                }
+            } else {
+                SumsError::Samples
+            });
+        }
+        Ok(())
+    }
+
     /// Every pixel's words, in the order of [`TileSums::word_names`].
     pub fn to_words(&self) -> Vec<u32> {
         let n = values(self.gbuffer);
@@ -120,8 +171,8 @@ impl TileSums {
         names: &[String],
         values_in: &[u32],
     ) -> Result<TileSums, SumsError> {
-        let expected = TileSums::word_names(gbuffer);
-        if names != expected.as_slice() {
+        let expected = TileSums::names_of(gbuffer);
+        if names != expected {
             return Err(SumsError::Channels {
                 found: names.to_vec(),
                 expected: expected.len(),
@@ -213,6 +264,21 @@ mod tests {
                 TileSums::from_words(rect, gbuffer, &names, &mixed).unwrap_err(),
                 SumsError::Samples
             );
+            // The coordinator's check, without decoding, says the same.
+            assert!(TileSums::check_words(rect, gbuffer, &names, &words, 77).is_ok());
+            assert_eq!(
+                TileSums::check_words(rect, gbuffer, &names, &words, 78).unwrap_err(),
+                SumsError::SampleCount {
+                    found: 77,
+                    expected: 78
+                }
+            );
+            assert_eq!(
+                TileSums::check_words(rect, gbuffer, &names, &mixed, 77).unwrap_err(),
+                SumsError::Samples
+            );
+            assert!(TileSums::check_words(rect, !gbuffer, &names, &words, 77).is_err());
+            assert!(TileSums::check_words(rect, gbuffer, &names, &words[1..], 77).is_err());
         }
     }
 }

@@ -155,6 +155,4 @@ pub enum TileRejected {
     Digest,
     #[error("{0}")]
     Sums(kiln_render::SumsError),
-    #[error("the tile's running sums hold {found} samples, not the {expected} of its pass")]
-    SumsSamples { found: u32, expected: u32 },
 }

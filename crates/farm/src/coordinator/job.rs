@@ -362,27 +362,30 @@ impl Job {
         self.done[tile] == pass && (pass as usize) < self.passes.len()
     }
 
-    /// Judges `worker`'s render of `tile`'s pass `pass`: kept at once if the pass is not
-    /// checked; else held until another worker's render agrees with it (the tile goes back
-    /// to the front of the queue for that). Returns the verdict, and with `Keep` the
-    /// workers whose unchecked renders the kept sums then hold.
+    /// Whether `tile`'s pass `pass` is rendered twice and compared before it is kept.
+    pub fn is_checked(&self, tile: usize, pass: u32) -> bool {
+        is_checked(self.verify, tile, pass)
+    }
+
+    /// The workers whose unchecked renders `tile`'s sums hold once `worker`'s unchecked
+    /// render of its next pass is kept.
+    pub fn unchecked_after(&self, tile: usize, worker: &str) -> BTreeSet<String> {
+        let mut chain = self.unchecked_by[tile].clone();
+        chain.insert(worker.to_string());
+        chain
+    }
+
+    /// Judges a render of `tile`'s checked pass `pass`: held until another worker's render
+    /// agrees with it (the tile goes back to the front of the queue for that). Returns the
+    /// verdict, and the workers whose unchecked renders the sums hold (a checked pass adds
+    /// none).
     pub fn judge(
         &mut self,
         tile: usize,
         pass: u32,
         render: Candidate,
     ) -> (Verdict, BTreeSet<String>) {
-        let mut chain = self.unchecked_by[tile].clone();
-        if !is_checked(self.verify, tile, pass) {
-            chain.insert(render.worker.clone());
-            let agreeing = vec![render.worker.clone()];
-            let keep = Verdict::Keep {
-                render: Box::new(render),
-                agreeing,
-                wrong: Vec::new(),
-            };
-            return (keep, chain);
-        }
+        let chain = self.unchecked_by[tile].clone();
         let verdict = self.checks.judge(tile, pass, render);
         match &verdict {
             Verdict::Keep { .. } => self.verified += 1,
@@ -775,14 +778,9 @@ impl TileSpot {
         }
         if let Some((gbuffer, samples)) = self.sums {
             let rect = kiln_render::TileRect::from(self.window);
-            let sums = TileSums::from_words(rect, gbuffer, &tile.words.names, &tile.words.values)
+            let words = &tile.words;
+            TileSums::check_words(rect, gbuffer, &words.names, &words.values, samples)
                 .map_err(TileRejected::Sums)?;
-            if sums.samples != samples {
-                return Err(TileRejected::SumsSamples {
-                    found: sums.samples,
-                    expected: samples,
-                });
-            }
         }
         Ok(())
     }
