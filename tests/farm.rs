@@ -1033,9 +1033,12 @@ fn the_farm_in_passes_gives_the_bytes_of_kiln_render() {
     assert!(merged == direct.bytes, "the G-buffer in passes differs");
 }
 
-/// A job stopped after a pass ends with that pass's whole frame, `kiln render`'s at its
-/// samples; extended, it renders on from there to `kiln render`'s at the new count, the
-/// workers continuing the sums the coordinator kept.
+/// A job stopped after a pass ends with that pass's whole frame; extended, it renders on
+/// from there to `kiln render`'s bytes at the new count, the workers continuing the sums the
+/// coordinator kept. Every pass is rendered with the footprint of the job's last pass, so a
+/// pass of fewer than 64 samples (where pbrt-v4's texture footprint still narrows) is the
+/// first samples of the longer render: `kiln render --spp N --footprint-spp LAST`, and on
+/// this textured scene not `kiln render --spp N`.
 #[test]
 fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
     let dir = tempfile::tempdir().unwrap();
@@ -1044,64 +1047,91 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
     let client = Client::new(&url, None);
     let bundle = kiln_farm::bundle::pack(&scene("textures/scene.pbrt")).unwrap();
     let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
-    let spec = JobSpec {
-        scene: digest,
-        spp: None,
-        resolution: Some((24, 16)),
-        tile: 8,
-        seed: None,
-        passes: Some(vec![64, 72, 80, 88, 96]),
-        verify: None,
-        priority: 0,
-        webhook: None,
-    };
-    let id = rt.block_on(client.create_job(&spec, None)).unwrap();
-    let _worker = start_worker(
-        &url,
-        "p",
-        &dir.path().join("cache"),
-        &dir.path().join("p.log"),
-    );
-    // Stop as soon as the first pass is merged.
-    let start = Instant::now();
-    while rt.block_on(client.status(id)).unwrap().passes_done == 0 {
-        assert!(start.elapsed() < Duration::from_secs(120), "no pass merged");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    rt.block_on(client.stop_after_pass(id)).unwrap();
-    let s = wait_done(&rt, &client, id, Duration::from_secs(120));
-    assert_eq!(s.state, JobState::Done);
-    let stopped = s.samples_per_pixel_done;
-    assert!(
-        stopped < 96,
-        "the job ran on to {stopped} samples after its stop"
-    );
-    assert_eq!(s.passes.last(), Some(&stopped));
-    let render_at = |spp: u32| {
-        let args = ["--spp", &spp.to_string(), "--resolution", "24x16"].map(String::from);
+    let render_at = |spp: u32, footprint: Option<u32>| {
+        let mut args = ["--spp", &spp.to_string(), "--resolution", "24x16"]
+            .map(String::from)
+            .to_vec();
+        if let Some(f) = footprint {
+            args.extend(["--footprint-spp".to_string(), f.to_string()]);
+        }
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         render(
             &scene("textures/scene.pbrt"),
             dir.path(),
-            &format!("d{spp}"),
+            &format!("d{spp}-{footprint:?}"),
             &args,
         )
         .bytes
     };
-    let result = rt.block_on(client.result(id)).unwrap();
-    assert!(
-        result == render_at(stopped),
-        "stopped at {stopped}: not kiln render's bytes"
-    );
-    let s = rt.block_on(client.extend(id, &[stopped + 8, 104])).unwrap();
-    assert_eq!(s.state, JobState::Running);
-    let s = wait_done(&rt, &client, id, Duration::from_secs(120));
-    assert_eq!((s.state, s.samples_per_pixel_done), (JobState::Done, 104));
-    let result = rt.block_on(client.result(id)).unwrap();
-    assert!(
-        result == render_at(104),
-        "extended to 104: not kiln render's bytes"
-    );
+    // Stopped mid-run, after its first pass merged, and at once, before any tile.
+    for stop_at_once in [false, true] {
+        let spec = JobSpec {
+            scene: digest.clone(),
+            spp: None,
+            resolution: Some((24, 16)),
+            tile: 8,
+            seed: None,
+            passes: Some(vec![16, 64, 72, 80, 88, 96]),
+            verify: None,
+            priority: 0,
+            webhook: None,
+        };
+        let id = rt.block_on(client.create_job(&spec, None)).unwrap();
+        if stop_at_once {
+            rt.block_on(client.stop_after_pass(id)).unwrap();
+        }
+        let _worker = start_worker(
+            &url,
+            &format!("p{stop_at_once}"),
+            &dir.path().join("cache"),
+            &dir.path().join(format!("p{stop_at_once}.log")),
+        );
+        let start = Instant::now();
+        while rt.block_on(client.status(id)).unwrap().passes_done == 0 {
+            assert!(start.elapsed() < Duration::from_secs(120), "no pass merged");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        rt.block_on(client.stop_after_pass(id)).unwrap();
+        let s = wait_done(&rt, &client, id, Duration::from_secs(120));
+        assert_eq!(s.state, JobState::Done);
+        let stopped = s.samples_per_pixel_done;
+        assert!(
+            stopped < 96,
+            "the job ran on to {stopped} samples after its stop"
+        );
+        if stop_at_once {
+            assert_eq!(
+                stopped, 16,
+                "stopped before any tile, it ran past its first pass"
+            );
+        }
+        assert_eq!(s.passes.last(), Some(&stopped));
+        let result = rt.block_on(client.result(id)).unwrap();
+        assert!(
+            result == render_at(stopped, Some(96)),
+            "stopped at {stopped}: not kiln render --footprint-spp 96's bytes"
+        );
+        if stopped < 64 {
+            assert!(
+                result != render_at(stopped, None),
+                "this scene's textures should see the footprint of {stopped} samples"
+            );
+        } else {
+            assert!(
+                result == render_at(stopped, None),
+                "stopped at {stopped}: not kiln render's bytes"
+            );
+        }
+        let s = rt.block_on(client.extend(id, &[stopped + 8, 104])).unwrap();
+        assert_eq!(s.state, JobState::Running);
+        let s = wait_done(&rt, &client, id, Duration::from_secs(120));
+        assert_eq!((s.state, s.samples_per_pixel_done), (JobState::Done, 104));
+        let result = rt.block_on(client.result(id)).unwrap();
+        assert!(
+            result == render_at(104, None),
+            "extended to 104: not kiln render's bytes"
+        );
+    }
 }
 
 /// Verified workers on real processes: a worker started in a fault-injection mode (it

@@ -17,6 +17,12 @@ pub struct RenderArgs {
     /// Samples per pixel (default: the scene's Sampler "pixelsamples").
     #[arg(long)]
     spp: Option<u32>,
+    /// Filter textures as a render of this many samples per pixel does (pbrt-v4 narrows the
+    /// filter footprint with the sample count, down to 64). The image is then the first
+    /// --spp samples of that longer render: what a farm job in passes holds after a pass
+    /// of fewer than 64 samples, the footprint being that of its last pass.
+    #[arg(long)]
+    footprint_spp: Option<u32>,
     /// Resolution as WIDTHxHEIGHT (default: the scene's Film).
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<(u32, u32)>,
@@ -93,7 +99,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .num_threads(args.threads.unwrap_or(0))
         .build()
         .context("cannot start the worker threads")?;
-    let renderer = Renderer::build(&desc)?;
+    let mut renderer = Renderer::build(&desc)?;
+    if let Some(spp) = args.footprint_spp {
+        if spp == 0 {
+            bail!("--footprint-spp must be at least 1");
+        }
+        renderer = renderer.with_footprint_spp(spp);
+    }
     let scene = renderer.scene();
     let load_time = start.elapsed();
     let film = &desc.film;

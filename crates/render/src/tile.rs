@@ -65,13 +65,18 @@ pub struct RenderSettings {
     pub max_radiance: f32,
     /// A G-buffer film: its channels beside each pixel's radiance, in this space.
     pub gbuffer: Option<kiln_scene::GBufferSpace>,
+    /// Filter textures as a render of this many samples per pixel would (default: the
+    /// samples rendered). A farm job in passes renders every pass with its last pass's
+    /// footprint, so the frame after a pass of fewer than 64 samples is the first samples of
+    /// the longer render: `kiln render --spp N --footprint-spp LAST` gives its bytes.
+    pub footprint_spp: Option<u32>,
 }
 
 impl RenderSettings {
     /// The scale of a pixel's footprint for texture filtering: with many samples per pixel
     /// each filters over less than a pixel, as pbrt-v4 does (1/sqrt(spp), at least 1/8).
     pub fn footprint(&self) -> f32 {
-        texture_footprint(self.samples_per_pixel)
+        texture_footprint(self.footprint_spp.unwrap_or(self.samples_per_pixel))
     }
 
     /// Settings as the scene file gives them.
@@ -89,6 +94,7 @@ impl RenderSettings {
             integrator,
             max_radiance: desc.integrator.max_radiance,
             gbuffer: desc.film.gbuffer,
+            footprint_spp: None,
         }
     }
 }
@@ -166,6 +172,13 @@ impl Renderer {
             sppm_passes: PassCache::default(),
             shared,
         }
+    }
+
+    /// The same renderer with textures filtered as a render of `spp` samples per pixel does
+    /// ([`RenderSettings::footprint_spp`]); pre-passes do not filter textures, so they stay.
+    pub fn with_footprint_spp(mut self, spp: u32) -> Renderer {
+        self.settings.footprint_spp = Some(spp);
+        self
     }
 
     /// The same scene with other settings (pre-passes run again, not shared).
