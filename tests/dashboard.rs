@@ -1,16 +1,20 @@
 //! The dashboard in a real browser: tests/dashboard/drive.py drives headless Chromium
 //! (Debian's chromium and chromium-driver, Selenium from PyPI, which .ci/run installs)
-//! against a coordinator with a token and a worker: it signs in, watches a job go through
-//! its passes to done while the frame changes, moves the exposure, downloads the EXR,
-//! cancels another job, checks a narrow screen, a screenshot that is not blank and a
-//! console without errors. Where Chromium or Selenium is missing it prints SKIPPED.
+//! against a coordinator with a token and a worker started once the browser has signed in:
+//! it stops a job after its first pass before it starts, watches another go through its
+//! passes to done while the frame's pixels change and its ETA and the worker's tile show,
+//! moves the exposure, downloads the EXR, extends the job, downloads the stopped job's
+//! PNG, cancels a third job, and checks a narrow screen, a frame and a screenshot that are
+//! not blank and a console without errors. Where Chromium or Selenium is missing it
+//! prints SKIPPED.
 
 use crate::farm::{in_process, start_worker_with};
 use crate::util::{repo, scene};
 use kiln_farm::api::{JobSpec, JobState};
 use kiln_farm::client::Client;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 /// Why the browser test cannot run here, if it cannot.
 fn missing() -> Option<String> {
@@ -59,43 +63,67 @@ fn the_dashboard_works_in_a_real_browser() {
         priority,
         webhook: None,
     };
-    // A job of four passes to watch, and one below it in priority to cancel.
+    // A job of four passes to watch, one below it in priority to stop after its first
+    // pass, and one below that to cancel.
     let watch = rt
-        .block_on(client.create_job(&spec(vec![8, 32, 128, 256], 0), None))
+        .block_on(client.create_job(&spec(vec![8, 64, 256, 512], 0), None))
+        .unwrap();
+    let stop = rt
+        .block_on(client.create_job(&spec(vec![8, 4096], -1), None))
         .unwrap();
     let cancel = rt
-        .block_on(client.create_job(&spec(vec![4096], -1), None))
+        .block_on(client.create_job(&spec(vec![4096], -2), None))
         .unwrap();
-    let _worker = start_worker_with(
-        &url,
-        "w1",
-        &dir.path().join("cache"),
-        &dir.path().join("w.log"),
-        &["--token", token],
-    );
     let shot = dir.path().join("dashboard.png");
-    let out = Command::new("python3")
+    let mut driver = Command::new("python3")
         .arg(repo().join("tests/dashboard/drive.py"))
         .args(["--url", &url, "--token", token])
         .args([
             "--watch",
             &watch.to_string(),
+            "--stop",
+            &stop.to_string(),
             "--cancel",
             &cancel.to_string(),
         ])
         .arg("--screenshot")
         .arg(&shot)
-        .output()
+        .stdout(Stdio::piped())
+        .stderr(std::fs::File::create(dir.path().join("drive.err")).unwrap())
+        .spawn()
         .unwrap();
-    let said = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    println!("{said}");
-    assert!(out.status.success(), "the browser test failed:\n{said}");
+    // The worker starts once the browser has signed in, so the browser sees the watched
+    // job from its first tile, however fast this machine renders it.
+    let mut worker = None;
+    let mut said = String::new();
+    for line in BufReader::new(driver.stdout.take().unwrap()).lines() {
+        let line = line.unwrap();
+        println!("{line}");
+        if line == "dashboard: signed in" && worker.is_none() {
+            worker = Some(start_worker_with(
+                &url,
+                "w1",
+                &dir.path().join("cache"),
+                &dir.path().join("w.log"),
+                &["--token", token],
+            ));
+        }
+        said += &line;
+        said.push('\n');
+    }
+    let status = driver.wait().unwrap();
+    let errors = std::fs::read_to_string(dir.path().join("drive.err")).unwrap_or_default();
+    assert!(status.success(), "the browser test failed:\n{said}{errors}");
     let s = rt.block_on(client.status(watch)).unwrap();
-    assert_eq!((s.state, s.passes_done), (JobState::Done, 4));
+    assert_eq!(
+        (s.state, s.passes_done, s.samples_per_pixel_done),
+        (JobState::Done, 5, 1024)
+    );
+    let s = rt.block_on(client.status(stop)).unwrap();
+    assert_eq!(
+        (s.state, s.passes, s.samples_per_pixel_done),
+        (JobState::Done, vec![8], 8)
+    );
     let s = rt.block_on(client.status(cancel)).unwrap();
     assert_eq!(s.state, JobState::Cancelled);
     assert!(std::fs::metadata(&shot).unwrap().len() > 10_000);

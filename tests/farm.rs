@@ -1247,24 +1247,32 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
     assert!(log.contains("set aside"), "{log}");
 }
 
-/// A job's webhook is called when it ends, with its status, and retried with backoff until
-/// it answers 2xx; one that never answers is given up on after its attempts, saying why.
+/// A job's webhook is called when it ends (done, failed or cancelled), with its status,
+/// and retried with backoff until it answers 2xx; one that never answers is given up on
+/// after its attempts, saying why. A job extended while the call for its end is on its way
+/// is announced again when it ends again. What became of each call survives a restart: a
+/// restarted coordinator calls none of them again.
 #[test]
 fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
+    use std::collections::HashMap;
     use std::sync::{Arc, Mutex};
     let dir = tempfile::tempdir().unwrap();
     let rt = tokio::runtime::Runtime::new().unwrap();
-    // A receiver that fails its first two calls.
-    let calls: Arc<Mutex<Vec<(String, serde_json::Value)>>> = Arc::default();
+    // A receiver with four hooks: /hook fails its first two calls, /down every call, /slow
+    // answers after 700 ms, /failed at once. Each call is kept as (event, body).
+    type Calls = Arc<Mutex<HashMap<String, Vec<(String, serde_json::Value)>>>>;
+    let calls: Calls = Arc::default();
     let seen = calls.clone();
     let hook = rt
         .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
         .unwrap();
-    let hook_url = format!("http://{}/hook", hook.local_addr().unwrap());
+    let base = format!("http://{}", hook.local_addr().unwrap());
     let receiver = axum::Router::new().route(
-        "/hook",
+        "/{name}",
         axum::routing::post(
-            move |headers: axum::http::HeaderMap, body: axum::Json<serde_json::Value>| {
+            move |axum::extract::Path(name): axum::extract::Path<String>,
+                  headers: axum::http::HeaderMap,
+                  body: axum::Json<serde_json::Value>| {
                 let seen = seen.clone();
                 async move {
                     let event = headers
@@ -1272,30 +1280,47 @@ fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
                         .and_then(|v| v.to_str().ok())
                         .unwrap_or("")
                         .to_string();
-                    let mut calls = seen.lock().unwrap();
-                    calls.push((event, body.0));
-                    if calls.len() <= 2 {
-                        axum::http::StatusCode::INTERNAL_SERVER_ERROR
-                    } else {
-                        axum::http::StatusCode::NO_CONTENT
+                    let n = {
+                        let mut calls = seen.lock().unwrap();
+                        let list = calls.entry(name.clone()).or_default();
+                        list.push((event, body.0));
+                        list.len()
+                    };
+                    use axum::http::StatusCode as S;
+                    match name.as_str() {
+                        "hook" if n <= 2 => S::INTERNAL_SERVER_ERROR,
+                        "down" => S::INTERNAL_SERVER_ERROR,
+                        "slow" => {
+                            tokio::time::sleep(Duration::from_millis(700)).await;
+                            S::NO_CONTENT
+                        }
+                        _ => S::NO_CONTENT,
                     }
                 }
             },
         ),
     );
     rt.spawn(async move { axum::serve(hook, receiver).await });
-    let mut config = Config::new(dir.path().join("data"));
-    config.webhook_backoff = Duration::from_millis(20);
-    let c = Coordinator::open(config).unwrap();
-    let listener = rt
-        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
-        .unwrap();
-    let url = format!("http://{}", listener.local_addr().unwrap());
-    rt.spawn(coordinator::serve(listener, c, std::future::pending()));
+    let calls_to = |name: &str| calls.lock().unwrap().get(name).cloned().unwrap_or_default();
+    let serve = |rt: &tokio::runtime::Runtime| {
+        let mut config = Config::new(dir.path().join("data"));
+        config.webhook_backoff = Duration::from_millis(20);
+        let c = Coordinator::open(config).unwrap();
+        let listener = rt
+            .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+            .unwrap();
+        let url = format!("http://{}", listener.local_addr().unwrap());
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        let server = rt.spawn(coordinator::serve(listener, c, async move {
+            let _ = stopped.await;
+        }));
+        (url, stop, server)
+    };
+    let (url, stop, server) = serve(&rt);
     let client = Client::new(&url, None);
     let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
     let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
-    let spec = |webhook: &str| JobSpec {
+    let spec = |hook: &str| JobSpec {
         scene: digest.clone(),
         spp: Some(1),
         resolution: Some((16, 16)),
@@ -1304,57 +1329,148 @@ fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
         passes: None,
         verify: None,
         priority: 0,
-        webhook: Some(webhook.to_string()),
+        webhook: Some(format!("{base}/{hook}")),
     };
     let bad = JobSpec {
         webhook: Some("ftp://x/".into()),
-        ..spec(&hook_url)
+        ..spec("hook")
     };
     let err = rt.block_on(client.create_job(&bad, None)).unwrap_err();
     assert!(err.to_string().contains("not an http(s) URL"), "{err}");
-    let done = rt
-        .block_on(client.create_job(&spec(&hook_url), None))
+    // A job that fails: its one tile fails three times.
+    let failed = rt
+        .block_on(client.create_job(&spec("failed"), None))
         .unwrap();
-    // Nothing listens here.
-    let nowhere = format!("http://127.0.0.1:{}/hook", free_port());
-    let cancelled = rt
-        .block_on(client.create_job(&spec(&nowhere), None))
-        .unwrap();
+    for _ in 0..3 {
+        let l = rt.block_on(client.lease("broken")).unwrap().unwrap();
+        assert_eq!(l.job, failed);
+        rt.block_on(client.fail(l.lease, "broken on purpose"))
+            .unwrap();
+    }
+    assert_eq!(
+        rt.block_on(client.status(failed)).unwrap().state,
+        JobState::Failed
+    );
+    let done = rt.block_on(client.create_job(&spec("hook"), None)).unwrap();
+    let cancelled = rt.block_on(client.create_job(&spec("down"), None)).unwrap();
     rt.block_on(client.cancel(cancelled)).unwrap();
+    let extended = rt
+        .block_on(client.create_job(
+            &JobSpec {
+                spp: None,
+                passes: Some(vec![64]),
+                ..spec("slow")
+            },
+            None,
+        ))
+        .unwrap();
     let _w = start_worker(
         &url,
         "w",
         &dir.path().join("cache"),
         &dir.path().join("w.log"),
     );
-    wait_done(&rt, &client, done, Duration::from_secs(60));
+    // Extended while the call announcing its end is on its way.
     let start = Instant::now();
+    while calls_to("slow").is_empty() {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no call to /slow"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    rt.block_on(client.extend(extended, &[72])).unwrap();
+    wait_done(&rt, &client, done, Duration::from_secs(60));
     let webhook_of = |id| rt.block_on(client.status(id)).unwrap().webhook;
-    while webhook_of(done).as_deref() != Some("delivered after 3 call(s)")
-        || !webhook_of(cancelled).is_some_and(|w| w.starts_with("gave up"))
+    let settled = |id| {
+        webhook_of(id)
+            .is_some_and(|w: String| w.starts_with("delivered") || w.starts_with("gave up"))
+    };
+    let start = Instant::now();
+    while ![done, cancelled, failed, extended].into_iter().all(settled)
+        || rt.block_on(client.status(extended)).unwrap().state != JobState::Done
     {
         assert!(
             start.elapsed() < Duration::from_secs(60),
-            "{:?} {:?}",
+            "{:?} {:?} {:?} {:?}",
             webhook_of(done),
-            webhook_of(cancelled)
+            webhook_of(cancelled),
+            webhook_of(failed),
+            webhook_of(extended)
         );
         std::thread::sleep(Duration::from_millis(50));
     }
-    let calls = calls.lock().unwrap();
     assert_eq!(
-        calls.len(),
+        webhook_of(done).as_deref(),
+        Some("delivered after 3 call(s)")
+    );
+    let hook = calls_to("hook");
+    assert_eq!(
+        hook.len(),
         3,
         "two failures, then one answer: no more calls"
     );
-    for (event, body) in calls.iter() {
+    for (event, body) in &hook {
         assert_eq!(event, "job.done");
-        assert_eq!(body["id"], done);
-        assert_eq!(body["state"], "done");
+        assert_eq!(
+            (&body["id"], &body["state"]),
+            (&done.into(), &"done".into())
+        );
     }
     let why = webhook_of(cancelled).unwrap();
     assert!(
-        why.contains("gave up after 8 calls") && why.contains("127.0.0.1"),
+        why.contains("gave up after 8 calls") && why.contains("500"),
         "{why}"
+    );
+    let down = calls_to("down");
+    assert_eq!(down.len(), 8);
+    assert!(
+        down.iter()
+            .all(|(e, b)| e == "job.cancelled" && b["id"] == cancelled)
+    );
+    let failed_calls = calls_to("failed");
+    assert_eq!(failed_calls.len(), 1);
+    assert_eq!(failed_calls[0].0, "job.failed");
+    assert_eq!(failed_calls[0].1["state"], "failed");
+    assert!(
+        failed_calls[0].1["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("broken on purpose")),
+        "{:?}",
+        failed_calls[0].1
+    );
+    // The call for the first end was answered after the extension: the second end was
+    // announced by a call of its own.
+    let slow = calls_to("slow");
+    assert_eq!(slow.len(), 2, "{slow:?}");
+    let spp: Vec<_> = slow
+        .iter()
+        .map(|(_, b)| b["samples_per_pixel_done"].clone())
+        .collect();
+    assert_eq!(spp, [64, 72]);
+    assert_eq!(
+        webhook_of(extended).as_deref(),
+        Some("delivered after 1 call(s)")
+    );
+    // A restart calls none of them again, and says what became of each.
+    stop.send(()).unwrap();
+    rt.block_on(server).unwrap().unwrap();
+    let before: usize = calls.lock().unwrap().values().map(Vec::len).sum();
+    let (url, _stop, _server) = serve(&rt);
+    let client = Client::new(&url, None);
+    std::thread::sleep(Duration::from_millis(2500));
+    let after: usize = calls.lock().unwrap().values().map(Vec::len).sum();
+    assert_eq!(
+        before, after,
+        "a webhook was called again after the restart"
+    );
+    let webhook_of = |id| rt.block_on(client.status(id)).unwrap().webhook.unwrap();
+    assert_eq!(
+        webhook_of(done),
+        "delivered before the coordinator restarted"
+    );
+    assert_eq!(
+        webhook_of(cancelled),
+        "gave up after 8 calls before the coordinator restarted"
     );
 }

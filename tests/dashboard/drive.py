@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """Drives Kiln's farm dashboard in headless Chromium (Selenium, the system's chromium and
-chromedriver), as tests/dashboard.rs asks: signs in with the token from the keyboard,
-watches a job progress through its passes to done while its frame changes, moves the
-exposure, cancels another job, checks a narrow screen, a screenshot that is not blank and
-a console without errors. Prints what it saw; exits 1 with the reason on any failure."""
+chromedriver), as tests/dashboard.rs asks: signs in with the token from the keyboard (and
+prints "dashboard: signed in", the test's cue to start the worker), watches a job progress
+through its passes to done while its frame's pixels change, its ETA and the worker's
+current tile show, moves the exposure, downloads the EXR, extends the job by its form,
+stops a second job after its pass in progress and downloads its PNG, cancels a third,
+checks a narrow screen, a frame that is not blank and a console without errors. Prints what
+it saw; exits 1 with the reason on any failure."""
 
 import argparse
 import struct
@@ -60,11 +63,51 @@ def fact(driver, name):
     )
 
 
+# The frame's pixels as the page shows them: a hash, the mean of the 8-bit channels and how
+# many distinct colours (up to 1000), drawn through a canvas (the image is a same-origin
+# object URL, so the canvas may be read). None while the image is loading.
+FRAME_PIXELS = """
+const img = document.getElementById('frame');
+if (!img.complete || !img.naturalWidth) return null;
+const c = document.createElement('canvas');
+c.width = img.naturalWidth; c.height = img.naturalHeight;
+const g = c.getContext('2d');
+g.drawImage(img, 0, 0);
+const d = g.getImageData(0, 0, c.width, c.height).data;
+let h = 0, sum = 0;
+const colours = new Set();
+for (let i = 0; i < d.length; i += 4) {
+  h = (Math.imul(h, 31) + (d[i] << 16 | d[i + 1] << 8 | d[i + 2])) | 0;
+  sum += d[i] + d[i + 1] + d[i + 2];
+  if (colours.size < 1000) colours.add(d[i] << 16 | d[i + 1] << 8 | d[i + 2]);
+}
+return [h, sum / (3 * d.length / 4), colours.size];
+"""
+
+
+def frame_pixels(driver):
+    return driver.execute_script(FRAME_PIXELS)
+
+
+def cells(driver, table, column):
+    """The text of one column of a table's rows, read in one script."""
+    return driver.execute_script(
+        f"return [...document.querySelectorAll('#{table} tbody tr td:nth-child({column})')].map(c => c.textContent)"
+    )
+
+
+def show_job(driver, job):
+    driver.find_element(By.CSS_SELECTOR, f'button[aria-label="Show job {job}"]').click()
+    wait_for(f"job {job}'s panel", lambda: driver.find_element(By.ID, "job-title").text == f"Job {job}")
+    wait_for(f"job {job}'s facts", lambda: fact(driver, "state") != "")
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--url", required=True)
     p.add_argument("--token", required=True)
     p.add_argument("--watch", type=int, required=True, help="the job to follow to done")
+    p.add_argument("--stop", type=int, required=True, help="the job to stop after its first pass")
     p.add_argument("--cancel", type=int, required=True, help="the job to cancel")
     p.add_argument("--screenshot", required=True)
     p.add_argument("--chromium", default="/usr/bin/chromium")
@@ -97,6 +140,15 @@ def run(driver, a):
     wait_for("the farm view", lambda: driver.find_element(By.ID, "farm").is_displayed())
     print("dashboard: signed in", flush=True)
 
+    # Stop the second job (below the watched one in priority, so not started yet) after
+    # its pass in progress, its first: its schedule is cut to that pass.
+    show_job(driver, a.stop)
+    stop = wait_for("an enabled stop button", lambda: (b := driver.find_element(By.ID, "stop")).is_enabled() and b)
+    stop.send_keys(Keys.ENTER)
+    wait_for("the stop", lambda: "ends after this pass" in driver.find_element(By.ID, "message").text)
+    wait_for("the schedule cut to one pass", lambda: fact(driver, "passes").startswith("8 ("))
+    print(f"dashboard: job {a.stop} will end after its first pass", flush=True)
+
     # The job to watch, chosen by keyboard.
     show = wait_for(
         f"job {a.watch} in the list",
@@ -105,15 +157,18 @@ def run(driver, a):
     show.send_keys(Keys.ENTER)
     wait_for("the job panel", lambda: driver.find_element(By.ID, "job").is_displayed())
     frame = driver.find_element(By.ID, "frame")
-    wait_for("a frame", lambda: frame.get_attribute("src").startswith("blob:") and frame.get_attribute("naturalWidth") != "0")
-    seen_passes, frames, states = set(), set(), []
+    wait_for("a frame", lambda: frame_pixels(driver))
+    seen_passes, pixels, states, etas, rendering = set(), [], [], set(), set()
     start = time.time()
     while True:
         state = fact(driver, "state")
         passes = fact(driver, "passes")
         seen_passes.add(passes)
-        src = frame.get_attribute("src")
-        frames.add(src)
+        etas.add(fact(driver, "eta"))
+        rendering.update(cells(driver, "workers", 2))
+        now = frame_pixels(driver)
+        if now and (not pixels or pixels[-1][0] != now[0]):
+            pixels.append(now)
         if not states or states[-1] != state:
             states.append(state)
         if state.startswith("done"):
@@ -124,13 +179,30 @@ def run(driver, a):
             fail(f"job {a.watch} did not finish: {state}, {passes}")
         time.sleep(0.1)
     # The frame drawn after the job ended.
-    wait_for("the final frame", lambda: frame.get_attribute("src") not in frames or len(frames) > 1)
-    frames.add(frame.get_attribute("src"))
-    print(f"dashboard: job {a.watch} went {' -> '.join(states)}; passes seen: {sorted(seen_passes)}; {len(frames)} frames", flush=True)
+    final = wait_for(
+        "the final frame",
+        lambda: (f := frame_pixels(driver)) and f[0] != pixels[0][0] and f,
+    )
+    if pixels[-1][0] != final[0]:
+        pixels.append(final)
+    print(
+        f"dashboard: job {a.watch} went {' -> '.join(states)}; passes seen: {sorted(seen_passes)}; "
+        f"{len(pixels)} different frames; ETAs seen: {sorted(etas)}",
+        flush=True,
+    )
     if len(seen_passes) < 2:
         fail(f"the job's passes never changed on screen: {seen_passes}")
-    if len(frames) < 2:
-        fail("the frame never changed")
+    if len(pixels) < 3:
+        fail(f"the frame's pixels changed {len(pixels) - 1} time(s) over four passes")
+    if final[1] < 4 or final[2] < 50:
+        fail(f"the finished frame looks blank: mean {final[1]:.1f} of 255, {final[2]} colours")
+    if not any(e.endswith((" s", " min", " h")) for e in etas):
+        fail(f"no ETA was shown while the job ran: {etas}")
+    if not any(r.startswith(f"job {a.watch} tile ") for r in rendering):
+        fail(f"the workers table never showed what the worker rendered: {rendering}")
+    heard = cells(driver, "workers", 5)
+    if not heard or not all(h.endswith(" ago") for h in heard):
+        fail(f"the workers table does not say when each worker was last heard from: {heard}")
     final_passes = fact(driver, "passes")
     if "(4 merged)" not in final_passes:
         fail(f"the finished job shows {final_passes!r}")
@@ -138,12 +210,17 @@ def run(driver, a):
         fail("a finished job can still be cancelled")
 
     # Exposure by keyboard: the frame is drawn again, brighter.
-    before = frame.get_attribute("src")
+    before = frame_pixels(driver)
     slider = driver.find_element(By.ID, "exposure")
     slider.send_keys(Keys.ARROW_RIGHT, Keys.ARROW_RIGHT)
     wait_for("the exposure to change", lambda: driver.find_element(By.ID, "exposure-value").text == "1")
-    wait_for("a frame at the new exposure", lambda: frame.get_attribute("src") != before)
-    print("dashboard: exposure moved to 1 stop, frame redrawn", flush=True)
+    brighter = wait_for(
+        "a frame at the new exposure",
+        lambda: (f := frame_pixels(driver)) and f[0] != before[0] and f,
+    )
+    if not brighter[1] > before[1]:
+        fail(f"one stop up, the frame's mean went from {before[1]:.1f} to {brighter[1]:.1f}")
+    print(f"dashboard: exposure moved to 1 stop, mean {before[1]:.1f} -> {brighter[1]:.1f}", flush=True)
 
     # Download the EXR: fetched with the token, handed to the browser.
     driver.find_element(By.ID, "download-exr").send_keys(Keys.ENTER)
@@ -159,9 +236,34 @@ def run(driver, a):
         fail(f"the screenshot looks blank ({distinct} distinct byte values)")
     print(f"dashboard: screenshot {len(shot)} bytes, {distinct} distinct byte values", flush=True)
 
-    # Cancel the other job, confirming the dialog.
-    driver.find_element(By.CSS_SELECTOR, f'button[aria-label="Show job {a.cancel}"]').click()
-    wait_for(f"job {a.cancel}'s panel", lambda: driver.find_element(By.ID, "job-title").text == f"Job {a.cancel}")
+    # Extend the finished job by its form: it runs again, to a fifth pass.
+    show_job(driver, a.watch)
+    field = driver.find_element(By.ID, "extend-passes")
+    field.send_keys("1024" + Keys.ENTER)
+    wait_for("the extension", lambda: "extended to 1024" in driver.find_element(By.ID, "message").text)
+    wait_for(
+        f"job {a.watch} done at 1024 samples",
+        lambda: fact(driver, "state").startswith("done") and "(5 merged)" in fact(driver, "passes"),
+        limit=240,
+    )
+    print(f"dashboard: job {a.watch} extended to 1024 and done again", flush=True)
+
+    # The stopped job ran its one pass after the watched one: done, whole; its PNG.
+    show_job(driver, a.stop)
+    wait_for(
+        f"job {a.stop} done after one pass",
+        lambda: fact(driver, "state").startswith("done") and fact(driver, "passes") == "8 (1 merged)",
+        limit=240,
+    )
+    driver.find_element(By.ID, "download-png").send_keys(Keys.ENTER)
+    wait_for(
+        "the PNG download",
+        lambda: f"Downloaded job {a.stop}'s PNG" in driver.find_element(By.ID, "message").text,
+    )
+    print(f"dashboard: job {a.stop} done after its first pass; PNG downloaded", flush=True)
+
+    # Cancel the third job, confirming the dialog.
+    show_job(driver, a.cancel)
     cancel = wait_for("an enabled cancel button", lambda: (b := driver.find_element(By.ID, "cancel")).is_enabled() and b)
     cancel.click()
     driver.switch_to.alert.accept()
@@ -179,9 +281,7 @@ def run(driver, a):
     print(f"dashboard: job {a.cancel} cancelled", flush=True)
 
     # Workers are listed with what they did.
-    done = driver.execute_script(
-        "return [...document.querySelectorAll('#workers tbody tr td:nth-child(3)')].map(c => c.textContent)"
-    )
+    done = cells(driver, "workers", 3)
     if not done or all(d in ("", "0") for d in done):
         fail(f"the workers table does not show the tiles done: {done}")
 

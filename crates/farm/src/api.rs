@@ -123,7 +123,8 @@ pub struct JobStatus {
     pub samples_done: u64,
     /// Fraction done, 0 to 1.
     pub progress: f64,
-    /// Samples per second since the job started (or the coordinator restarted).
+    /// Samples per second since the job's first lease (after it was created, resumed or
+    /// extended): time queued behind other jobs does not count.
     pub samples_per_second: f64,
     pub eta_seconds: Option<f64>,
     /// Tile attempts that failed (worker errors, corrupt uploads).
@@ -144,6 +145,14 @@ pub struct JobStatus {
     /// Tile passes two workers rendered with the same bits before one was kept.
     #[serde(default)]
     pub tile_passes_verified: u64,
+    /// Checked tile passes rendered once and waiting for a second worker's render to
+    /// compare with (with one worker, they wait until another joins).
+    #[serde(default)]
+    pub tile_passes_held: u32,
+    /// Why a job renders tiles again or ran again after it was done: a worker whose
+    /// unchecked renders its frame held was set aside.
+    #[serde(default)]
+    pub notice: Option<String>,
     #[serde(default)]
     pub priority: i32,
     /// What became of the job's webhook call, once it has ended.

@@ -36,6 +36,8 @@ pub enum Error {
     UnknownScene(String),
     #[error("no job {0}")]
     UnknownJob(u64),
+    #[error("no worker '{0}' is set aside")]
+    NotSetAside(String),
     /// A job whose scene cannot be planned into tiles.
     #[error("{0}")]
     Unplannable(PlanError),

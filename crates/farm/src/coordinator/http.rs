@@ -46,6 +46,7 @@ pub fn app(c: Coordinator) -> Router {
         .route("/v1/jobs/{id}/stop", post(stop_job))
         .route("/v1/jobs/{id}/extend", post(extend_job))
         .route("/v1/workers", get(list_workers))
+        .route("/v1/workers/{name}/reinstate", post(reinstate_worker))
         .route("/v1/leases", post(lease))
         .route("/v1/leases/{id}/heartbeat", post(heartbeat))
         .route(
@@ -111,6 +112,7 @@ impl Error {
             Error::NoRoute
             | Error::UnknownScene(_)
             | Error::UnknownJob(_)
+            | Error::NotSetAside(_)
             | Error::UnknownPrepass(_)
             | Error::NoSums(_) => StatusCode::NOT_FOUND,
             Error::BadId(_)
@@ -299,6 +301,15 @@ async fn list_jobs(State(c): State<Coordinator>) -> Json<Vec<JobStatus>> {
 
 async fn list_workers(State(c): State<Coordinator>) -> Json<Vec<WorkerStatus>> {
     Json(c.worker_statuses())
+}
+
+/// Trusts a worker set aside again (POST /v1/workers/{name}/reinstate).
+async fn reinstate_worker(
+    State(c): State<Coordinator>,
+    UrlPath(name): UrlPath<String>,
+) -> Result<Json<Vec<WorkerStatus>>, Error> {
+    c.reinstate(&name)?;
+    Ok(Json(c.worker_statuses()))
 }
 
 async fn get_job(

@@ -74,10 +74,19 @@ pub(super) struct Job {
     pub last_lent: u64,
     /// Where the job's webhook call stands.
     pub webhook: Delivery,
+    /// How often the job was made to run again after it ended (extended, or reopened):
+    /// a call announcing an earlier end must not count for the next.
+    pub webhook_round: u64,
     /// Whether tiles kept before passes existed (without running sums) are in its frame.
     legacy: bool,
-    started: Instant,
+    /// When the rate is counted from: the first lease after the job was created, resumed
+    /// or extended (time spent queued behind other jobs is not rendering), and the samples
+    /// done by then.
+    started: Option<Instant>,
     samples_at_start: u64,
+    /// Why a job renders tiles again (a worker whose unchecked renders its sums held was
+    /// set aside), for the status.
+    pub notice: Option<String>,
     pub merge_seconds: Option<f64>,
 }
 
@@ -113,7 +122,6 @@ impl Job {
         id: u64,
         spec: JobSpec,
         state: JobState,
-        now: Instant,
         max_frame_pixels: u64,
     ) -> Result<Job, PlanError> {
         if spec.tile == 0 {
@@ -172,9 +180,11 @@ impl Job {
             verified: 0,
             last_lent: 0,
             webhook: Delivery::Waiting,
+            webhook_round: 0,
             legacy: false,
-            started: now,
+            started: None,
             samples_at_start: 0,
+            notice: None,
             merge_seconds: None,
         })
     }
@@ -182,13 +192,7 @@ impl Job {
     /// A job that cannot be planned again at a restart (its record or its scene bundle is
     /// damaged or gone): kept in the list with the reason, with no tiles. One that was
     /// still running has failed; a finished one keeps its state (its frame is a file).
-    pub fn damaged(
-        id: u64,
-        spec: Option<JobSpec>,
-        state: JobState,
-        reason: String,
-        now: Instant,
-    ) -> Job {
+    pub fn damaged(id: u64, spec: Option<JobSpec>, state: JobState, reason: String) -> Job {
         let spec = spec.unwrap_or(JobSpec {
             scene: String::new(),
             spp: None,
@@ -229,9 +233,11 @@ impl Job {
             verified: 0,
             last_lent: 0,
             webhook: Delivery::Waiting,
+            webhook_round: 0,
             legacy: false,
-            started: now,
+            started: None,
             samples_at_start: 0,
+            notice: None,
             merge_seconds: None,
         }
     }
@@ -255,18 +261,19 @@ impl Job {
             .sum()
     }
 
-    /// Progress as the API reports it; the rate counts samples since the job started, the
-    /// coordinator resumed it, or it was extended.
+    /// Progress as the API reports it; the rate counts samples since the job's first lease
+    /// after it was created, the coordinator resumed it, or it was extended.
     pub fn status(&self, now: Instant) -> JobStatus {
         let last = self.passes.last().copied().unwrap_or(0);
         let samples_total: u64 =
             self.tiles.iter().map(|t| t.pixel_count()).sum::<u64>() * u64::from(last);
         let samples_done = self.samples_done().min(samples_total);
-        let secs = now
-            .saturating_duration_since(self.started)
-            .as_secs_f64()
-            .max(1e-3);
-        let rate = samples_done.saturating_sub(self.samples_at_start) as f64 / secs;
+        let rate = self.started.map_or(0.0, |started| {
+            let secs = now.saturating_duration_since(started).as_secs_f64();
+            let samples = samples_done.saturating_sub(self.samples_at_start) as f64;
+            // Until a second has passed the figure says little; none is better.
+            if secs < 1.0 { 0.0 } else { samples / secs }
+        });
         let progress = if samples_total == 0 {
             1.0
         } else {
@@ -297,6 +304,8 @@ impl Job {
             passes_done: self.written,
             samples_per_pixel_done: self.samples_after(self.written),
             tile_passes_verified: self.verified,
+            tile_passes_held: self.checks.held() as u32,
+            notice: self.notice.clone(),
             priority: self.spec.priority,
             webhook: self.webhook.describe(),
         }
@@ -410,9 +419,13 @@ impl Job {
         self.checks.forget_worker(worker);
     }
 
-    /// Marks `tile` as lent under `lease`.
-    pub fn lend(&mut self, tile: usize, lease: u64) {
+    /// Marks `tile` as lent under `lease` at `now`.
+    pub fn lend(&mut self, tile: usize, lease: u64, now: Instant) {
         self.lent[tile] = Some(lease);
+        if self.started.is_none() {
+            self.started = Some(now);
+            self.samples_at_start = self.samples_done();
+        }
     }
 
     /// Whether `tile` has every pass done.
@@ -484,11 +497,23 @@ impl Job {
             }
             return Ok(Landed::Nothing);
         }
-        let start = self.frame_so_far();
-        let entry = self.building.entry(pass).or_insert_with(|| (start, 0));
-        Arc::make_mut(&mut entry.0).paste(tile)?;
-        entry.1 += 1;
-        let full = entry.1 == self.tiles.len();
+        // A pass other tiles are past with no frame building for it (their rows of it were
+        // forgotten; this tile starts again behind them) is never whole: nothing to paste.
+        let whole_possible = self.building.contains_key(&pass)
+            || !self
+                .done
+                .iter()
+                .enumerate()
+                .any(|(i, &d)| i != idx && d > pass);
+        let full = if whole_possible {
+            let start = self.frame_so_far();
+            let entry = self.building.entry(pass).or_insert_with(|| (start, 0));
+            Arc::make_mut(&mut entry.0).paste(tile)?;
+            entry.1 += 1;
+            entry.1 == self.tiles.len()
+        } else {
+            false
+        };
         self.unchecked_by[idx] = unchecked_by;
         self.done[idx] += 1;
         self.attempts[idx] = 0;
@@ -535,9 +560,8 @@ impl Job {
 
     /// Restores the tiles kept in the store (on resume, or after a worker was set aside and
     /// its tiles' rows were dropped). Each tile resumes after the last pass it has a
-    /// readable row for, and the frames are pasted together again from the rows of the
-    /// passes in progress. A tile whose rows do not add up (one cannot be read, or is not
-    /// this job's) starts again from nothing.
+    /// readable row for (one that cannot be read, or is not this job's, does not count),
+    /// and the frames are pasted together again from the rows of the passes in progress.
     pub fn restore(&mut self, rows: Vec<KeptTile>) {
         let n = self.tiles.len();
         self.complete = None;
@@ -570,41 +594,47 @@ impl Job {
                 kept[idx].insert(pass as u32, (tile, row.unchecked_by));
             }
         }
-        for (idx, rows) in kept.iter().enumerate() {
-            self.done[idx] = rows.keys().next_back().map_or(0, |p| p + 1);
+        // Each tile resumes after its last row; rows below a gap are of no use (nothing
+        // continues from them), and a tile whose last row cannot be pasted starts again.
+        for (idx, rows) in kept.iter_mut().enumerate() {
+            let Some(last) = rows.keys().next_back().copied() else {
+                self.done[idx] = 0;
+                continue;
+            };
+            let mut first = last;
+            while first > 0 && rows.contains_key(&(first - 1)) {
+                first -= 1;
+            }
+            rows.retain(|&p, _| p >= first);
+            self.done[idx] = last + 1;
         }
-        // Every pass from the last complete one on is pasted from its rows; a tile missing
-        // one of those starts again, which may lower the frontier, so repeat until it holds.
-        let frontier = loop {
-            let f = self.frontier();
-            let first = f.saturating_sub(1);
-            let broken: Vec<usize> = (0..n)
-                .filter(|&i| (first..self.done[i]).any(|p| !kept[i].contains_key(&p)))
-                .collect();
-            if broken.is_empty() {
-                break f;
-            }
-            for i in broken {
-                self.done[i] = 0;
-            }
-        };
+        // The frames of the passes from the slowest tile's on are pasted from the rows. A
+        // pass some tile is past without a row for it (the store forgot it once a later pass
+        // was merged, and the tiles that start again after a worker was set aside are
+        // behind it) is never whole, and never merged: the next merged pass is the first
+        // that every tile reaches with its row.
+        let frontier = self.frontier();
         let newest = self.done.iter().copied().max().unwrap_or(0);
         let mut picture = self.black.clone();
         for pass in frontier.saturating_sub(1)..newest {
+            let with_row: Vec<usize> = (0..n).filter(|&i| kept[i].contains_key(&pass)).collect();
+            if with_row.is_empty() {
+                continue;
+            }
             let mut frame = (*picture).clone();
             let mut count = 0;
-            for (idx, rows) in kept.iter().enumerate() {
-                if let Some((tile, _)) = rows.get(&pass)
-                    && self.done[idx] > pass
+            for idx in with_row {
+                if let Some((tile, _)) = kept[idx].get(&pass)
                     && frame.paste(tile).is_ok()
                 {
                     count += 1;
                 }
             }
             picture = Arc::new(frame);
+            let past = (0..n).filter(|&i| self.done[i] > pass).count();
             if count == n {
                 self.complete = Some((pass, picture.clone()));
-            } else {
+            } else if count == past {
                 self.building.insert(pass, (picture.clone(), count));
             }
         }
@@ -641,10 +671,10 @@ impl Job {
         self.complete.clone()
     }
 
-    /// Starts counting the rate from here (the samples done so far were done before).
-    pub fn restart_rate(&mut self, now: Instant) {
-        self.samples_at_start = self.samples_done();
-        self.started = now;
+    /// Counts the rate afresh from the next lease (the samples done so far were done
+    /// before).
+    pub fn restart_rate(&mut self) {
+        self.started = None;
     }
 
     /// Ends the job after the pass its slowest tile is on. Returns whether the schedule
@@ -704,9 +734,19 @@ impl Job {
         Ok(spec)
     }
 
+    /// Runs a done job again (tiles of it are to be rendered again): its result no longer
+    /// counts until its last pass is merged again, and its webhook is called again then.
+    pub fn reopen(&mut self) {
+        self.state = JobState::Running;
+        self.error = None;
+        self.restart_rate();
+        self.webhook = Delivery::Waiting;
+        self.webhook_round += 1;
+    }
+
     /// Adds passes beyond the last ([`Job::check_extend`] says whether it may): a done job
     /// runs again from where it ended.
-    pub fn extend(&mut self, more: &[u32], now: Instant) -> Result<(), PlanError> {
+    pub fn extend(&mut self, more: &[u32]) -> Result<(), PlanError> {
         self.check_extend(more)?;
         self.passes.extend_from_slice(more);
         self.set_spec_passes();
@@ -716,9 +756,10 @@ impl Job {
         self.queue = (0..self.tiles.len())
             .filter(|&i| !self.is_finished(i) && self.lent[i].is_none())
             .collect();
-        self.restart_rate(now);
+        self.restart_rate();
         // It will end again: its webhook is called again then.
         self.webhook = Delivery::Waiting;
+        self.webhook_round += 1;
         Ok(())
     }
 

@@ -6,6 +6,7 @@
 
 use super::job::Job;
 use super::metrics::Snapshot;
+use super::store::WebhookOutcome;
 use super::{Coordinator, Error, PlanError};
 use crate::api::{JobSpec, JobState, JobStatus, WorkerLease, WorkerStatus};
 
@@ -108,11 +109,11 @@ impl Coordinator {
                 Some(_) => {}
             }
         }
-        let (scenes, now) = (self.files().scenes(), self.now());
+        let scenes = self.files().scenes();
         let max_pixels = self.config().max_frame_pixels;
         let spec2 = spec.clone();
         let mut job = tokio::task::spawn_blocking(move || {
-            Job::plan(&scenes, 0, spec2, JobState::Running, now, max_pixels)
+            Job::plan(&scenes, 0, spec2, JobState::Running, max_pixels)
         })
         .await?
         .map_err(Error::Unplannable)?;
@@ -178,10 +179,9 @@ impl Coordinator {
                 .map_err(|why| Error::Passes { id, why })?;
             // Recorded first: a job is never extended in memory only.
             state.store.set_spec(id, &spec)?;
-            state.store.set_webhook_delivered(id, false)?;
+            state.store.set_webhook(id, WebhookOutcome::Pending)?;
             let job = state.jobs.get_mut(&id).expect("found above");
-            job.extend(more, now)
-                .map_err(|why| Error::Passes { id, why })?;
+            job.extend(more).map_err(|why| Error::Passes { id, why })?;
             state.persist(id);
             state.jobs[&id].status(now)
         };
@@ -225,6 +225,19 @@ impl Coordinator {
         tokio::task::spawn_blocking(move || kiln_image::encode_png(&frame, exposure))
             .await?
             .map_err(Error::Image)
+    }
+
+    /// Trusts `worker` again after it was set aside (an operator found and fixed its
+    /// host): it gets leases again, and the store forgets the reason.
+    pub fn reinstate(&self, worker: &str) -> Result<(), Error> {
+        let mut state = self.lock();
+        if state.workers.set_aside_reason(worker).is_none() {
+            return Err(Error::NotSetAside(worker.to_string()));
+        }
+        state.store.reinstate(worker)?;
+        state.workers.reinstate(worker);
+        tracing::info!("worker {worker} is reinstated");
+        Ok(())
     }
 
     /// Every worker seen, with what it is rendering now.

@@ -8,6 +8,7 @@
 
 use super::error::TileRejected;
 use super::job::Landed;
+use super::store::WebhookOutcome;
 use super::verify::{Candidate, MAX_CANDIDATES, Verdict};
 use super::{Coordinator, Error, State};
 use crate::api::{JobState, Lease};
@@ -47,7 +48,7 @@ impl Coordinator {
                 continue;
             };
             let lease = state.leases.grant(job.id, tile, pass, worker, now);
-            job.lend(tile, lease);
+            job.lend(tile, lease, now);
             job.last_lent = lease;
             state.metrics.leases_issued += 1;
             return Ok(Some(Lease {
@@ -252,35 +253,53 @@ impl State {
         Ok(landed)
     }
 
-    /// Sets `worker` aside for `reason`: it gets no more leases, the ones it holds end, its
-    /// renders waiting to be compared are dropped, and every tile whose sums hold its
-    /// unchecked renders, in running jobs, is rendered again from nothing. (The job is
-    /// rebuilt from the store under the lock: slow for a big job, and rare.)
-    /// Returns the jobs whose tiles start again.
+    /// Sets `worker` aside for `reason` (recorded in the store, so a restart keeps it so):
+    /// it gets no more leases, the ones it holds end, its renders waiting to be compared
+    /// are dropped, and every tile whose sums hold its unchecked renders is rendered again
+    /// from nothing, in running jobs and in done ones, which run again (their result was
+    /// not what the scene renders to, as far as anyone can tell; their webhook is called
+    /// again when they end again). (A job is rebuilt from the store under the lock: slow
+    /// for a big job, and rare.) Returns the jobs whose tiles start again.
     fn set_aside(&mut self, worker: &str, reason: String) -> Vec<u64> {
         tracing::warn!("worker {worker} is set aside: {reason}");
-        self.workers.set_aside(worker, reason);
+        if let Err(e) = self.store.set_aside(worker, &reason) {
+            tracing::error!("cannot record that worker {worker} is set aside: {e}");
+        }
+        self.workers.set_aside(worker, reason.clone());
         self.metrics.workers_set_aside += 1;
         for (id, held) in self.leases.remove_where(|h| h.worker == worker) {
             if let Some(job) = self.jobs.get_mut(&held.job) {
                 job.lease_lost(held.tile, id);
             }
         }
-        let running: Vec<u64> = self
+        let open: Vec<u64> = self
             .jobs
             .values()
-            .filter(|j| j.state == JobState::Running)
+            .filter(|j| matches!(j.state, JobState::Running | JobState::Done))
             .map(|j| j.id)
             .collect();
         let mut rebuilt = Vec::new();
-        for id in running {
+        for id in open {
             let job = self.jobs.get_mut(&id).expect("listed above");
             job.forget_worker(worker);
             let tiles = job.tiles_unchecked_by(worker);
             if tiles.is_empty() {
                 continue;
             }
-            let legacy = job.last_samples();
+            let (was_done, legacy) = (job.state == JobState::Done, job.last_samples());
+            if was_done {
+                // Recorded first: a job never runs again in memory only.
+                let reopened = self
+                    .store
+                    .set_state(id, JobState::Running, None)
+                    .and_then(|()| self.store.set_webhook(id, WebhookOutcome::Pending));
+                if let Err(e) = reopened {
+                    tracing::error!("job {id}: cannot run it again for {worker}'s tiles: {e}");
+                    continue;
+                }
+                let job = self.jobs.get_mut(&id).expect("listed above");
+                job.reopen();
+            }
             let rows = self
                 .store
                 .drop_tiles(id, &tiles)
@@ -300,6 +319,10 @@ impl State {
             }
             let job = self.jobs.get_mut(&id).expect("listed above");
             job.rebuild(rows, &tiles);
+            job.notice = Some(format!(
+                "{} tiles are rendered again from nothing: their sums held renders of worker {worker}, set aside because {reason}",
+                tiles.len()
+            ));
             rebuilt.push(id);
             tracing::warn!(
                 "job {id}: {} tiles holding {worker}'s unchecked renders start again",

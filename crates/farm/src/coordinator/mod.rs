@@ -133,6 +133,11 @@ impl Coordinator {
             )));
         }
         let epoch = store.next_epoch()?;
+        // Workers set aside stay so across restarts, until an operator reinstates them.
+        let mut workers = Workers::default();
+        for (name, reason) in store.set_aside_workers()? {
+            workers.set_aside(&name, reason);
+        }
         let (events, _) = broadcast::channel(1024);
         let coordinator = Coordinator {
             shared: Arc::new(Shared {
@@ -140,7 +145,7 @@ impl Coordinator {
                     store,
                     jobs: BTreeMap::new(),
                     leases: Leases::new(config.lease_ttl, epoch),
-                    workers: Workers::default(),
+                    workers,
                     metrics: Metrics::default(),
                 }),
                 files,
@@ -164,7 +169,7 @@ impl Coordinator {
             let max_pixels = self.config().max_frame_pixels;
             let scenes = self.files().scenes();
             let planned = match s.spec.clone() {
-                Ok(spec) => Job::plan(&scenes, id, spec, s.state, self.now(), max_pixels)
+                Ok(spec) => Job::plan(&scenes, id, spec, s.state, max_pixels)
                     .map_err(|e| format!("it cannot be resumed: {e}")),
                 Err(why) => Err(why),
             };
@@ -173,7 +178,7 @@ impl Coordinator {
                 Err(why) => {
                     // Kept in the list, failed with the reason, and the rest resume.
                     tracing::error!("job {id}: {why}");
-                    let job = Job::damaged(id, s.spec.ok(), s.state, why, self.now());
+                    let job = Job::damaged(id, s.spec.ok(), s.state, why);
                     let mut state = self.lock();
                     if job.state != s.state {
                         state.store.set_state(id, job.state, job.error.as_deref())?;
@@ -190,7 +195,6 @@ impl Coordinator {
             };
             job.restore(kept);
             job.verified = verified;
-            job.restart_rate(self.now());
             // The last complete pass is merged again: the coordinator may have stopped
             // before writing it. (A job that ended keeps its result as it is.)
             let merge = (job.state == JobState::Running)

@@ -127,6 +127,16 @@ pub(super) struct StoredJob {
 }
 
 /// The SQLite connection: one writer, used under the coordinator's lock.
+/// What became of a job's webhook call since the job last ended, as the store keeps it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum WebhookOutcome {
+    /// Not answered yet: called after a restart.
+    Pending = 0,
+    Delivered = 1,
+    /// Every call failed: not called again after a restart.
+    GaveUp = 2,
+}
+
 pub(super) struct Store {
     db: Connection,
 }
@@ -140,7 +150,8 @@ impl Store {
              CREATE TABLE IF NOT EXISTS jobs (id INTEGER PRIMARY KEY, spec TEXT NOT NULL, state TEXT NOT NULL, error TEXT, idempotency_key TEXT UNIQUE);
              CREATE TABLE IF NOT EXISTS tiles (job INTEGER NOT NULL, idx INTEGER NOT NULL, exr BLOB NOT NULL, PRIMARY KEY (job, idx));
              CREATE TABLE IF NOT EXISTS tile_passes (job INTEGER NOT NULL, idx INTEGER NOT NULL, samples INTEGER NOT NULL, exr BLOB NOT NULL, unchecked_by TEXT NOT NULL DEFAULT '[]', PRIMARY KEY (job, idx, samples));
-             CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);",
+             CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);
+             CREATE TABLE IF NOT EXISTS set_aside (worker TEXT PRIMARY KEY, reason TEXT NOT NULL);",
         )?;
         Ok(Store { db })
     }
@@ -257,6 +268,32 @@ impl Store {
         Ok(())
     }
 
+    /// Records that `worker` is set aside for `reason` (the first reason stays), so that a
+    /// restarted coordinator does not trust it again.
+    pub fn set_aside(&self, worker: &str, reason: &str) -> Result<(), Error> {
+        self.db.execute(
+            "INSERT OR IGNORE INTO set_aside (worker, reason) VALUES (?1, ?2)",
+            params![worker, reason],
+        )?;
+        Ok(())
+    }
+
+    /// Forgets that `worker` was set aside (an operator reinstated it).
+    pub fn reinstate(&self, worker: &str) -> Result<(), Error> {
+        self.db
+            .execute("DELETE FROM set_aside WHERE worker = ?1", [worker])?;
+        Ok(())
+    }
+
+    /// Every worker set aside, with the reason.
+    pub fn set_aside_workers(&self) -> Result<Vec<(String, String)>, Error> {
+        let mut stmt = self
+            .db
+            .prepare("SELECT worker, reason FROM set_aside ORDER BY worker")?;
+        let rows = stmt.query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?;
+        Ok(rows.collect::<Result<_, _>>()?)
+    }
+
     /// Counts a tile pass of the job that two workers agreed on.
     pub fn add_verified(&self, job: u64) -> Result<(), Error> {
         self.db.execute(
@@ -267,26 +304,30 @@ impl Store {
         Ok(())
     }
 
-    /// Whether the job's webhook answered 2xx (since the job last ended).
-    pub fn webhook_delivered(&self, job: u64) -> Result<bool, Error> {
-        Ok(self
+    /// What became of the job's webhook call since the job last ended.
+    pub fn webhook(&self, job: u64) -> Result<WebhookOutcome, Error> {
+        let v = self
             .db
             .query_row(
                 "SELECT value FROM meta WHERE key = ?1",
                 [format!("webhook:{job}")],
                 |r| r.get::<_, i64>(0),
             )
-            .optional()?
-            .is_some_and(|v| v != 0))
+            .optional()?;
+        Ok(match v {
+            Some(1) => WebhookOutcome::Delivered,
+            Some(2) => WebhookOutcome::GaveUp,
+            _ => WebhookOutcome::Pending,
+        })
     }
 
-    /// Records that the job's webhook answered (or, with `false`, that it must be called
-    /// again: the job was extended).
-    pub fn set_webhook_delivered(&self, job: u64, delivered: bool) -> Result<(), Error> {
+    /// Records what became of the job's webhook call (or, with `Pending`, that it must be
+    /// called again: the job runs again).
+    pub fn set_webhook(&self, job: u64, outcome: WebhookOutcome) -> Result<(), Error> {
         self.db.execute(
             "INSERT INTO meta (key, value) VALUES (?1, ?2)
              ON CONFLICT (key) DO UPDATE SET value = ?2",
-            params![format!("webhook:{job}"), i64::from(delivered)],
+            params![format!("webhook:{job}"), outcome as i64],
         )?;
         Ok(())
     }

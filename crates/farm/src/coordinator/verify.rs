@@ -119,6 +119,11 @@ impl Checks {
         Verdict::Held
     }
 
+    /// How many tile passes have renders waiting for a second worker's.
+    pub fn held(&self) -> usize {
+        self.pending.len()
+    }
+
     /// Forgets every render `worker` gave (it was set aside).
     pub fn forget_worker(&mut self, worker: &str) {
         for (_, c) in self.pending.values_mut() {

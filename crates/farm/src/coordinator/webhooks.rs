@@ -3,12 +3,15 @@
 //! `job.failed` or `job.cancelled`) once the job has ended.
 //!
 //! Delivery is at least once: a call that fails (no answer in 10 s, or not 2xx) is retried
-//! with exponential backoff, up to [`MAX_ATTEMPTS`] times; one that succeeds is recorded in
-//! the store, so a restarted coordinator calls only those never answered. Each job's
-//! delivery is one task at a time; what became of it is in the job's status (`webhook`).
-//! Nothing here holds the lock across a call.
+//! with exponential backoff, up to [`MAX_ATTEMPTS`] times; what became of it (answered, or
+//! given up on) is recorded in the store, so a restarted coordinator calls only those still
+//! pending. Each job's delivery is one task at a time; what became of it is in the job's
+//! status (`webhook`). A job that runs again (extended, or reopened) while a call for its
+//! earlier end is on its way starts a new round: that call's outcome no longer counts, and
+//! the job's next end is announced. Nothing here holds the lock across a call.
 
 use super::Coordinator;
+use super::store::WebhookOutcome;
 use crate::api::JobState;
 use std::time::Duration;
 
@@ -27,6 +30,8 @@ pub(super) enum Delivery {
     Delivered(u32),
     /// It never answered 2xx; the last error.
     GaveUp(String),
+    /// What the store says became of it before the coordinator restarted.
+    Recorded(WebhookOutcome),
 }
 
 impl Delivery {
@@ -37,6 +42,13 @@ impl Delivery {
             Delivery::Calling => Some("calling".into()),
             Delivery::Delivered(n) => Some(format!("delivered after {n} call(s)")),
             Delivery::GaveUp(e) => Some(format!("gave up after {MAX_ATTEMPTS} calls: {e}")),
+            Delivery::Recorded(WebhookOutcome::Delivered) => {
+                Some("delivered before the coordinator restarted".into())
+            }
+            Delivery::Recorded(WebhookOutcome::GaveUp) => Some(format!(
+                "gave up after {MAX_ATTEMPTS} calls before the coordinator restarted"
+            )),
+            Delivery::Recorded(WebhookOutcome::Pending) => None,
         }
     }
 }
@@ -54,7 +66,7 @@ impl Coordinator {
     /// Starts a delivery for every ended job whose webhook is waiting. Called whenever
     /// a job changes, and now and then in case an event was missed.
     pub(super) fn sweep_webhooks(&self) {
-        let due: Vec<(u64, String)> = {
+        let due: Vec<(u64, String, u64)> = {
             let mut state = self.lock();
             let state = &mut *state;
             let mut due = Vec::new();
@@ -65,23 +77,54 @@ impl Coordinator {
                 if job.state == JobState::Running || job.webhook != Delivery::Waiting {
                     continue;
                 }
-                // Delivered before a restart: done.
-                if state.store.webhook_delivered(job.id).unwrap_or(false) {
-                    job.webhook = Delivery::Delivered(1);
+                // Answered, or given up on, before a restart: done.
+                let outcome = state
+                    .store
+                    .webhook(job.id)
+                    .unwrap_or(WebhookOutcome::Pending);
+                if outcome != WebhookOutcome::Pending {
+                    job.webhook = Delivery::Recorded(outcome);
                     continue;
                 }
                 job.webhook = Delivery::Calling;
-                due.push((job.id, url));
+                due.push((job.id, url, job.webhook_round));
             }
             due
         };
-        for (id, url) in due {
+        for (id, url, round) in due {
             let c = self.clone();
-            tokio::spawn(async move { c.deliver(id, url).await });
+            tokio::spawn(async move { c.deliver(id, url, round).await });
         }
     }
 
-    async fn deliver(&self, id: u64, url: String) {
+    /// Records `outcome` of round `round`'s delivery for job `id`, unless the job has
+    /// started another round meanwhile (it was extended or reopened). Returns whether it
+    /// was recorded.
+    fn settle(&self, id: u64, round: u64, outcome: WebhookOutcome, delivery: Delivery) -> bool {
+        let mut state = self.lock();
+        let state = &mut *state;
+        let Some(job) = state.jobs.get_mut(&id) else {
+            return false;
+        };
+        if job.webhook_round != round {
+            return false;
+        }
+        if let Err(e) = state.store.set_webhook(id, outcome) {
+            tracing::warn!("job {id}: cannot record its webhook's outcome: {e}");
+        }
+        job.webhook = delivery;
+        true
+    }
+
+    /// Whether job `id` is still in round `round` (it has not run again since it ended).
+    fn in_round(&self, id: u64, round: u64) -> bool {
+        self.lock()
+            .jobs
+            .get(&id)
+            .is_some_and(|j| j.webhook_round == round)
+    }
+
+    async fn deliver(&self, id: u64, url: String, round: u64) {
         let http = reqwest::Client::builder()
             .timeout(Duration::from_secs(10))
             .build()
@@ -89,6 +132,10 @@ impl Coordinator {
         let mut pause = self.config().webhook_backoff;
         let mut last = String::new();
         for attempt in 1..=MAX_ATTEMPTS {
+            // A job that runs again is announced when it ends again, by a new round.
+            if !self.in_round(id, round) {
+                return;
+            }
             let Some(status) = self.status(id) else {
                 return;
             };
@@ -101,15 +148,10 @@ impl Coordinator {
                 .await;
             match sent {
                 Ok(r) if r.status().is_success() => {
-                    let mut state = self.lock();
-                    if let Err(e) = state.store.set_webhook_delivered(id, true) {
-                        tracing::warn!("job {id}: cannot record its webhook's delivery: {e}");
+                    let delivered = Delivery::Delivered(attempt);
+                    if self.settle(id, round, WebhookOutcome::Delivered, delivered) {
+                        self.notify(id);
                     }
-                    if let Some(job) = state.jobs.get_mut(&id) {
-                        job.webhook = Delivery::Delivered(attempt);
-                    }
-                    drop(state);
-                    self.notify(id);
                     return;
                 }
                 Ok(r) => last = format!("{url} answered {}", r.status()),
@@ -121,10 +163,9 @@ impl Coordinator {
                 pause = (pause * 2).min(Duration::from_secs(60));
             }
         }
-        if let Some(job) = self.lock().jobs.get_mut(&id) {
-            job.webhook = Delivery::GaveUp(last);
+        if self.settle(id, round, WebhookOutcome::GaveUp, Delivery::GaveUp(last)) {
+            self.notify(id);
         }
-        self.notify(id);
     }
 }
 

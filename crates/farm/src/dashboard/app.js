@@ -167,7 +167,19 @@ function drawWorkers(workers) {
     cell(tr, String(w.failures));
     cell(tr, w.last_seen_seconds === null ? "never" : fmtSeconds(w.last_seen_seconds) + " ago");
     const aside = cell(tr, w.set_aside || "–");
-    if (w.set_aside) aside.className = "error";
+    if (w.set_aside) {
+      aside.className = "error";
+      const again = document.createElement("button");
+      again.type = "button";
+      again.textContent = "Reinstate";
+      again.setAttribute("aria-label", "Reinstate worker " + w.name);
+      again.addEventListener("click", () => {
+        if (confirm(`Trust worker ${w.name} again? It was set aside because ${w.set_aside}`)) {
+          act("Reinstate", `/v1/workers/${encodeURIComponent(w.name)}/reinstate`, undefined, `Worker ${w.name} reinstated.`);
+        }
+      });
+      aside.append(" ", again);
+    }
     body.appendChild(tr);
   }
 }
@@ -197,6 +209,10 @@ async function drawJob(j) {
     ["Verified", j.tile_passes_verified + " tile passes"],
     ["Failures", String(j.failures)],
   ];
+  if (j.tile_passes_held) {
+    facts.push(["Held", j.tile_passes_held + " tile passes wait for a second worker to check them"]);
+  }
+  if (j.notice) facts.push(["Notice", j.notice]);
   if (j.webhook) facts.push(["Webhook", j.webhook]);
   const dl = $("job-facts");
   dl.replaceChildren();

@@ -37,9 +37,10 @@ async fn a_worker_two_others_contradict_is_set_aside_and_honest_ones_never_are()
     let job = submit_with(&f, 16, 8, 8, |s| s.verify = Some(1.0)).await;
     let a0 = lease(&f.app, "a").await.unwrap();
     land(&f.app, &a0, 1.0).await;
+    let s = job_status(&f.app, job).await;
     assert_eq!(
-        job_status(&f.app, job).await.tiles_done,
-        0,
+        (s.tiles_done, s.tile_passes_held),
+        (0, 1),
         "held for a second render"
     );
     // a is not lent what it rendered: it gets the other tile, then nothing.
@@ -145,6 +146,161 @@ async fn what_a_caught_worker_rendered_unchecked_is_rendered_again() {
         ws.iter()
             .all(|w| w.set_aside.is_some() == (w.name == "bad")),
         "{ws:?}"
+    );
+}
+
+/// Catches `bad` on a one-tile job that checks every pass: `bad` renders it wrong, two
+/// honest workers agree against it. Returns the job.
+async fn catch(f: &Farm, bad: &str) -> u64 {
+    let job = submit_with(f, 8, 8, 8, |s| {
+        s.verify = Some(1.0);
+        s.priority = 1;
+    })
+    .await;
+    for (worker, value) in [(bad, 9.0), ("good", 1.0), ("honest", 1.0)] {
+        let l = lease(&f.app, worker).await.unwrap();
+        assert_eq!(l.job, job, "{worker} is lent the checking job first");
+        let (status, body) = upload(&f.app, l.lease, exr(&tile_of(&l, (8, 8), value))).await;
+        assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    }
+    let s = job_status(&f.app, job).await;
+    assert_eq!((s.state, s.tile_passes_verified), (JobState::Done, 1));
+    job
+}
+
+/// A job that ended with a worker's unchecked render in its frame runs again when that
+/// worker is caught later, and ends with the honest frame; the worker stays set aside
+/// across a restart of the coordinator, until an operator reinstates it.
+#[tokio::test]
+async fn a_done_job_holding_a_caught_workers_render_runs_again_and_set_aside_is_kept() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    let done = submit(&f, 16, 8, 8).await;
+    let first = lease(&f.app, "bad").await.unwrap();
+    land(&f.app, &first, 9.0).await;
+    let second = lease(&f.app, "good").await.unwrap();
+    land(&f.app, &second, 1.0).await;
+    let s = job_status(&f.app, done).await;
+    assert_eq!((s.state, s.notice), (JobState::Done, None));
+    catch(&f, "bad").await;
+    // The done job runs again: its result no longer counts, and it says why.
+    let s = job_status(&f.app, done).await;
+    assert_eq!((s.state, s.tiles_done), (JobState::Running, 1));
+    let notice = s.notice.unwrap();
+    assert!(
+        notice.contains("1 tiles are rendered again") && notice.contains("worker bad"),
+        "{notice}"
+    );
+    let (status, _) = call(
+        &f.app,
+        "GET",
+        &format!("/v1/jobs/{done}/result.exr"),
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::CONFLICT, "the result held bad's render");
+    // A restart keeps both: the job runs on, and bad stays set aside.
+    let Farm { dir: _dir, c, app } = f;
+    drop((c, app));
+    let (_c, app) = open(&data, None);
+    let s = job_status(&app, done).await;
+    assert_eq!((s.state, s.tiles_done), (JobState::Running, 1));
+    let ws = workers(&app).await;
+    let bad = ws
+        .iter()
+        .find(|w| w.name == "bad")
+        .expect("listed after a restart");
+    assert!(
+        bad.set_aside
+            .as_deref()
+            .unwrap()
+            .contains("differs, bit for bit"),
+        "{bad:?}"
+    );
+    let (status, _) = call(&app, "POST", "/v1/leases", None, r#"{"worker": "bad"}"#).await;
+    assert_eq!(status, StatusCode::FORBIDDEN);
+    let again = lease(&app, "good").await.unwrap();
+    assert_eq!((again.job, again.tile_index), (done, first.tile_index));
+    land(&app, &again, 1.0).await;
+    let s = job_status(&app, done).await;
+    assert_eq!(s.state, JobState::Done);
+    assert!(
+        result_pixels(&app, done)
+            .await
+            .iter()
+            .all(|p| *p == [1.0; 3])
+    );
+    // Reinstated, it is lent work again; reinstating a worker not set aside is a 404.
+    let (status, body) = call(
+        &app,
+        "POST",
+        "/v1/workers/bad/reinstate",
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let ws: Vec<crate::api::WorkerStatus> = json(&body);
+    assert!(ws.iter().all(|w| w.set_aside.is_none()), "{ws:?}");
+    let (status, _) = call(&app, "POST", "/v1/leases", None, r#"{"worker": "bad"}"#).await;
+    assert_eq!(status, StatusCode::NO_CONTENT, "no work, but no refusal");
+    let (status, body) = call(
+        &app,
+        "POST",
+        "/v1/workers/good/reinstate",
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert!(error_of(&body).contains("no worker 'good' is set aside"));
+    let (_c, app) = open(&data, None);
+    assert!(workers(&app).await.iter().all(|w| w.set_aside.is_none()));
+}
+
+/// In a job of several passes, only the tiles whose sums hold a caught worker's renders
+/// start again; the others keep their passes (though the store forgot their earlier
+/// ones), wait for the restarted tiles, and the next merged pass is whole and honest.
+#[tokio::test]
+async fn only_the_tiles_a_caught_worker_touched_start_again_in_a_job_of_passes() {
+    let f = farm(None);
+    let job = submit_passes(&f, 16, 8, 8, Some(vec![1, 2, 3])).await;
+    // Pass 0: bad renders tile 0, good tile 1; pass 1: good renders both. Merging pass 1
+    // forgets pass 0's rows.
+    let a = lease(&f.app, "bad").await.unwrap();
+    let b = lease(&f.app, "good").await.unwrap();
+    assert_eq!(
+        (a.tile_index, a.pass.index, b.tile_index, b.pass.index),
+        (0, 0, 1, 0)
+    );
+    land(&f.app, &a, 9.0).await;
+    land(&f.app, &b, 1.0).await;
+    for t in 0..2 {
+        let l = lease(&f.app, "good").await.unwrap();
+        assert_eq!((l.tile_index, l.pass.index), (t, 1));
+        land(&f.app, &l, 1.0).await;
+    }
+    assert_eq!(job_status(&f.app, job).await.passes_done, 2);
+    catch(&f, "bad").await;
+    let s = job_status(&f.app, job).await;
+    assert_eq!((s.state, s.passes_done), (JobState::Running, 0));
+    assert!(s.notice.unwrap().contains("1 tiles"));
+    // Tile 0 renders its three passes again; tile 1 renders only its last (one pass ahead
+    // of tile 0 at most), and pass 1 is merged again once tile 0 is back at it.
+    let mut lent = Vec::new();
+    while let Some(l) = lease(&f.app, "good").await {
+        lent.push((l.tile_index, l.pass.index));
+        land(&f.app, &l, 1.0).await;
+    }
+    assert_eq!(lent, [(0, 0), (1, 2), (0, 1), (0, 2)]);
+    let s = job_status(&f.app, job).await;
+    assert_eq!((s.state, s.passes_done), (JobState::Done, 3));
+    assert!(
+        result_pixels(&f.app, job)
+            .await
+            .iter()
+            .all(|p| *p == [1.0; 3])
     );
 }
 
