@@ -1,10 +1,11 @@
 //! Property tests of the lease state machine: random sequences of leases, heartbeats,
 //! uploads (right, wrong and damaged), failures, clock jumps past the lease time and
-//! coordinator restarts, run against the coordinator itself on tokio's paused clock. After
-//! any sequence: no operation is an internal error, no tile is ever accepted with bytes
-//! other than those first accepted for it, and driving the job on with a healthy worker
-//! ends it: done, its frame holding exactly the bytes accepted for each tile, or failed
-//! because a tile failed its three attempts.
+//! coordinator restarts, run against the coordinator itself on tokio's paused clock, for a
+//! job of one pass and one of three. After any sequence: no operation is an internal error,
+//! no tile pass is ever accepted with bytes other than those first accepted for it, the
+//! samples done are exactly those of the passes accepted, and driving the job on with a
+//! healthy worker ends it: done, its frame holding exactly the bytes accepted for each
+//! tile's last pass, or failed because a tile failed its three attempts.
 
 use super::{Config, Coordinator, Error};
 use crate::api::{JobSpec, JobState, Lease};
@@ -56,12 +57,24 @@ fn open(data: &Path) -> Coordinator {
     Coordinator::open(config).unwrap()
 }
 
-/// The tile a lease asks for, every pixel `value`, encoded.
+/// The tile pass a lease asks for, every pixel `value`, with the running sums its pass
+/// must carry (their values are the worker's business), encoded.
 fn tile_bytes(lease: &Lease, value: f32) -> Vec<u8> {
     let t = lease.tile;
     let mut tile = RgbBuffer::new(FRAME.0, FRAME.1, t.x0, t.y0, t.width, t.height);
     tile.pixels.iter_mut().for_each(|p| *p = [value; 3]);
+    let mut sums = kiln_render::TileSums::empty(t.into(), false);
+    sums.samples = lease.pass.to;
+    tile.words = kiln_image::Words {
+        names: kiln_render::TileSums::word_names(false),
+        values: sums.to_words(),
+    };
     kiln_image::encode_exr(&tile).unwrap()
+}
+
+/// The pixel value a right render of `lease`'s tile pass has.
+fn right_value(lease: &Lease) -> f32 {
+    (lease.tile_index * 10 + lease.pass.index) as f32
 }
 
 /// Client mistakes and refusals are answers; anything else is a defect.
@@ -82,7 +95,7 @@ fn assert_not_internal(r: &Result<(), Error>) {
     }
 }
 
-fn run(ops: Vec<Op>) {
+fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_time()
         .start_paused(true)
@@ -106,19 +119,29 @@ fn run(ops: Vec<Op>) {
         let digest = c.save_scene(Bytes::from(bundle.bytes)).await.unwrap();
         let spec = JobSpec {
             scene: digest,
-            spp: Some(1),
+            spp: passes.is_none().then_some(1),
             resolution: None,
             tile: 8,
             seed: None,
-            passes: None,
+            passes: passes.clone(),
             verify: None,
             priority: 0,
             webhook: None,
         };
         let (job, _) = c.create_job(spec, None).await.unwrap();
+        let schedule = passes.unwrap_or(vec![1]);
         let mut held: Vec<Lease> = Vec::new();
-        // The bytes first accepted for each tile.
-        let mut accepted: HashMap<u32, Vec<u8>> = HashMap::new();
+        // The bytes first accepted for each tile pass: (tile, pass).
+        let mut accepted: HashMap<(u32, u32), Vec<u8>> = HashMap::new();
+        // The samples per pixel of a tile's passes accepted so far.
+        let samples_done = |accepted: &HashMap<(u32, u32), Vec<u8>>| -> u64 {
+            (0..6u32)
+                .map(|t| {
+                    let passes = accepted.keys().filter(|(tile, _)| *tile == t).count();
+                    64 * passes.checked_sub(1).map_or(0, |p| u64::from(schedule[p]))
+                })
+                .sum()
+        };
         let upload = |c: &Coordinator, lease: &Lease, bytes: Vec<u8>, digest: String| {
             let c = c.clone();
             let id = lease.lease;
@@ -137,11 +160,11 @@ fn run(ops: Vec<Op>) {
                 }
                 Op::Upload(n, kind) if !held.is_empty() => {
                     let l = held[n as usize % held.len()].clone();
-                    let right = tile_bytes(&l, l.tile_index as f32);
+                    let right = tile_bytes(&l, right_value(&l));
                     let (bytes, digest) = match kind {
                         Kind::Right => (right.clone(), crate::bundle::digest_of(&right)),
                         Kind::Other => {
-                            let other = tile_bytes(&l, 100.0 + l.tile_index as f32);
+                            let other = tile_bytes(&l, 100.0 + right_value(&l));
                             let d = crate::bundle::digest_of(&other);
                             (other, d)
                         }
@@ -150,11 +173,13 @@ fn run(ops: Vec<Op>) {
                     let r = upload(&c, &l, bytes.clone(), digest).await;
                     assert_not_internal(&r);
                     if r.is_ok() {
-                        let first = accepted.entry(l.tile_index).or_insert_with(|| bytes.clone());
+                        let first = accepted
+                            .entry((l.tile_index, l.pass.index))
+                            .or_insert_with(|| bytes.clone());
                         assert_eq!(
                             *first, bytes,
-                            "tile {} accepted with other bytes than before",
-                            l.tile_index
+                            "tile {} pass {} accepted with other bytes than before",
+                            l.tile_index, l.pass.index
                         );
                     }
                 }
@@ -172,8 +197,9 @@ fn run(ops: Vec<Op>) {
                 }
                 _ => {}
             }
-            // Done tiles are exactly the tiles accepted, restarts or not.
-            assert_eq!(c.status(job).unwrap().tiles_done as usize, accepted.len());
+            // The samples done are exactly those of the tile passes accepted, restarts or
+            // not.
+            assert_eq!(c.status(job).unwrap().samples_done, samples_done(&accepted));
         }
         // A healthy worker drives the job to its end.
         for _ in 0..100 {
@@ -183,12 +209,14 @@ fn run(ops: Vec<Op>) {
             tokio::time::advance(TTL * 2).await;
             c.expire_leases();
             while let Ok(Some(l)) = c.lease("healthy") {
-                let right = tile_bytes(&l, l.tile_index as f32);
+                let right = tile_bytes(&l, right_value(&l));
                 let digest = crate::bundle::digest_of(&right);
                 let r = upload(&c, &l, right.clone(), digest).await;
                 assert_not_internal(&r);
                 if r.is_ok() {
-                    let first = accepted.entry(l.tile_index).or_insert_with(|| right.clone());
+                    let first = accepted
+                        .entry((l.tile_index, l.pass.index))
+                        .or_insert_with(|| right.clone());
                     assert_eq!(*first, right);
                 }
             }
@@ -197,8 +225,13 @@ fn run(ops: Vec<Op>) {
         match s.state {
             JobState::Done => {
                 let frame = kiln_image::decode_exr(&c.result(job).await.unwrap()).unwrap();
-                assert_eq!(accepted.len() as u32, s.tiles_total, "every tile accepted");
-                for (idx, bytes) in &accepted {
+                let last = schedule.len() as u32 - 1;
+                assert_eq!(
+                    accepted.len() as u32,
+                    s.tiles_total * schedule.len() as u32,
+                    "every tile pass accepted"
+                );
+                for ((idx, _), bytes) in accepted.iter().filter(|((_, p), _)| *p == last) {
                     let tile = kiln_image::decode_exr(bytes).unwrap();
                     for y in 0..tile.height {
                         for x in 0..tile.width {
@@ -225,6 +258,11 @@ proptest! {
 
     #[test]
     fn no_tile_is_lost_or_accepted_twice_with_other_bytes(ops in prop::collection::vec(op(), 0..60)) {
-        run(ops);
+        run(ops, None);
+    }
+
+    #[test]
+    fn no_tile_pass_is_lost_or_accepted_twice_with_other_bytes(ops in prop::collection::vec(op(), 0..80)) {
+        run(ops, Some(vec![1, 2, 3]));
     }
 }
