@@ -117,10 +117,10 @@ fn scale(workers: usize) {
                     kiln_image::RgbBuffer::new(2880, 1920, r.x0, r.y0, r.width, r.height);
                 tile.pixels.iter_mut().for_each(|p| *p = [0.5; 3]);
                 // The running sums a real worker's tile carries (one pass of 1 sample).
-                let mut sums = kiln_render::TileSums::empty(*r, false);
+                let mut sums = kiln_render::TileSums::empty(*r, kiln_render::SumsLayout::default());
                 sums.samples = 1;
                 tile.words = kiln_image::Words {
-                    names: kiln_render::TileSums::word_names(false),
+                    names: kiln_render::TileSums::word_names(kiln_render::SumsLayout::default()),
                     values: sums.to_words(),
                 };
                 kiln_image::encode_exr(&tile).unwrap()

@@ -40,6 +40,7 @@ fn load(sampler: &str, (w, h): (u32, u32)) -> Renderer {
         resolution: Some((w, h)),
         spp: None,
         seed: None,
+        ..Default::default()
     })
     .unwrap();
     Renderer::build(&desc).unwrap()

@@ -158,6 +158,7 @@ fn water_caustic_equal_time() {
             resolution: Some((res, res)),
             spp: Some(spp),
             seed: Some(1),
+            ..Default::default()
         })
         .unwrap();
         if let Some(kind) = integrator {

@@ -22,6 +22,7 @@ pub(crate) fn load(path: &Path, spp: u32, resolution: Option<(u32, u32)>) -> Ren
         resolution,
         spp: Some(spp),
         seed: None,
+        ..Default::default()
     })
     .unwrap();
     Renderer::build(&desc).unwrap()
@@ -79,6 +80,15 @@ fn assert_same_bits_for_any_split(name: &str, renderer: Renderer) -> Vec<[u32; 3
 fn every_material_and_light_is_bit_identical_across_tiles_and_threads() {
     let path = scene("materials/scene.pbrt");
     assert_same_bits_for_any_split("materials", load(&path, 8, None));
+}
+
+/// Adaptive sampling stops each pixel by its own sums alone: any split and thread count
+/// stops every pixel after the same samples, and the image is the same bits.
+#[test]
+fn adaptive_sampling_is_bit_identical_across_tiles_and_threads() {
+    let path = scene("mis/scene.pbrt");
+    let renderer = crate::passes::load_adaptive(&path, 32, (80, 45), 0.05, 4);
+    assert_same_bits_for_any_split("mis, adaptive", renderer);
 }
 
 #[test]
@@ -262,6 +272,7 @@ fn shared_photon_maps_and_sppm_passes_give_the_same_bits_computed_once() {
             resolution: Some(resolution),
             spp: Some(spp),
             seed: None,
+            ..Default::default()
         })
         .unwrap();
         let alone = render_split(&Renderer::build(&desc).unwrap(), 8, 2);

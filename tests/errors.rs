@@ -238,6 +238,43 @@ fn photon_and_sppm_parameters_are_checked() {
     }
 }
 
+#[test]
+fn adaptive_sampling_parameters_are_checked() {
+    for (text, message) in [
+        (
+            "Sampler \"zsobol\" \"float noisethreshold\" [ 0 ]\nWorldBegin\n",
+            "\"float noisethreshold\" must be above 0, not 0",
+        ),
+        (
+            "Sampler \"zsobol\" \"float noisethreshold\" [ -0.5 ]\nWorldBegin\n",
+            "must be above 0, not -0.5",
+        ),
+        (
+            "Sampler \"zsobol\" \"integer minsamples\" [ 0 ]\nWorldBegin\n",
+            "\"integer minsamples\" is out of range (1 to 65536): 0",
+        ),
+    ] {
+        let (err, _d) = failing(text);
+        assert_names(&err, "scene.pbrt", 1, message);
+    }
+    // kiln render's override is checked too.
+    let dir = tempfile::tempdir().unwrap();
+    let path = crate::util::write_scene(dir.path(), "s.pbrt", "WorldBegin\n");
+    let out = crate::util::kiln()
+        .args(["render", "--quiet", "--noise-threshold", "-1"])
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("o.exr"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        said.contains("noise threshold is a number from 0 (off) up, not -1"),
+        "{said}"
+    );
+}
+
 /// pbrt-v4 reads `.gz` meshes and includes decompressed; a gzip bomb or a corrupt file is an
 /// error that names the file.
 #[test]

@@ -1031,6 +1031,56 @@ fn the_farm_in_passes_gives_the_bytes_of_kiln_render() {
         ],
     );
     assert!(merged == direct.bytes, "the G-buffer in passes differs");
+    // Adaptive sampling: pixels stop at checkpoints by their own sums, whichever worker
+    // and pass renders them; the coordinator checks no pixel took more than its pass.
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        "Sampler \"sobol\" \"integer pixelsamples\" [ 16 ]",
+        "Sampler \"sobol\" \"integer pixelsamples\" [ 16 ] \"float noisethreshold\" [ 0.05 ] \"integer minsamples\" [ 2 ]",
+    );
+    assert!(text.contains("noisethreshold"));
+    let adaptive = crate::util::write_scene(dir.path(), "adaptive.pbrt", &text);
+    let direct = render(
+        &adaptive,
+        dir.path(),
+        "adaptive-direct",
+        &["--spp", "16", "--resolution", "48x32"],
+    );
+    let plain = render(
+        &adaptive,
+        dir.path(),
+        "adaptive-off",
+        &[
+            "--spp",
+            "16",
+            "--resolution",
+            "48x32",
+            "--noise-threshold",
+            "0",
+        ],
+    );
+    assert!(
+        direct.bytes != plain.bytes,
+        "adaptive sampling changed nothing"
+    );
+    let merged = farm(
+        &adaptive,
+        dir.path(),
+        "adaptive-farm",
+        &[
+            "--passes",
+            "2,5,8,16",
+            "--tile",
+            "11",
+            "--resolution",
+            "48x32",
+            "--workers",
+            "2",
+        ],
+    );
+    assert!(
+        merged == direct.bytes,
+        "adaptive sampling in passes differs"
+    );
 }
 
 /// A job stopped after a pass ends with that pass's whole frame; extended, it renders on

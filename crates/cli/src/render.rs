@@ -23,6 +23,10 @@ pub struct RenderArgs {
     /// of fewer than 64 samples, the footprint being that of its last pass.
     #[arg(long)]
     footprint_spp: Option<u32>,
+    /// Adaptive sampling: a pixel stops taking samples once its estimate's error is below
+    /// this (default: the scene's Sampler "noisethreshold"; 0 turns it off).
+    #[arg(long, allow_hyphen_values = true)]
+    noise_threshold: Option<f32>,
     /// Resolution as WIDTHxHEIGHT (default: the scene's Film).
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<(u32, u32)>,
@@ -91,6 +95,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         resolution: args.resolution,
         spp: args.spp,
         seed: args.seed,
+        noise_threshold: args.noise_threshold,
     })
     .map_err(anyhow::Error::msg)?;
     desc.check_frame_size(args.max_frame_pixels)

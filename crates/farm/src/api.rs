@@ -55,6 +55,7 @@ impl JobSpec {
                 .spp
                 .or_else(|| self.passes.as_ref().and_then(|p| p.last().copied())),
             seed: self.seed,
+            noise_threshold: None,
         }
     }
 }

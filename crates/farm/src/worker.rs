@@ -4,7 +4,9 @@ use crate::api::{JobSpec, Lease, PrepassClaim};
 use crate::bundle;
 use crate::client::{Client, ClientError};
 use kiln_render::shared::{Shared, SharedPrepass};
-use kiln_render::{Integrator, Renderer, TileRect, TileSums, render_tile_pass, render_tile_until};
+use kiln_render::{
+    Integrator, Renderer, SumsLayout, TileRect, TileSums, render_tile_pass, render_tile_until,
+};
 use reqwest::StatusCode;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -422,7 +424,7 @@ async fn render_and_upload(
             // SPPM: one pass, no sums.
             None => pool
                 .install(|| render_tile_until(renderer, rect, &halt))
-                .map(|r| (r, TileSums::empty(rect, false))),
+                .map(|r| (r, TileSums::empty(rect, SumsLayout::default()))),
         };
         let Some((result, sums)) = rendered else {
             return Ok(None);
@@ -436,7 +438,7 @@ async fn render_and_upload(
         }
         if from.is_some() {
             buffer.words = kiln_image::Words {
-                names: TileSums::word_names(sums.gbuffer),
+                names: TileSums::word_names(sums.layout),
                 values: sums.to_words(),
             };
         }
@@ -481,10 +483,10 @@ async fn previous_sums(
     if let Integrator::Sppm(_) = settings.integrator {
         return Ok(None);
     }
-    let gbuffer = settings.gbuffer.is_some();
+    let layout = settings.sums_layout();
     let from = lease.pass.from;
     if from == 0 {
-        return Ok(Some(TileSums::empty(rect, gbuffer)));
+        return Ok(Some(TileSums::empty(rect, layout)));
     }
     let bytes = client
         .lease_sums(lease.lease)
@@ -497,7 +499,7 @@ async fn previous_sums(
     if place != (rect.x0, rect.y0, rect.width, rect.height) {
         return Err("the running sums downloaded are of another tile".into());
     }
-    let sums = TileSums::from_words(rect, gbuffer, &tile.words.names, &tile.words.values)
+    let sums = TileSums::from_words(rect, layout, &tile.words.names, &tile.words.values)
         .map_err(|e| e.to_string())?;
     if sums.samples != from {
         return Err(format!(

@@ -27,6 +27,7 @@
 //! dielectrics by priority), [`integrators`] (path tracing, photon maps), [`sampling`], [`camera`] and [`filter`], [`scene`] (the
 //! built scene) and [`tile`] (the tile function).
 
+pub mod adaptive;
 pub mod bsdfs;
 pub mod camera;
 pub mod filter;
@@ -50,9 +51,10 @@ pub mod textures;
 pub mod tile;
 pub mod work;
 
+pub use adaptive::Adaptive;
 pub use integrators::{Integrator, PathSettings};
 pub use scene::{BuildError, MediaPolicy, Scene};
-pub use sums::{SumsError, TileSums};
+pub use sums::{SumsError, SumsLayout, TileSums};
 pub use tile::{
     PassError, RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names,
     progress_units, render_pixel, render_tile, render_tile_pass, render_tile_until, render_tiles,

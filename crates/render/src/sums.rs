@@ -7,7 +7,8 @@
 //! sums after N samples are the same bits whether they were reached in one pass or in many,
 //! and so is the pixel made from them. Between passes the sums travel as 32-bit words
 //! (an f64 as its low and high halves), which any image format with integer channels holds
-//! exactly.
+//! exactly. With adaptive sampling each pixel also keeps how many samples it took and the
+//! sums of their luminance and its square, which decide when it stops ([`crate::adaptive`]).
 
 use crate::gbuffer::GBufferPixel;
 use crate::tile::TileRect;
@@ -20,6 +21,21 @@ pub struct PixelSums {
     pub weight: f64,
     /// With a G-buffer film, its sums; unused otherwise.
     pub gbuffer: GBufferPixel,
+    /// The samples the pixel took: its tile's count, or fewer if adaptive sampling
+    /// stopped it.
+    pub taken: u32,
+    /// With adaptive sampling, the sums of the samples' weighted luminance and of its
+    /// square; unused otherwise.
+    pub lum: f64,
+    pub lum2: f64,
+}
+
+/// What a tile's running sums hold besides radiance and weight: a G-buffer's sums, and
+/// adaptive sampling's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct SumsLayout {
+    pub gbuffer: bool,
+    pub adaptive: bool,
 }
 
 impl PixelSums {
@@ -32,14 +48,15 @@ impl PixelSums {
     }
 }
 
-/// A tile's running sums after `samples` samples of every pixel.
+/// A tile's running sums after `samples` samples of every pixel (or fewer, where adaptive
+/// sampling stopped a pixel).
 #[derive(Debug, Clone)]
 pub struct TileSums {
     pub rect: TileRect,
     /// How many samples of each pixel the sums hold.
     pub samples: u32,
-    /// Whether they hold G-buffer sums.
-    pub gbuffer: bool,
+    /// What they hold.
+    pub layout: SumsLayout,
     /// Row-major, `rect.width * rect.height`.
     pub pixels: Vec<PixelSums>,
 }
@@ -60,59 +77,76 @@ pub enum SumsError {
     Samples,
     #[error("the tile's running sums hold {found} samples, not the {expected} of its pass")]
     SampleCount { found: u32, expected: u32 },
+    #[error("a pixel's running sums say it took {taken} samples, more than the tile's {samples}")]
+    Taken { taken: u32, samples: u32 },
 }
 
-/// The name of the channel holding the sample count, and the prefix of the others.
+/// The name of the channel holding the sample count, of the one holding the samples each
+/// pixel took (with adaptive sampling), and the prefix of the others.
 const SAMPLES_WORD: &str = "kiln.sums.samples";
+const TAKEN_WORD: &str = "kiln.sums.taken";
 const WORD_PREFIX: &str = "kiln.sums.";
 
-/// 64-bit values per pixel: R, G, B and weight, then the G-buffer's.
-fn values(gbuffer: bool) -> usize {
-    4 + if gbuffer { GBufferPixel::BITS } else { 0 }
+/// 64-bit values per pixel: R, G, B and weight, then the G-buffer's, then adaptive
+/// sampling's luminance sums.
+fn value_count(layout: SumsLayout) -> usize {
+    4 + if layout.gbuffer {
+        GBufferPixel::BITS
+    } else {
+        0
+    } + if layout.adaptive { 2 } else { 0 }
+}
+
+/// 32-bit words per pixel: two per value, the sample count, and with adaptive sampling the
+/// samples the pixel took.
+fn words_per_pixel(layout: SumsLayout) -> usize {
+    2 * value_count(layout) + 1 + usize::from(layout.adaptive)
 }
 
 impl TileSums {
     /// Sums of no samples.
-    pub fn empty(rect: TileRect, gbuffer: bool) -> TileSums {
+    pub fn empty(rect: TileRect, layout: SumsLayout) -> TileSums {
         TileSums {
             rect,
             samples: 0,
-            gbuffer,
+            layout,
             pixels: vec![PixelSums::default(); rect.pixel_count() as usize],
         }
     }
 
     /// The channel names [`TileSums::to_words`] fills, sorted: two 32-bit words per 64-bit
     /// value (`kiln.sums.000` its low half, `kiln.sums.001` its high half, ...), then the
-    /// sample count.
-    pub fn word_names(gbuffer: bool) -> Vec<String> {
-        let mut names: Vec<String> = (0..2 * values(gbuffer))
+    /// sample count, then (with adaptive sampling) the samples each pixel took.
+    pub fn word_names(layout: SumsLayout) -> Vec<String> {
+        let mut names: Vec<String> = (0..2 * value_count(layout))
             .map(|i| format!("{WORD_PREFIX}{i:03}"))
             .chain([SAMPLES_WORD.to_string()])
+            .chain(layout.adaptive.then(|| TAKEN_WORD.to_string()))
             .collect();
         names.sort();
         names
     }
 
     /// [`TileSums::word_names`], made once.
-    fn names_of(gbuffer: bool) -> &'static [String] {
-        static PLAIN: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
-        static GBUFFER: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
-        let cell = if gbuffer { &GBUFFER } else { &PLAIN };
-        cell.get_or_init(|| TileSums::word_names(gbuffer))
+    fn names_of(layout: SumsLayout) -> &'static [String] {
+        static NAMES: [std::sync::OnceLock<Vec<String>>; 4] =
+            [const { std::sync::OnceLock::new() }; 4];
+        let cell = &NAMES[usize::from(layout.gbuffer) + 2 * usize::from(layout.adaptive)];
+        cell.get_or_init(|| TileSums::word_names(layout))
     }
 
     /// Checks, without decoding them, that `values` (with `names`) are the sums of a tile
-    /// `rect` after `samples` samples: the channels, their count and every pixel's sample
-    /// count. What a coordinator asks of an upload.
+    /// `rect` after `samples` samples: the channels, their count, every pixel's sample
+    /// count, and (with adaptive sampling) that no pixel took more. What a coordinator asks
+    /// of an upload.
     pub fn check_words(
         rect: TileRect,
-        gbuffer: bool,
+        layout: SumsLayout,
         names: &[String],
         values: &[u32],
         samples: u32,
     ) -> Result<(), SumsError> {
-        let expected = TileSums::names_of(gbuffer);
+        let expected = TileSums::names_of(layout);
         if names != expected {
             return Err(SumsError::Channels {
                 found: names.to_vec(),
@@ -129,7 +163,8 @@ impl TileSums {
                 height: rect.height,
             });
         }
-        let mut counts = values.iter().skip(per - 1).step_by(per);
+        let at = 2 * value_count(layout);
+        let mut counts = values.iter().skip(at).step_by(per);
         if let Some(&found) = counts.clone().find(|&&n| n != samples) {
             return Err(if counts.all(|&n| n == found) {
                 SumsError::SampleCount {
@@ -140,25 +175,42 @@ impl TileSums {
                 SumsError::Samples
             });
         }
+        if layout.adaptive
+            && let Some(&taken) = values
+                .iter()
+                .skip(at + 1)
+                .step_by(per)
+                .find(|&&n| n > samples)
+        {
+            return Err(SumsError::Taken { taken, samples });
+        }
         Ok(())
     }
 
     /// Every pixel's words, in the order of [`TileSums::word_names`].
     pub fn to_words(&self) -> Vec<u32> {
-        let n = values(self.gbuffer);
-        let mut out = Vec::with_capacity(self.pixels.len() * (2 * n + 1));
+        let layout = self.layout;
+        let mut out = Vec::with_capacity(self.pixels.len() * words_per_pixel(layout));
         for p in &self.pixels {
             let rgbw = p.sum.into_iter().chain([p.weight]).map(f64::to_bits);
-            let g = if self.gbuffer {
+            let g = if layout.gbuffer {
                 p.gbuffer.to_bits().to_vec()
             } else {
                 Vec::new()
             };
-            for v in rgbw.chain(g) {
+            let a = if layout.adaptive {
+                vec![p.lum.to_bits(), p.lum2.to_bits()]
+            } else {
+                Vec::new()
+            };
+            for v in rgbw.chain(g).chain(a) {
                 out.push(v as u32);
                 out.push((v >> 32) as u32);
             }
             out.push(self.samples);
+            if layout.adaptive {
+                out.push(p.taken);
+            }
         }
         out
     }
@@ -167,11 +219,11 @@ impl TileSums {
     /// [`TileSums::word_names`] gave them), checked against the tile they must be.
     pub fn from_words(
         rect: TileRect,
-        gbuffer: bool,
+        layout: SumsLayout,
         names: &[String],
         values_in: &[u32],
     ) -> Result<TileSums, SumsError> {
-        let expected = TileSums::names_of(gbuffer);
+        let expected = TileSums::names_of(layout);
         if names != expected {
             return Err(SumsError::Channels {
                 found: names.to_vec(),
@@ -188,30 +240,48 @@ impl TileSums {
                 height: rect.height,
             });
         }
-        let samples = values_in.get(per - 1).copied().unwrap_or(0);
+        let at = 2 * value_count(layout);
+        let samples = values_in.get(at).copied().unwrap_or(0);
         let mut out = Vec::with_capacity(pixels);
         for words in values_in.chunks_exact(per) {
-            if words[per - 1] != samples {
+            if words[at] != samples {
                 return Err(SumsError::Samples);
             }
             let v = |i: usize| u64::from(words[2 * i]) | (u64::from(words[2 * i + 1]) << 32);
             let f = |i: usize| f64::from_bits(v(i));
-            let gbuffer = if gbuffer {
+            let gbuffer = if layout.gbuffer {
                 let bits: [u64; GBufferPixel::BITS] = std::array::from_fn(|i| v(4 + i));
                 GBufferPixel::from_bits(&bits)
             } else {
                 GBufferPixel::default()
             };
+            let (taken, lum, lum2) = if layout.adaptive {
+                let first = 4 + if layout.gbuffer {
+                    GBufferPixel::BITS
+                } else {
+                    0
+                };
+                let taken = words[at + 1];
+                if taken > samples {
+                    return Err(SumsError::Taken { taken, samples });
+                }
+                (taken, f(first), f(first + 1))
+            } else {
+                (samples, 0.0, 0.0)
+            };
             out.push(PixelSums {
                 sum: [f(0), f(1), f(2)],
                 weight: f(3),
                 gbuffer,
+                taken,
+                lum,
+                lum2,
             });
         }
         Ok(TileSums {
             rect,
             samples,
-            gbuffer,
+            layout,
             pixels: out,
         })
     }
@@ -229,8 +299,13 @@ mod tests {
             width: 3,
             height: 2,
         };
-        for gbuffer in [false, true] {
-            let mut t = TileSums::empty(rect, gbuffer);
+        for (gbuffer, adaptive) in [(false, false), (true, false), (false, true), (true, true)] {
+            let layout = SumsLayout { gbuffer, adaptive };
+            let other = SumsLayout {
+                gbuffer: !gbuffer,
+                adaptive,
+            };
+            let mut t = TileSums::empty(rect, layout);
             t.samples = 77;
             for (i, p) in t.pixels.iter_mut().enumerate() {
                 p.sum = [
@@ -244,41 +319,74 @@ mod tests {
                     g.add(crate::math::Color::new(1.0, 2.0, 3.0), 0.5 + i as f32, None);
                     p.gbuffer = g;
                 }
+                p.taken = if adaptive { 64 + i as u32 } else { 77 };
+                if adaptive {
+                    p.lum = 0.25 + i as f64;
+                    p.lum2 = f64::from_bits(0x3ff0_0000_0000_0001 + i as u64);
+                }
             }
-            let names = TileSums::word_names(gbuffer);
+            let names = TileSums::word_names(layout);
             let words = t.to_words();
-            let back = TileSums::from_words(rect, gbuffer, &names, &words).unwrap();
+            let back = TileSums::from_words(rect, layout, &names, &words).unwrap();
             assert_eq!(back.samples, 77);
             for (a, b) in t.pixels.iter().zip(&back.pixels) {
                 assert_eq!(a.sum.map(f64::to_bits), b.sum.map(f64::to_bits));
                 assert_eq!(a.weight.to_bits(), b.weight.to_bits());
                 assert_eq!(a.gbuffer.to_bits(), b.gbuffer.to_bits());
+                assert_eq!(a.taken, b.taken);
+                assert_eq!(
+                    (a.lum.to_bits(), a.lum2.to_bits()),
+                    (b.lum.to_bits(), b.lum2.to_bits())
+                );
             }
             // Damaged or foreign words are refused, not misread.
-            assert!(TileSums::from_words(rect, !gbuffer, &names, &words).is_err());
-            assert!(TileSums::from_words(rect, gbuffer, &names, &words[1..]).is_err());
-            let mut mixed = words.clone();
+            assert!(TileSums::from_words(rect, other, &names, &words).is_err());
+            let flipped = SumsLayout {
+                gbuffer,
+                adaptive: !adaptive,
+            };
+            assert!(TileSums::from_words(rect, flipped, &names, &words).is_err());
+            assert!(TileSums::from_words(rect, layout, &names, &words[1..]).is_err());
             let per = names.len();
-            mixed[2 * per - 1] = 76;
+            let at = 2 * value_count(layout);
+            let mut mixed = words.clone();
+            mixed[per + at] = 76;
             assert_eq!(
-                TileSums::from_words(rect, gbuffer, &names, &mixed).unwrap_err(),
+                TileSums::from_words(rect, layout, &names, &mixed).unwrap_err(),
                 SumsError::Samples
             );
             // The coordinator's check, without decoding, says the same.
-            assert!(TileSums::check_words(rect, gbuffer, &names, &words, 77).is_ok());
+            assert!(TileSums::check_words(rect, layout, &names, &words, 77).is_ok());
             assert_eq!(
-                TileSums::check_words(rect, gbuffer, &names, &words, 78).unwrap_err(),
+                TileSums::check_words(rect, layout, &names, &words, 78).unwrap_err(),
                 SumsError::SampleCount {
                     found: 77,
                     expected: 78
                 }
             );
             assert_eq!(
-                TileSums::check_words(rect, gbuffer, &names, &mixed, 77).unwrap_err(),
+                TileSums::check_words(rect, layout, &names, &mixed, 77).unwrap_err(),
                 SumsError::Samples
             );
-            assert!(TileSums::check_words(rect, !gbuffer, &names, &words, 77).is_err());
-            assert!(TileSums::check_words(rect, gbuffer, &names, &words[1..], 77).is_err());
+            assert!(TileSums::check_words(rect, other, &names, &words, 77).is_err());
+            assert!(TileSums::check_words(rect, layout, &names, &words[1..], 77).is_err());
+            if adaptive {
+                // A pixel that says it took more samples than its tile holds is refused.
+                let mut greedy = words.clone();
+                greedy[per + at + 1] = 78;
+                let taken = SumsError::Taken {
+                    taken: 78,
+                    samples: 77,
+                };
+                assert_eq!(
+                    TileSums::check_words(rect, layout, &names, &greedy, 77).unwrap_err(),
+                    taken
+                );
+                assert_eq!(
+                    TileSums::from_words(rect, layout, &names, &greedy).unwrap_err(),
+                    taken
+                );
+            }
         }
     }
 }

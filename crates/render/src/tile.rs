@@ -2,6 +2,7 @@
 //! that `kiln render` and the farm's workers both call, and the [`Renderer`] it renders
 //! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
+use crate::adaptive::Adaptive;
 use crate::gbuffer::{GBufferLayout, VisibleSurface};
 use crate::integrators::photons::Gather;
 use crate::integrators::sppm::PassCache;
@@ -10,7 +11,7 @@ use crate::math::Color;
 use crate::sampling::PixelSampler;
 use crate::scene::{BuildError, MediaPolicy, Scene};
 use crate::shared::SharedPrepass;
-use crate::sums::{PixelSums, TileSums};
+use crate::sums::{PixelSums, SumsLayout, TileSums};
 use crate::work::Work;
 use glam::Vec2;
 use rayon::prelude::*;
@@ -70,6 +71,9 @@ pub struct RenderSettings {
     /// footprint, so the frame after a pass of fewer than 64 samples is the first samples of
     /// the longer render: `kiln render --spp N --footprint-spp LAST` gives its bytes.
     pub footprint_spp: Option<u32>,
+    /// Adaptive sampling: a pixel stops taking samples once its own estimate is good
+    /// enough (the scene's Sampler `noisethreshold`), or None.
+    pub adaptive: Option<Adaptive>,
 }
 
 impl RenderSettings {
@@ -77,6 +81,14 @@ impl RenderSettings {
     /// each filters over less than a pixel, as pbrt-v4 does (1/sqrt(spp), at least 1/8).
     pub fn footprint(&self) -> f32 {
         texture_footprint(self.footprint_spp.unwrap_or(self.samples_per_pixel))
+    }
+
+    /// What a tile's running sums hold for these settings.
+    pub fn sums_layout(&self) -> SumsLayout {
+        SumsLayout {
+            gbuffer: self.gbuffer.is_some(),
+            adaptive: self.adaptive.is_some(),
+        }
     }
 
     /// Settings as the scene file gives them.
@@ -95,6 +107,7 @@ impl RenderSettings {
             max_radiance: desc.integrator.max_radiance,
             gbuffer: desc.film.gbuffer,
             footprint_spp: None,
+            adaptive: Adaptive::of(&desc.sampler),
         }
     }
 }
@@ -288,7 +301,7 @@ pub fn render_tile_until(
     if let Integrator::Sppm(sppm) = &renderer.settings.integrator {
         return render_sppm(renderer, sppm, &[rect], stop, &|| {}, true)?.pop();
     }
-    let from = TileSums::empty(rect, renderer.settings.gbuffer.is_some());
+    let from = TileSums::empty(rect, renderer.settings.sums_layout());
     let to = renderer.settings.samples_per_pixel;
     continue_tile(renderer, &from, to, stop).map(|(result, _)| result)
 }
@@ -326,7 +339,7 @@ pub fn render_tile_pass(
             to,
         });
     }
-    if from.gbuffer != renderer.settings.gbuffer.is_some()
+    if from.layout != renderer.settings.sums_layout()
         || from.pixels.len() as u64 != from.rect.pixel_count()
     {
         return Err(PassError::Mismatch);
@@ -389,7 +402,7 @@ fn continue_tile(
     let sums = TileSums {
         rect,
         samples: to,
-        gbuffer: from.gbuffer,
+        layout: from.layout,
         pixels: sums,
     };
     Some((result, sums))
@@ -593,7 +606,9 @@ fn render_pixel_with(
 }
 
 /// Adds the pixel's `samples`, in sample order, to its running sums: the one way every
-/// pixel is accumulated, in one go or in passes.
+/// pixel is accumulated, in one go or in passes. With adaptive sampling the pixel stops at
+/// the first checkpoint where its own sums say it is good enough; a pixel that stopped
+/// before (it took fewer samples than `samples` starts from) takes none.
 fn add_samples(
     renderer: &Renderer,
     x: u32,
@@ -603,7 +618,11 @@ fn add_samples(
     stats: &mut TileStats,
     p: &mut PixelSums,
 ) {
+    let adaptive = renderer.settings.adaptive;
     for s in samples {
+        if p.taken < s || adaptive.is_some_and(|a| a.converged(p)) {
+            break;
+        }
         let (l, w, seen) = render_sample_seeing(renderer, x, y, s, stats, want);
         for c in 0..3 {
             p.sum[c] += (l[c] * w) as f64;
@@ -612,6 +631,12 @@ fn add_samples(
         if want.is_some() {
             p.gbuffer.add(l, w, seen.as_ref());
         }
+        if adaptive.is_some() {
+            let lum = crate::adaptive::sample_luminance(l, w);
+            p.lum += lum;
+            p.lum2 += lum * lum;
+        }
+        p.taken = s + 1;
     }
 }
 

@@ -184,6 +184,11 @@ pub struct SamplerDesc {
     pub name: String,
     pub pixel_samples: u32,
     pub seed: u32,
+    /// Kiln's adaptive sampling (`"float noisethreshold"`): a pixel stops taking samples
+    /// once its own estimate's error is below this. None: every pixel takes them all.
+    pub noise_threshold: Option<f32>,
+    /// The fewest samples a pixel takes before it may stop (`"integer minsamples"`).
+    pub min_samples: u32,
     pub loc: Loc,
 }
 
@@ -966,11 +971,13 @@ pub struct InstanceDesc {
 }
 
 /// Command-line and job overrides of a scene's own settings.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Overrides {
     pub resolution: Option<(u32, u32)>,
     pub spp: Option<u32>,
     pub seed: Option<u32>,
+    /// Adaptive sampling's threshold; 0 turns it off.
+    pub noise_threshold: Option<f32>,
 }
 
 impl SceneDescription {
@@ -1025,6 +1032,14 @@ impl SceneDescription {
         }
         if let Some(seed) = o.seed {
             self.sampler.seed = seed;
+        }
+        if let Some(t) = o.noise_threshold {
+            if !(t.is_finite() && t >= 0.0) {
+                return Err(format!(
+                    "a noise threshold is a number from 0 (off) up, not {t}"
+                ));
+            }
+            self.sampler.noise_threshold = (t > 0.0).then_some(t);
         }
         Ok(())
     }

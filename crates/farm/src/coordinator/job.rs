@@ -19,7 +19,7 @@ use super::webhooks::Delivery;
 use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
 use crate::bundle;
 use kiln_image::{RgbBuffer, Windows};
-use kiln_render::{TileRect, TileSums, split_into_tiles};
+use kiln_render::{SumsLayout, TileRect, TileSums, split_into_tiles};
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
 use std::sync::Arc;
@@ -36,9 +36,9 @@ pub(super) struct Job {
     pub tiles: Vec<TileRect>,
     /// Cumulative samples per pixel at the end of each pass, ascending.
     passes: Vec<u32>,
-    /// Whether tiles carry running sums (every integrator but SPPM), and whether those hold
-    /// G-buffer sums: `Some(gbuffer)`, or None for SPPM.
-    sums: Option<bool>,
+    /// Whether tiles carry running sums (every integrator but SPPM), and what those hold
+    /// (G-buffer sums, adaptive sampling's): None for SPPM.
+    sums: Option<SumsLayout>,
     /// Per tile: how many passes it has done.
     done: Vec<u32>,
     /// Per tile: the lease rendering its next pass.
@@ -163,7 +163,10 @@ impl Job {
             error: None,
             tiles,
             passes,
-            sums: (!sppm).then_some(f.gbuffer.is_some()),
+            sums: (!sppm).then_some(SumsLayout {
+                gbuffer: f.gbuffer.is_some(),
+                adaptive: desc.sampler.noise_threshold.is_some(),
+            }),
             done: vec![0; n],
             lent: vec![None; n],
             queue: (0..n).collect(),
@@ -797,7 +800,7 @@ fn check_passes(passes: &[u32], after: u32) -> Result<(), PlanError> {
 pub(super) struct TileSpot {
     frame: (u32, u32),
     window: Rect,
-    sums: Option<(bool, u32)>,
+    sums: Option<(SumsLayout, u32)>,
 }
 
 impl TileSpot {
@@ -817,10 +820,10 @@ impl TileSpot {
         if tile.pixels.iter().any(|p| p.iter().any(|v| !v.is_finite())) {
             return Err(TileRejected::NonFinite);
         }
-        if let Some((gbuffer, samples)) = self.sums {
+        if let Some((layout, samples)) = self.sums {
             let rect = kiln_render::TileRect::from(self.window);
             let words = &tile.words;
-            TileSums::check_words(rect, gbuffer, &words.names, &words.values, samples)
+            TileSums::check_words(rect, layout, &words.names, &words.values, samples)
                 .map_err(TileRejected::Sums)?;
         }
         Ok(())

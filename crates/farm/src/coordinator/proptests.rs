@@ -63,10 +63,10 @@ fn tile_bytes(lease: &Lease, value: f32) -> Vec<u8> {
     let t = lease.tile;
     let mut tile = RgbBuffer::new(FRAME.0, FRAME.1, t.x0, t.y0, t.width, t.height);
     tile.pixels.iter_mut().for_each(|p| *p = [value; 3]);
-    let mut sums = kiln_render::TileSums::empty(t.into(), false);
+    let mut sums = kiln_render::TileSums::empty(t.into(), kiln_render::SumsLayout::default());
     sums.samples = lease.pass.to;
     tile.words = kiln_image::Words {
-        names: kiln_render::TileSums::word_names(false),
+        names: kiln_render::TileSums::word_names(kiln_render::SumsLayout::default()),
         values: sums.to_words(),
     };
     kiln_image::encode_exr(&tile).unwrap()

@@ -489,6 +489,16 @@ impl Parser {
                 format!("Integrator '{name}' ignores participating media, as pbrt-v4's does; 'volpath' renders them"),
             );
         }
+        if let (Some(i), Some(s)) = (&self.integrator, &self.sampler)
+            && i.kind == IntegratorKind::Sppm
+            && s.noise_threshold.is_some()
+        {
+            let loc = s.loc.clone();
+            self.warn(
+                &loc,
+                "Sampler: \"float noisethreshold\" does not apply to SPPM, whose pixels take every iteration (its photon radius shrinks over all of them together)",
+            );
+        }
         if let Some((_, loc, _)) = self.stack.last() {
             return Err(SceneError::at(
                 loc,
@@ -526,6 +536,8 @@ impl Parser {
                     name: "zsobol".into(),
                     pixel_samples: 16,
                     seed: 0,
+                    noise_threshold: None,
+                    min_samples: 64,
                     loc: Loc::synthetic("default sampler"),
                 });
                 if let Some(seed) = self.option_seed.filter(|_| !self.sampler_seed_given) {

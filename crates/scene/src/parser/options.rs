@@ -477,11 +477,34 @@ impl Parser {
         }
         let seed = params.int("seed", 0)?;
         self.sampler_seed_given = params.loc_of("seed").is_some();
+        let noise_threshold = match params.float_opt("noisethreshold")? {
+            None => None,
+            Some(t) if t.is_finite() && t > 0.0 => Some(t as f32),
+            Some(t) => {
+                return Err(SceneError::at(
+                    &params
+                        .loc_of("noisethreshold")
+                        .unwrap_or_else(|| loc.clone()),
+                    format!("Sampler: \"float noisethreshold\" must be above 0, not {t}"),
+                ));
+            }
+        };
+        let min_samples = params.int("minsamples", 64)?;
+        if !(1..=65536).contains(&min_samples) {
+            return Err(SceneError::at(
+                &params.loc_of("minsamples").unwrap_or_else(|| loc.clone()),
+                format!(
+                    "Sampler: \"integer minsamples\" is out of range (1 to 65536): {min_samples}"
+                ),
+            ));
+        }
         self.check_unused(params, "Sampler", &["jitter", "randomization"])?;
         self.sampler = Some(SamplerDesc {
             name: ty.to_string(),
             pixel_samples: spp as u32,
             seed: seed as u32,
+            noise_threshold,
+            min_samples: min_samples as u32,
             loc: loc.clone(),
         });
         Ok(())

@@ -231,10 +231,10 @@ fn tile_of(lease: &Lease, frame: (u32, u32), value: f32) -> RgbBuffer {
     let mut tile = RgbBuffer::new(frame.0, frame.1, t.x0, t.y0, t.width, t.height);
     tile.pixels.iter_mut().for_each(|p| *p = [value; 3]);
     // The running sums its pass must carry (their values are the worker's business).
-    let mut sums = kiln_render::TileSums::empty(t.into(), false);
+    let mut sums = kiln_render::TileSums::empty(t.into(), kiln_render::SumsLayout::default());
     sums.samples = lease.pass.to;
     tile.words = kiln_image::Words {
-        names: kiln_render::TileSums::word_names(false),
+        names: kiln_render::TileSums::word_names(kiln_render::SumsLayout::default()),
         values: sums.to_words(),
     };
     tile
