@@ -190,7 +190,7 @@ pub fn scene(p: &WorkbenchParams) -> String {
 # The snail (snail.ply, one closed surface) is one VolumeLight under a dielectric surface;
 # snail-grid.csv is the heat of its glass, hottest at the foot and where it is thick.
 Integrator "volpath" "integer maxdepth" [ 8 ] "string lightsampler" [ "power" ]
-Sampler "zsobol" "integer pixelsamples" [ {spp} ]
+Sampler "zsobol" "integer pixelsamples" [ {spp} ] "float noisethreshold" [ 0.01 ] "integer minsamples" [ 256 ]
 PixelFilter "gaussian"
 Film "rgb" "integer xresolution" [ {w} ] "integer yresolution" [ {h} ] "string filename" [ "molten-glass.exr" ]
 LookAt 0.9 2.0 6.4   0.05 0.62 0   0 1 0

@@ -8,7 +8,7 @@
 //! and so is the pixel made from them. Between passes the sums travel as 32-bit words
 //! (an f64 as its low and high halves), which any image format with integer channels holds
 //! exactly. With adaptive sampling each pixel also keeps how many samples it took and the
-//! sums of their luminance and its square, which decide when it stops ([`crate::adaptive`]).
+//! sums of their squares, which decide when it stops ([`crate::adaptive`]).
 
 use crate::gbuffer::GBufferPixel;
 use crate::tile::TileRect;
@@ -24,10 +24,9 @@ pub struct PixelSums {
     /// The samples the pixel took: its tile's count, or fewer if adaptive sampling
     /// stopped it.
     pub taken: u32,
-    /// With adaptive sampling, the sums of the samples' weighted luminance and of its
-    /// square; unused otherwise.
-    pub lum: f64,
-    pub lum2: f64,
+    /// With adaptive sampling, the sums of the squares of the samples' filter-weighted
+    /// radiance, by channel; unused otherwise.
+    pub squares: [f64; 3],
 }
 
 /// What a tile's running sums hold besides radiance and weight: a G-buffer's sums, and
@@ -88,13 +87,13 @@ const TAKEN_WORD: &str = "kiln.sums.taken";
 const WORD_PREFIX: &str = "kiln.sums.";
 
 /// 64-bit values per pixel: R, G, B and weight, then the G-buffer's, then adaptive
-/// sampling's luminance sums.
+/// sampling's sums of squares.
 fn value_count(layout: SumsLayout) -> usize {
     4 + if layout.gbuffer {
         GBufferPixel::BITS
     } else {
         0
-    } + if layout.adaptive { 2 } else { 0 }
+    } + if layout.adaptive { 3 } else { 0 }
 }
 
 /// 32-bit words per pixel: two per value, the sample count, and with adaptive sampling the
@@ -199,7 +198,7 @@ impl TileSums {
                 Vec::new()
             };
             let a = if layout.adaptive {
-                vec![p.lum.to_bits(), p.lum2.to_bits()]
+                p.squares.map(f64::to_bits).to_vec()
             } else {
                 Vec::new()
             };
@@ -255,7 +254,7 @@ impl TileSums {
             } else {
                 GBufferPixel::default()
             };
-            let (taken, lum, lum2) = if layout.adaptive {
+            let (taken, squares) = if layout.adaptive {
                 let first = 4 + if layout.gbuffer {
                     GBufferPixel::BITS
                 } else {
@@ -265,17 +264,16 @@ impl TileSums {
                 if taken > samples {
                     return Err(SumsError::Taken { taken, samples });
                 }
-                (taken, f(first), f(first + 1))
+                (taken, [f(first), f(first + 1), f(first + 2)])
             } else {
-                (samples, 0.0, 0.0)
+                (samples, [0.0; 3])
             };
             out.push(PixelSums {
                 sum: [f(0), f(1), f(2)],
                 weight: f(3),
                 gbuffer,
                 taken,
-                lum,
-                lum2,
+                squares,
             });
         }
         Ok(TileSums {
@@ -321,8 +319,11 @@ mod tests {
                 }
                 p.taken = if adaptive { 64 + i as u32 } else { 77 };
                 if adaptive {
-                    p.lum = 0.25 + i as f64;
-                    p.lum2 = f64::from_bits(0x3ff0_0000_0000_0001 + i as u64);
+                    p.squares = [
+                        0.25 + i as f64,
+                        f64::from_bits(0x3ff0_0000_0000_0001 + i as u64),
+                        -0.0,
+                    ];
                 }
             }
             let names = TileSums::word_names(layout);
@@ -334,10 +335,7 @@ mod tests {
                 assert_eq!(a.weight.to_bits(), b.weight.to_bits());
                 assert_eq!(a.gbuffer.to_bits(), b.gbuffer.to_bits());
                 assert_eq!(a.taken, b.taken);
-                assert_eq!(
-                    (a.lum.to_bits(), a.lum2.to_bits()),
-                    (b.lum.to_bits(), b.lum2.to_bits())
-                );
+                assert_eq!(a.squares.map(f64::to_bits), b.squares.map(f64::to_bits));
             }
             // Damaged or foreign words are refused, not misread.
             assert!(TileSums::from_words(rect, other, &names, &words).is_err());

@@ -632,9 +632,10 @@ fn add_samples(
             p.gbuffer.add(l, w, seen.as_ref());
         }
         if adaptive.is_some() {
-            let lum = crate::adaptive::sample_luminance(l, w);
-            p.lum += lum;
-            p.lum2 += lum * lum;
+            for c in 0..3 {
+                let v = (l[c] * w) as f64;
+                p.squares[c] += v * v;
+            }
         }
         p.taken = s + 1;
     }

@@ -537,7 +537,7 @@ impl Parser {
                     pixel_samples: 16,
                     seed: 0,
                     noise_threshold: None,
-                    min_samples: 64,
+                    min_samples: 256,
                     loc: Loc::synthetic("default sampler"),
                 });
                 if let Some(seed) = self.option_seed.filter(|_| !self.sampler_seed_given) {

@@ -489,7 +489,7 @@ impl Parser {
                 ));
             }
         };
-        let min_samples = params.int("minsamples", 64)?;
+        let min_samples = params.int("minsamples", 256)?;
         if !(1..=65536).contains(&min_samples) {
             return Err(SceneError::at(
                 &params.loc_of("minsamples").unwrap_or_else(|| loc.clone()),
