@@ -9,7 +9,7 @@
 //! given error sooner.
 //!
 //! `cargo bench --bench adaptive [-- --resolution 360 --spp 2048 --ref-spp 8192
-//!  --thresholds 0.003,0.005,0.01 --min-samples 64]` (about 25 minutes the first time on
+//!  --thresholds 0.005,0.01,0.02 --min-samples 256]` (about 25 minutes the first time on
 //! this project's 2-core machine, 10 once the reference is kept)
 
 mod common;
@@ -24,8 +24,8 @@ fn main() {
     let height = width * 2 / 3;
     let spp: u32 = arg("--spp", 2048);
     let ref_spp: u32 = arg("--ref-spp", 8192);
-    let min_samples: u32 = arg("--min-samples", 64);
-    let thresholds: Vec<f32> = arg("--thresholds", "0.003,0.005,0.01".to_string())
+    let min_samples: u32 = arg("--min-samples", 256);
+    let thresholds: Vec<f32> = arg("--thresholds", "0.005,0.01,0.02".to_string())
         .split(',')
         .filter_map(|t| t.trim().parse().ok())
         .collect();

@@ -2,10 +2,17 @@
 //! `kiln farm --workers 2` (one thread each), as a user renders it, timed whole (process
 //! start, scene load, VolumeLight power estimates, merge). A run at 1 spp measures what
 //! does not grow with the sample count; a run at `--spp` (64 by default) the cost per
-//! sample; the projection for 2048 spp is the first plus 2047 times the second.
+//! sample; the projection for 2048 spp with every pixel taking every sample is the first
+//! plus 2047 times the second.
 //!
-//! `cargo bench --bench headline [-- --spp N --target-spp N]` (about 8 minutes on 2 cores
-//! at 64 spp)
+//! The scene asks for adaptive sampling from 256 samples on, which neither run reaches. Its
+//! share is measured on the whole frame at `--adaptive-resolution` (360x240 by default; 0
+//! skips it): `kiln render` at the target count with the scene's threshold and with none;
+//! the adaptive projection scales the per-sample part by the ratio of their times.
+//! (`cargo bench --bench adaptive` says what error that time buys.)
+//!
+//! `cargo bench --bench headline [-- --spp N --target-spp N --adaptive-resolution W]`
+//! (about 14 minutes on 2 cores)
 
 mod common;
 use common::arg;
@@ -51,6 +58,34 @@ fn main() {
          {target} spp projected {projected:.0} s = {:.2} h (target under 2 h)",
         samples / full / 1e6,
         2880.0 * 1920.0 / per_spp / 1e6,
+        projected / 3600.0
+    );
+    let width: u32 = arg("--adaptive-resolution", 360);
+    if width == 0 {
+        return;
+    }
+    let resolution = format!("{width}x{}", width * 2 / 3);
+    let time_render = |threshold: Option<&str>| {
+        let out = dir.path().join("adaptive.exr");
+        let mut cmd = Command::new(kiln);
+        cmd.args(["render", scene, "-q", "--resolution", &resolution])
+            .args(["--spp", &target.to_string(), "-o", out.to_str().unwrap()]);
+        if let Some(t) = threshold {
+            cmd.args(["--noise-threshold", t]);
+        }
+        let start = Instant::now();
+        let s = cmd.output().unwrap();
+        assert!(s.status.success(), "{}", String::from_utf8_lossy(&s.stderr));
+        start.elapsed().as_secs_f64()
+    };
+    let uniform = time_render(Some("0"));
+    let adaptive = time_render(None);
+    let share = adaptive / uniform;
+    let projected = fixed + per_spp * (target - 1) as f64 * share;
+    println!(
+        "headline adaptive sampling (the scene's threshold) at {resolution}, {target} spp: \
+         {adaptive:.1} s against {uniform:.1} s with every pixel taking every sample ({share:.3}); \
+         {target} spp projected {projected:.0} s = {:.2} h (target under 2 h)",
         projected / 3600.0
     );
 }
