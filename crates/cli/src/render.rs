@@ -201,5 +201,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
         mean[1],
         mean[2],
     );
+    if let Some(a) = renderer.settings().adaptive
+        && !matches!(
+            renderer.settings().integrator,
+            kiln_render::Integrator::Sppm(_)
+        )
+    {
+        let pixels = u64::from(x1 - x0) * u64::from(y1 - y0);
+        let spp = renderer.settings().samples_per_pixel;
+        eprintln!(
+            "kiln: adaptive sampling (noise threshold {}, from {} samples): {:.1} samples per pixel on average, of {spp}",
+            a.threshold,
+            a.min_samples,
+            stats.samples as f64 / pixels.max(1) as f64,
+        );
+    }
     Ok(())
 }
