@@ -255,11 +255,8 @@ impl TileSums {
                 GBufferPixel::default()
             };
             let (taken, squares) = if layout.adaptive {
-                let first = 4 + if layout.gbuffer {
-                    GBufferPixel::BITS
-                } else {
-                    0
-                };
+                // The sums of squares are the last three values.
+                let first = value_count(layout) - 3;
                 let taken = words[at + 1];
                 if taken > samples {
                     return Err(SumsError::Taken { taken, samples });

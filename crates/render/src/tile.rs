@@ -625,17 +625,15 @@ fn add_samples(
         }
         let (l, w, seen) = render_sample_seeing(renderer, x, y, s, stats, want);
         for c in 0..3 {
-            p.sum[c] += (l[c] * w) as f64;
+            let v = (l[c] * w) as f64;
+            p.sum[c] += v;
+            if adaptive.is_some() {
+                p.squares[c] += v * v;
+            }
         }
         p.weight += w as f64;
         if want.is_some() {
             p.gbuffer.add(l, w, seen.as_ref());
-        }
-        if adaptive.is_some() {
-            for c in 0..3 {
-                let v = (l[c] * w) as f64;
-                p.squares[c] += v * v;
-            }
         }
         p.taken = s + 1;
     }

@@ -163,10 +163,8 @@ impl Job {
             error: None,
             tiles,
             passes,
-            sums: (!sppm).then_some(SumsLayout {
-                gbuffer: f.gbuffer.is_some(),
-                adaptive: desc.sampler.noise_threshold.is_some(),
-            }),
+            sums: (!sppm)
+                .then(|| kiln_render::RenderSettings::from_description(&desc).sums_layout()),
             done: vec![0; n],
             lent: vec![None; n],
             queue: (0..n).collect(),
@@ -742,6 +740,12 @@ impl Job {
     pub fn reopen(&mut self) {
         self.state = JobState::Running;
         self.error = None;
+        self.run_again();
+    }
+
+    /// What running again after an end (a reopening or an extension) resets: the rate
+    /// counts afresh, and the job's next end is announced by a webhook round of its own.
+    fn run_again(&mut self) {
         self.restart_rate();
         self.webhook = Delivery::Waiting;
         self.webhook_round += 1;
@@ -759,10 +763,8 @@ impl Job {
         self.queue = (0..self.tiles.len())
             .filter(|&i| !self.is_finished(i) && self.lent[i].is_none())
             .collect();
-        self.restart_rate();
         // It will end again: its webhook is called again then.
-        self.webhook = Delivery::Waiting;
-        self.webhook_round += 1;
+        self.run_again();
         Ok(())
     }
 

@@ -188,15 +188,12 @@ impl Workers {
         self.record(worker).set_aside.get_or_insert(reason);
     }
 
-    /// Trusts `worker` again: it was set aside, and an operator says it is fixed. Returns
-    /// whether it was set aside.
-    pub fn reinstate(&mut self, worker: &str) -> bool {
-        let was = self.set_aside_reason(worker).is_some();
+    /// Trusts `worker` again: it was set aside, and an operator says it is fixed.
+    pub fn reinstate(&mut self, worker: &str) {
         if let Some(r) = self.records.get_mut(worker) {
             r.set_aside = None;
             r.consecutive_failures = 0;
         }
-        was
     }
 
     /// Every worker seen, by name.

@@ -126,7 +126,6 @@ pub(super) struct StoredJob {
     pub error: Option<String>,
 }
 
-/// The SQLite connection: one writer, used under the coordinator's lock.
 /// What became of a job's webhook call since the job last ended, as the store keeps it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum WebhookOutcome {
@@ -137,6 +136,7 @@ pub(super) enum WebhookOutcome {
     GaveUp = 2,
 }
 
+/// The SQLite connection: one writer, used under the coordinator's lock.
 pub(super) struct Store {
     db: Connection,
 }
