@@ -253,7 +253,7 @@ fn spherical_direction(uv: Vec2, equal_area: bool) -> Vec3A {
         } else if p.y > 1.0 {
             p = Vec2::new(1.0 - p.x, 2.0 - p.y);
         }
-        crate::lights::equal_area_square_to_sphere(p)
+        crate::sampling::equal_area_square_to_sphere(p)
     } else {
         let theta = std::f32::consts::PI * uv.y;
         let phi = 2.0 * std::f32::consts::PI * uv.x;

@@ -7,7 +7,7 @@
 //! Lens space is pbrt-v4's: the film at z = 0, the lens toward −z; camera space flips z.
 //! Traced in f64: a ray crosses a dozen interfaces.
 
-use crate::shapes::quadric::solve_quadratic;
+use crate::math::solve_quadratic;
 use glam::{DVec3, Vec2, Vec3A};
 use kiln_scene::{ApertureImage, RealisticLens};
 use rayon::prelude::*;

@@ -41,6 +41,7 @@ pub mod media;
 pub mod motion;
 pub mod nesting;
 pub mod phase;
+pub mod rect;
 pub mod sampling;
 pub mod scene;
 pub mod sensor;
@@ -53,10 +54,11 @@ pub mod work;
 
 pub use adaptive::Adaptive;
 pub use integrators::{Integrator, PathSettings};
+pub use rect::{TileRect, split_into_tiles};
 pub use scene::{BuildError, MediaPolicy, Scene};
 pub use sums::{SumsError, SumsLayout, TileSums};
 pub use tile::{
-    PassError, RenderSettings, Renderer, SampleId, TileRect, TileResult, TileStats, aov_names,
+    PassError, RenderSettings, Renderer, SampleId, TileResult, TileStats, aov_names,
     progress_units, render_pixel, render_tile, render_tile_pass, render_tile_until, render_tiles,
-    split_into_tiles, texture_footprint,
+    texture_footprint,
 };

@@ -111,6 +111,33 @@ pub fn offset_origin(p: Vec3A, ng: Vec3A, dir: Vec3A) -> Vec3A {
     }
 }
 
+/// The azimuth of (x, y) in [0, 2π).
+pub fn phi_of(x: f64, y: f64) -> f64 {
+    let phi = libm::atan2(y, x);
+    if phi < 0.0 {
+        phi + std::f64::consts::TAU
+    } else {
+        phi
+    }
+}
+
+/// The roots, in order, of a t² + b t + c given its discriminant (computed by the caller
+/// in whichever form keeps precision), by the form that avoids cancellation.
+pub fn solve_quadratic(a: f64, b: f64, c: f64, discriminant: f64) -> Option<(f64, f64)> {
+    if discriminant.is_nan() || discriminant < 0.0 || a == 0.0 {
+        return None;
+    }
+    let root = discriminant.sqrt();
+    let q = if b < 0.0 {
+        -0.5 * (b - root)
+    } else {
+        -0.5 * (b + root)
+    };
+    let t0 = q / a;
+    let t1 = if q != 0.0 { c / q } else { t0 };
+    Some((t0.min(t1), t0.max(t1)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

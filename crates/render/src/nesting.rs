@@ -18,8 +18,6 @@
 //! as before, bit for bit. Shadow rays are unaware of nesting: dielectric surfaces block
 //! them, nested or not, as they always do.
 
-use crate::bsdfs::{Bsdf, DielectricBxdf, TrowbridgeReitz};
-use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
 use glam::Vec3A;
 
@@ -62,13 +60,13 @@ impl Nesting {
     }
 
     /// The shape that decides what the ray travels through, ignoring `except`.
-    fn top(&self, scene: &Scene, except: u32) -> Option<NestedShape> {
+    fn top(&self, shapes: &[NestedShape], except: u32) -> Option<NestedShape> {
         let mut best: Option<NestedShape> = None;
         for &id in self.entries() {
             if id == except {
                 continue;
             }
-            let s = scene.nested[id as usize];
+            let s = shapes[id as usize];
             if best.is_none_or(|b| s.priority >= b.priority) {
                 best = Some(s);
             }
@@ -77,11 +75,17 @@ impl Nesting {
     }
 
     /// How a ray travelling along `dir` meets `hit` on nested shape `id`.
-    pub fn crossing(&self, scene: &Scene, id: u32, hit: &SurfaceHit, dir: Vec3A) -> Crossing {
-        let shape = scene.nested[id as usize];
+    pub fn crossing(
+        &self,
+        shapes: &[NestedShape],
+        id: u32,
+        hit: &SurfaceHit,
+        dir: Vec3A,
+    ) -> Crossing {
+        let shape = shapes[id as usize];
         // Entering or leaving, what lies on the shape's outer side is the strongest other
         // shape the ray is inside.
-        let outside = self.top(scene, id);
+        let outside = self.top(shapes, id);
         let entering = dir.dot(hit.ng) < 0.0;
         let hidden = outside.is_some_and(|o| o.priority > shape.priority)
             && (entering || self.entries().contains(&id));
@@ -105,7 +109,7 @@ impl Nesting {
     #[inline]
     pub fn cross(
         &mut self,
-        scene: &Scene,
+        shapes: &[NestedShape],
         hit: &SurfaceHit,
         dir: Vec3A,
         wi: Vec3A,
@@ -118,7 +122,7 @@ impl Nesting {
                 }
                 true
             }
-            Some(id) => self.cross_nested(scene, id, hit, dir, wi, medium),
+            Some(id) => self.cross_nested(shapes, id, hit, dir, wi, medium),
         }
     }
 
@@ -126,7 +130,7 @@ impl Nesting {
     #[inline(never)]
     fn cross_nested(
         &mut self,
-        scene: &Scene,
+        shapes: &[NestedShape],
         id: u32,
         hit: &SurfaceHit,
         dir: Vec3A,
@@ -155,53 +159,10 @@ impl Nesting {
             self.inside.copy_within(at + 1..self.len as usize, at);
             self.len -= 1;
         }
-        *medium = match self.top(scene, u32::MAX) {
+        *medium = match self.top(shapes, u32::MAX) {
             Some(s) => s.medium,
             None => self.base,
         };
         true
-    }
-}
-
-impl Scene {
-    /// The BSDF at `hit` for a ray arriving along `dir` inside the nested shapes of
-    /// `nesting`: as [`Scene::bsdf`] gives it, but on a nested shape's surface none where
-    /// the boundary is hidden (the ray goes straight on), and a dielectric of the relative
-    /// index where it is true.
-    #[inline]
-    pub fn bsdf_nested(
-        &self,
-        hit: &mut SurfaceHit,
-        footprint: f32,
-        nesting: &Nesting,
-        dir: Vec3A,
-    ) -> Option<Bsdf<'_>> {
-        match hit.surface.nest {
-            None => self.bsdf(hit, footprint),
-            Some(id) => self.nested_bsdf(id, hit, footprint, nesting, dir),
-        }
-    }
-
-    /// [`Scene::bsdf_nested`] on nested shape `id`'s surface.
-    #[inline(never)]
-    fn nested_bsdf(
-        &self,
-        id: u32,
-        hit: &mut SurfaceHit,
-        footprint: f32,
-        nesting: &Nesting,
-        dir: Vec3A,
-    ) -> Option<Bsdf<'_>> {
-        match nesting.crossing(self, id, hit, dir) {
-            Crossing::Through => None,
-            Crossing::Interface { eta } => match self.bsdf(hit, footprint) {
-                Some(Bsdf::Dielectric(d)) => Some(Bsdf::Dielectric(DielectricBxdf { eta, ..d })),
-                // An interface between media of different indices refracts, smoothly.
-                _ => Some(Bsdf::Dielectric(DielectricBxdf {
-                    eta,
-                    distrib: TrowbridgeReitz::new(0.0, 0.0),
-                })),
-            },
-        }
     }
 }

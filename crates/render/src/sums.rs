@@ -11,7 +11,7 @@
 //! sums of their squares, which decide when it stops ([`crate::adaptive`]).
 
 use crate::gbuffer::GBufferPixel;
-use crate::tile::TileRect;
+use crate::rect::TileRect;
 
 /// One pixel's running sums.
 #[derive(Debug, Clone, Default)]

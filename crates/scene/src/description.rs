@@ -9,8 +9,7 @@ use crate::textures::{FloatTextureDesc, FloatValue, RgbValue, SpectrumTextureDes
 use glam::{DMat4, DVec3};
 use std::sync::Arc;
 
-/// Linear sRGB.
-pub type Rgb = [f32; 3];
+pub use crate::spectrum::Rgb;
 
 /// A whole scene: camera and film settings, materials, shapes and lights.
 #[derive(Debug, Clone)]

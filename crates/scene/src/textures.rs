@@ -6,8 +6,8 @@
 //! material parameter that may vary over a surface is a [`FloatValue`] or an [`RgbValue`]:
 //! a constant, or a reference to a texture defined earlier.
 
-use crate::description::Rgb;
 use crate::error::Loc;
+use crate::spectrum::Rgb;
 use glam::{DMat4, DVec3};
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -43,7 +43,8 @@ fn pass_through(
     crossed: &mut u32,
 ) -> bool {
     *crossed += 1;
-    if *crossed > MAX_PASS_THROUGHS || !nesting.cross(scene, hit, ray.dir, ray.dir, medium) {
+    if *crossed > MAX_PASS_THROUGHS || !nesting.cross(&scene.nested, hit, ray.dir, ray.dir, medium)
+    {
         return false;
     }
     *ray = ray.spawn(crate::math::offset_origin(hit.p, hit.ng, ray.dir), ray.dir);

@@ -535,7 +535,7 @@ fn surface_step(
     let before = state.medium;
     if !state
         .nesting
-        .cross(scene, hit, ray.dir, wi, &mut state.medium)
+        .cross(&scene.nested, hit, ray.dir, wi, &mut state.medium)
     {
         return Next::Stop;
     }

@@ -196,7 +196,7 @@ pub fn camera_pass<'a>(
             return None;
         }
         specular = bs.specular;
-        if !nesting.cross(scene, hit, ray.dir, wi, &mut medium) {
+        if !nesting.cross(&scene.nested, hit, ray.dir, wi, &mut medium) {
             return None;
         }
         ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
@@ -324,7 +324,7 @@ fn trace_photon(
         if !beta.is_finite() || beta == Color::ZERO {
             return;
         }
-        if !nesting.cross(scene, &hit, ray.dir, wi, &mut None) {
+        if !nesting.cross(&scene.nested, &hit, ray.dir, wi, &mut None) {
             return;
         }
         ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);

@@ -3,8 +3,8 @@
 //! distribution), nearest pixel, the mean of its RGB times the light's RGB intensity.
 
 use super::LightSample;
-use super::infinite::equal_area_sphere_to_square;
 use crate::math::{Color, luminance};
+use crate::sampling::equal_area_sphere_to_square;
 use glam::{Mat3A, Vec3A};
 use std::f32::consts::PI;
 

@@ -23,10 +23,7 @@ pub mod volume;
 pub use area::{EmissionImage, EmissionPoint, QuadricLight, SphereLight, TriangleLight};
 pub use distant::DistantLight;
 pub use goniometric::GoniometricLight;
-pub use infinite::{
-    DomeLight, ImageInfiniteLight, Portal, UniformInfiniteLight, equal_area_sphere_to_square,
-    equal_area_square_to_sphere,
-};
+pub use infinite::{DomeLight, ImageInfiniteLight, Portal, UniformInfiniteLight};
 pub use medium::MediumLight;
 pub use point::PointLight;
 pub use projection::ProjectionLight;

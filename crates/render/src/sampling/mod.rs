@@ -93,9 +93,63 @@ pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
     if a + b == 0.0 { 0.0 } else { a / (a + b) }
 }
 
+/// Clarberg's equal-area map from the unit square to the sphere, as pbrt-v4 uses for environment maps.
+pub fn equal_area_square_to_sphere(p: Vec2) -> Vec3A {
+    let u = 2.0 * p.x - 1.0;
+    let v = 2.0 * p.y - 1.0;
+    let up = u.abs();
+    let vp = v.abs();
+    let signed_distance = 1.0 - (up + vp);
+    let d = signed_distance.abs();
+    let r = 1.0 - d;
+    let phi = if r == 0.0 { 1.0 } else { (vp - up) / r + 1.0 } * PI / 4.0;
+    let z = (1.0 - r * r).copysign(signed_distance);
+    let cos_phi = libm::cosf(phi).copysign(u);
+    let sin_phi = libm::sinf(phi).copysign(v);
+    let s = r * (2.0 - r * r).max(0.0).sqrt();
+    Vec3A::new(cos_phi * s, sin_phi * s, z)
+}
+
+/// The inverse of [`equal_area_square_to_sphere`].
+pub fn equal_area_sphere_to_square(d: Vec3A) -> Vec2 {
+    let (x, y, z) = (d.x.abs(), d.y.abs(), d.z.abs());
+    let r = (1.0 - z).max(0.0).sqrt();
+    let a = x.max(y);
+    let b = x.min(y);
+    let b = if a == 0.0 { 0.0 } else { b / a };
+    let mut phi = libm::atanf(b) * 2.0 / PI;
+    if x < y {
+        phi = 1.0 - phi;
+    }
+    let mut v = phi * r;
+    let mut u = r - v;
+    if d.z < 0.0 {
+        std::mem::swap(&mut u, &mut v);
+        u = 1.0 - u;
+        v = 1.0 - v;
+    }
+    u = u.copysign(d.x);
+    v = v.copysign(d.y);
+    Vec2::new((u + 1.0) / 2.0, (v + 1.0) / 2.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn equal_area_map_round_trips() {
+        for i in 0..400 {
+            let uv = Vec2::new(
+                (i % 20) as f32 / 20.0 + 0.025,
+                (i / 20) as f32 / 20.0 + 0.025,
+            );
+            let d = equal_area_square_to_sphere(uv);
+            assert!((d.length() - 1.0).abs() < 1e-4);
+            let back = equal_area_sphere_to_square(d);
+            assert!((back - uv).length() < 1e-4, "{uv} -> {d} -> {back}");
+        }
+    }
 
     #[test]
     fn warps_land_where_they_should() {

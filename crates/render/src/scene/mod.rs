@@ -9,7 +9,7 @@ mod build;
 
 pub use build::{BuildError, MediaPolicy};
 
-use crate::bsdfs::Bsdf;
+use crate::bsdfs::{Bsdf, DielectricBxdf, TrowbridgeReitz};
 use crate::camera::Camera;
 use crate::filter::Filter;
 use crate::lights::{Light, LightContext, LightSampler, VolumeInterior};
@@ -17,6 +17,7 @@ use crate::materials::{Material, Model};
 use crate::math::{Color, Ray};
 use crate::media::Medium;
 use crate::media::subsurface::{TexturedInterior, Walk};
+use crate::nesting::{Crossing, NestedShape, Nesting};
 use crate::sampling::TrackingRng;
 use crate::shapes::{Geometry, SurfaceHit};
 use crate::textures::TextureEvalContext;
@@ -54,7 +55,7 @@ pub struct Scene {
     /// index; for photons leaving it.
     pub light_media: Vec<Option<[u32; 2]>>,
     /// Nested dielectric shapes, referred to by `SurfaceInfo::nest`.
-    pub nested: Vec<crate::nesting::NestedShape>,
+    pub nested: Vec<NestedShape>,
     /// Media from this index on are the interiors of "subsurface" materials: random walks,
     /// which photon maps neither store photons in nor shortcut with gathers.
     pub first_walk_medium: u32,
@@ -214,5 +215,48 @@ impl Scene {
             remaining -= h.t;
         }
         (Color::ZERO, medium)
+    }
+}
+
+impl Scene {
+    /// The BSDF at `hit` for a ray arriving along `dir` inside the nested shapes of
+    /// `nesting`: as [`Scene::bsdf`] gives it, but on a nested shape's surface none where
+    /// the boundary is hidden (the ray goes straight on), and a dielectric of the relative
+    /// index where it is true.
+    #[inline]
+    pub fn bsdf_nested(
+        &self,
+        hit: &mut SurfaceHit,
+        footprint: f32,
+        nesting: &Nesting,
+        dir: Vec3A,
+    ) -> Option<Bsdf<'_>> {
+        match hit.surface.nest {
+            None => self.bsdf(hit, footprint),
+            Some(id) => self.nested_bsdf(id, hit, footprint, nesting, dir),
+        }
+    }
+
+    /// [`Scene::bsdf_nested`] on nested shape `id`'s surface.
+    #[inline(never)]
+    fn nested_bsdf(
+        &self,
+        id: u32,
+        hit: &mut SurfaceHit,
+        footprint: f32,
+        nesting: &Nesting,
+        dir: Vec3A,
+    ) -> Option<Bsdf<'_>> {
+        match nesting.crossing(&self.nested, id, hit, dir) {
+            Crossing::Through => None,
+            Crossing::Interface { eta } => match self.bsdf(hit, footprint) {
+                Some(Bsdf::Dielectric(d)) => Some(Bsdf::Dielectric(DielectricBxdf { eta, ..d })),
+                // An interface between media of different indices refracts, smoothly.
+                _ => Some(Bsdf::Dielectric(DielectricBxdf {
+                    eta,
+                    distrib: TrowbridgeReitz::new(0.0, 0.0),
+                })),
+            },
+        }
     }
 }

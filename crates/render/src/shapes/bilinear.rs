@@ -5,7 +5,8 @@
 //! by pbrt-v4's bilinear warp of the corners' area densities. [`super::quadric`] carries it
 //! with the other shapes intersected in their own right; its object space is the world's.
 
-use super::quadric::{LocalPoint, solve_quadratic};
+use super::local::LocalPoint;
+use crate::math::solve_quadratic;
 use glam::{DVec3, Vec2, Vec3A};
 
 #[derive(Debug, Clone, PartialEq)]

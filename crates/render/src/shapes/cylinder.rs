@@ -2,7 +2,8 @@
 //! and `z_max`, cut to `0 ≤ φ ≤ phi_max`, open at both ends, facing outwards.
 //! [`super::quadric`] places it in the world.
 
-use super::quadric::{LocalPoint, phi_of, solve_quadratic};
+use super::local::LocalPoint;
+use crate::math::{phi_of, solve_quadratic};
 use glam::{DVec3, Vec2, Vec3A};
 
 #[derive(Debug, Clone, Copy, PartialEq)]

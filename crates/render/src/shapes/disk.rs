@@ -2,7 +2,8 @@
 //! `z = height`, cut to `0 ≤ φ ≤ phi_max`, facing +z. [`super::quadric`] places it in the
 //! world.
 
-use super::quadric::{LocalPoint, phi_of};
+use super::local::LocalPoint;
+use crate::math::phi_of;
 use glam::{DVec3, Vec2, Vec3A};
 
 #[derive(Debug, Clone, Copy, PartialEq)]

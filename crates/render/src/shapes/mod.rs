@@ -15,6 +15,7 @@ pub mod curve;
 pub mod cylinder;
 pub mod disk;
 pub mod displace;
+pub mod local;
 pub mod mover;
 pub mod quadric;
 pub mod revolution;

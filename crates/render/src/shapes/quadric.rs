@@ -14,6 +14,7 @@
 use super::bilinear::BilinearPatch;
 use super::cylinder::Cylinder;
 use super::disk::Disk;
+use super::local::LocalPoint;
 use super::revolution::Strip;
 use super::sphere::PartialSphere;
 use super::{Geometry, SurfaceHit, SurfaceInfo};
@@ -21,49 +22,6 @@ use crate::math::Ray;
 use glam::{Affine3A, DMat4, DVec3, Mat3A, Vec2, Vec3A};
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
-
-/// A point on a quadric in its object space: position, unit outward normal, pbrt-v4's
-/// dp/du and dp/dv, and (u, v).
-#[derive(Debug, Clone, Copy)]
-pub struct LocalPoint {
-    pub p: Vec3A,
-    pub n: Vec3A,
-    /// A shading normal, where the shape has one (a bilinear patch with normals).
-    pub ns: Option<Vec3A>,
-    /// The density per unit object-space area with which the shape's `sample` reaches
-    /// this point (uniform, 1 / area, for all but bilinear patches).
-    pub pdf: f32,
-    pub dpdu: Vec3A,
-    pub dpdv: Vec3A,
-    pub uv: Vec2,
-}
-
-/// The azimuth of (x, y) in [0, 2π).
-pub fn phi_of(x: f64, y: f64) -> f64 {
-    let phi = libm::atan2(y, x);
-    if phi < 0.0 {
-        phi + std::f64::consts::TAU
-    } else {
-        phi
-    }
-}
-
-/// The roots, in order, of a t² + b t + c given its discriminant (computed by the caller
-/// in whichever form keeps precision), by the form that avoids cancellation.
-pub fn solve_quadratic(a: f64, b: f64, c: f64, discriminant: f64) -> Option<(f64, f64)> {
-    if discriminant.is_nan() || discriminant < 0.0 || a == 0.0 {
-        return None;
-    }
-    let root = discriminant.sqrt();
-    let q = if b < 0.0 {
-        -0.5 * (b - root)
-    } else {
-        -0.5 * (b + root)
-    };
-    let t0 = q / a;
-    let t1 = if q != 0.0 { c / q } else { t0 };
-    Some((t0.min(t1), t0.max(t1)))
-}
 
 /// The object-space shape of a quadric (or of a bilinear patch, which is intersected and
 /// sampled in its own right as they are).

@@ -13,7 +13,8 @@
 //! turns by less than the crease angle) and turned about the axis, so the surface shades
 //! smoothly in both directions.
 
-use super::quadric::{LocalPoint, phi_of, solve_quadratic};
+use super::local::LocalPoint;
+use crate::math::{phi_of, solve_quadratic};
 use glam::{DVec3, Vec2, Vec3A};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
 

@@ -2,9 +2,10 @@
 //! visible cone from outside, the area from inside), and pbrt-v4's partial spheres in
 //! object space ([`PartialSphere`]), which [`super::quadric`] places in the world.
 
-use super::quadric::{LocalPoint, phi_of, solve_quadratic};
+use super::local::LocalPoint;
 use super::{Geometry, ShapeSample, SurfaceHit, SurfaceInfo};
 use crate::math::{Frame, Ray};
+use crate::math::{phi_of, solve_quadratic};
 use crate::sampling::{uniform_cone, uniform_sphere};
 use glam::{DVec3, Vec2, Vec3A};
 use obvhs::Boundable;

@@ -2,10 +2,10 @@
 //! may name a texture (`"texture reflectance" "wood"`).
 
 use super::Parser;
-use crate::description::Rgb;
 use crate::error::{Loc, Result, SceneError};
 use crate::files::images;
 use crate::params::ParamSet;
+use crate::spectrum::Rgb;
 use crate::spectrum::SpectrumUse;
 use crate::textures::*;
 use glam::{DMat4, DVec3};

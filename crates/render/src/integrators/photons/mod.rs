@@ -540,7 +540,7 @@ impl<'a> Shooter<'a> {
                 return;
             }
             let before = medium;
-            if !nesting.cross(scene, &hit, ray.dir, wi, &mut medium) {
+            if !nesting.cross(&scene.nested, &hit, ray.dir, wi, &mut medium) {
                 return;
             }
             scene.enter_walk(&hit, wi, before, medium, &mut walk);
