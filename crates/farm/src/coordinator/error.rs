@@ -7,6 +7,7 @@
 //! Messages carry their cause's text (`"job store: {0}"`) and causes are not chained as
 //! `source()`, so a `{:#}` print (the CLI's) says each thing once.
 
+use super::store::StoreError;
 use crate::api::{JobState, Rect};
 use crate::bundle::BundleError;
 use kiln_image::ImageError;
@@ -84,7 +85,7 @@ pub enum Error {
 
     // Internal failures: logged, never shown.
     #[error("job store: {0}")]
-    Store(rusqlite::Error),
+    Store(StoreError),
     #[error("{}: {message}", path.display())]
     Io { path: PathBuf, message: String },
     #[error("cannot store a scene: {0}")]
@@ -107,8 +108,8 @@ impl Error {
     }
 }
 
-impl From<rusqlite::Error> for Error {
-    fn from(e: rusqlite::Error) -> Error {
+impl From<StoreError> for Error {
+    fn from(e: StoreError) -> Error {
         Error::Store(e)
     }
 }

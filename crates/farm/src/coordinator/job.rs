@@ -14,6 +14,7 @@
 
 use super::MAX_TILE_ATTEMPTS;
 use super::error::{PlanError, TileRejected};
+use super::store::KeptTile;
 use super::verify::{Candidate, Checks, Verdict, is_checked};
 use super::webhooks::Delivery;
 use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
@@ -88,19 +89,6 @@ pub(super) struct Job {
     /// set aside), for the status.
     pub notice: Option<String>,
     pub merge_seconds: Option<f64>,
-}
-
-/// A tile pass as the store keeps it.
-#[derive(Debug, Clone)]
-pub(super) struct KeptTile {
-    pub idx: usize,
-    /// Samples per pixel its sums hold.
-    pub samples: u32,
-    pub exr: Vec<u8>,
-    /// The workers whose unchecked renders its sums hold.
-    pub unchecked_by: BTreeSet<String>,
-    /// Kept before passes existed: a finished tile without running sums.
-    pub legacy: bool,
 }
 
 /// What a tile's upload did to its job.

@@ -9,9 +9,10 @@
 //! - `prepass.rs` keeps what workers compute once per job and share (photon maps, SPPM
 //!   passes) beside the scene bundle, and who is computing what.
 //! - `job.rs` (one job's tiles and frame), `leases.rs` (the lease table and worker records)
-//!   and `metrics.rs` (counters) are plain state; `store.rs` is SQLite and the data
-//!   directory's files; `error.rs` names the failures.
+//!   and `metrics.rs` (counters) are plain state; `store/` is the job store (a trait, and
+//!   its SQLite back-end with versioned migrations), `data_dir.rs` the data directory's files; `error.rs` names the failures.
 
+mod data_dir;
 mod error;
 mod http;
 mod job;
@@ -31,8 +32,10 @@ mod webhooks;
 
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
+pub use store::StoreError;
 
 use crate::api::{JobState, JobStatus};
+use data_dir::DataDir;
 use job::Job;
 use leases::{Leases, Workers};
 use metrics::Metrics;
@@ -40,7 +43,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
-use store::{DataDir, Store};
+use store::{JobStore, SqliteStore};
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
@@ -106,7 +109,8 @@ struct Shared {
 
 /// Everything the lock guards.
 struct State {
-    store: Store,
+    /// The job store (SQLite, the one back-end there is).
+    store: Box<dyn JobStore>,
     jobs: BTreeMap<u64, Job>,
     leases: Leases,
     workers: Workers,
@@ -117,7 +121,7 @@ impl Coordinator {
     /// Opens (or creates) the data directory and resumes every unfinished job in it.
     pub fn open(config: Config) -> Result<Coordinator, Error> {
         let files = DataDir::create(&config.data_dir)?;
-        let store = Store::open(&files)?;
+        let store = SqliteStore::open(&files.database())?;
         // Merged frames whose jobs the store does not hold: the database (or its WAL) was
         // lost or replaced. Starting would hide those jobs for good; say so instead.
         let stored: std::collections::HashSet<u64> = store.jobs()?.iter().map(|j| j.id).collect();
@@ -142,7 +146,7 @@ impl Coordinator {
         let coordinator = Coordinator {
             shared: Arc::new(Shared {
                 state: Mutex::new(State {
-                    store,
+                    store: Box::new(store),
                     jobs: BTreeMap::new(),
                     leases: Leases::new(config.lease_ttl, epoch),
                     workers,

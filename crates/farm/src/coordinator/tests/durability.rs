@@ -67,8 +67,9 @@ async fn a_restarted_coordinator_keeps_acknowledged_tiles_and_merges_a_finished_
     // A coordinator that stopped after keeping the last tile, before writing the frame,
     // writes it when it starts.
     {
-        let files = crate::coordinator::store::DataDir::create(&data).unwrap();
-        let store = crate::coordinator::store::Store::open(&files).unwrap();
+        use crate::coordinator::store::JobStore;
+        let files = crate::coordinator::data_dir::DataDir::create(&data).unwrap();
+        let store = crate::coordinator::store::SqliteStore::open(&files.database()).unwrap();
         store
             .insert_tile(
                 job,

@@ -1,0 +1,119 @@
+//! The data directory's files: scene bundles (unpacked under `scenes/<digest>`, with their
+//! bytes for workers) and merged frames (`jobs/<id>/result.exr`), written atomically. The
+//! job store's database lives beside them (`kiln.sqlite`, see `store/`).
+//!
+//! It reads and writes files; it must never decide anything about jobs or leases.
+
+use super::Error;
+use crate::bundle;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The data directory's layout. Cheap to clone; needs no lock.
+#[derive(Debug, Clone)]
+pub(super) struct DataDir {
+    root: PathBuf,
+}
+
+impl DataDir {
+    /// Creates the directory and its `scenes/` and `jobs/` folders if they are missing.
+    pub fn create(root: &Path) -> Result<DataDir, Error> {
+        let dir = DataDir {
+            root: root.to_path_buf(),
+        };
+        for sub in [dir.scenes(), dir.root.join("jobs")] {
+            std::fs::create_dir_all(&sub).map_err(|e| Error::io(&sub, e))?;
+        }
+        Ok(dir)
+    }
+
+    /// Where bundles are unpacked, one folder per digest (see [`bundle::unpack_into_cache`]).
+    pub fn scenes(&self) -> PathBuf {
+        self.root.join("scenes")
+    }
+
+    /// The ids of the jobs whose folders (`jobs/<id>`, a merged frame) are in the data
+    /// directory.
+    pub fn job_folders(&self) -> Result<Vec<u64>, Error> {
+        let jobs = self.root.join("jobs");
+        let entries = std::fs::read_dir(&jobs).map_err(|e| Error::io(&jobs, e))?;
+        let mut ids: Vec<u64> = entries
+            .flatten()
+            .filter_map(|e| e.file_name().to_str()?.parse().ok())
+            .collect();
+        ids.sort_unstable();
+        Ok(ids)
+    }
+
+    /// A private file name for an upload in progress (beside the bundles it becomes one of).
+    pub fn upload_path(&self) -> PathBuf {
+        static UNIQUE: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = UNIQUE.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.scenes()
+            .join(format!(".upload.{}.{n}", std::process::id()))
+    }
+
+    /// The job store's database file.
+    pub fn database(&self) -> PathBuf {
+        self.root.join("kiln.sqlite")
+    }
+
+    pub fn result_path(&self, job: u64) -> PathBuf {
+        self.root
+            .join("jobs")
+            .join(job.to_string())
+            .join("result.exr")
+    }
+
+    /// Keeps a bundle (unpacked, with its bytes for workers) unless it is kept already, and
+    /// returns its digest. Blocking.
+    pub fn save_bundle(&self, bytes: &[u8]) -> Result<String, Error> {
+        let digest = bundle::digest_of(bytes);
+        self.save_bundle_from(bundle::Source::Bytes(bytes), &digest)?;
+        Ok(digest)
+    }
+
+    /// Keeps a bundle whose digest is known (an upload hashed as it streamed to disk).
+    /// Blocking.
+    pub fn save_bundle_from(&self, source: bundle::Source, digest: &str) -> Result<(), Error> {
+        match bundle::unpack_into_cache(source, digest, &self.scenes(), true) {
+            Ok(_) => Ok(()),
+            Err(e @ bundle::BundleError::Corrupt(_)) => Err(Error::BadBundle(e)),
+            Err(e) => Err(Error::Unpack(e)),
+        }
+    }
+
+    /// A kept bundle's bytes, as uploaded.
+    pub async fn bundle(&self, digest: &str) -> Result<Vec<u8>, Error> {
+        if !bundle::is_digest(digest) {
+            return Err(Error::BadDigest);
+        }
+        let path = self.scenes().join(digest).join(bundle::BUNDLE_FILE);
+        tokio::fs::read(path)
+            .await
+            .map_err(|_| Error::UnknownScene(digest.to_string()))
+    }
+
+    /// Writes a job's merged EXR after pass `pass` beside its result, synced, and returns
+    /// where: [`DataDir::publish_result`] then renames it over the result, so a reader or a
+    /// crash sees one whole file or the other. Blocking.
+    pub fn stage_result(&self, job: u64, pass: u32, bytes: &[u8]) -> Result<PathBuf, Error> {
+        let path = self
+            .result_path(job)
+            .with_extension(format!("pass-{pass}.tmp"));
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        let mut file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
+        file.write_all(bytes)
+            .and_then(|()| file.sync_all())
+            .map_err(|e| Error::io(&path, e))?;
+        Ok(path)
+    }
+
+    /// Makes a staged merge the job's result (a rename: quick, and atomic).
+    pub fn publish_result(&self, job: u64, staged: &Path) -> Result<(), Error> {
+        let path = self.result_path(job);
+        std::fs::rename(staged, &path).map_err(|e| Error::io(&path, e))
+    }
+}
