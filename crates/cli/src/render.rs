@@ -72,6 +72,75 @@ pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
+    let start = Instant::now();
+    let output = check_output(&args)?;
+    let (desc, renderer) = load(&args)?;
+    let load_time = start.elapsed();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("cannot start the worker threads")?;
+    let film = &desc.film;
+    let tiles = split_into_tiles(film.pixel_bounds, args.tile);
+    let output = output.unwrap_or_else(|| {
+        let mut p = PathBuf::from(&film.filename);
+        p.set_extension("exr");
+        p
+    });
+    announce(
+        &args,
+        &desc,
+        &renderer,
+        tiles.len(),
+        pool.current_num_threads(),
+    );
+    let progress = progress_bar(&args, &renderer, tiles.len());
+    let render_start = Instant::now();
+    let results = pool.install(|| render_tiles(&renderer, &tiles, &|| progress.inc(1)));
+    progress.finish_and_clear();
+    let render_time = render_start.elapsed();
+    let [x0, x1, y0, y1] = film.pixel_bounds;
+    let mut frame = RgbBuffer::new(film.xresolution, film.yresolution, x0, y0, x1 - x0, y1 - y0)
+        .with_aovs(kiln_render::aov_names(film.gbuffer));
+    let mut stats = TileStats::default();
+    for r in results {
+        stats.merge(&r.stats);
+        let t = r.rect;
+        let aovs = kiln_image::Aovs {
+            names: kiln_render::aov_names(renderer.settings().gbuffer),
+            values: r.aovs,
+        };
+        let tile = RgbBuffer::new(
+            film.xresolution,
+            film.yresolution,
+            t.x0,
+            t.y0,
+            t.width,
+            t.height,
+        )
+        .holding(r.pixels, aovs);
+        frame.paste(&tile)?;
+    }
+    if let Some(why) = stats.cut_off_error() {
+        bail!("{}: {why}; no image was written", args.scene.display());
+    }
+    kiln_image::write_exr(&output, &frame)
+        .with_context(|| format!("cannot write {}", output.display()))?;
+    if let Some(preview) = &args.preview {
+        kiln_image::write_png(preview, &frame, args.exposure)
+            .with_context(|| format!("cannot write {}", preview.display()))?;
+    }
+    let times = Times {
+        total: start.elapsed().as_secs_f64(),
+        load: load_time.as_secs_f64(),
+        render: render_time.as_secs_f64().max(1e-9),
+    };
+    summarise(&output, &frame, &stats, &renderer, times);
+    Ok(())
+}
+
+/// The output file the flags name, refused before any work unless it is an EXR.
+fn check_output(args: &RenderArgs) -> Result<Option<PathBuf>> {
     if args.tile == 0 {
         bail!("--tile must be at least 1");
     }
@@ -86,7 +155,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
             out.display()
         );
     }
-    let start = Instant::now();
+    Ok(args.output.clone())
+}
+
+/// Loads the scene with the flags' overrides and builds its renderer.
+fn load(args: &RenderArgs) -> Result<(kiln_scene::SceneDescription, Renderer)> {
     let mut desc = kiln_scene::load_file(&args.scene)?;
     for w in &desc.warnings {
         eprintln!("{w}");
@@ -100,10 +173,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     .map_err(anyhow::Error::msg)?;
     desc.check_frame_size(args.max_frame_pixels)
         .map_err(anyhow::Error::msg)?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("cannot start the worker threads")?;
     let mut renderer = Renderer::build(&desc)?;
     if let Some(spp) = args.footprint_spp {
         if spp == 0 {
@@ -111,16 +180,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         renderer = renderer.with_footprint_spp(spp);
     }
+    Ok((desc, renderer))
+}
+
+/// The line that says what is about to be rendered.
+fn announce(
+    args: &RenderArgs,
+    desc: &kiln_scene::SceneDescription,
+    renderer: &Renderer,
+    tiles: usize,
+    threads: usize,
+) {
     let scene = renderer.scene();
-    let load_time = start.elapsed();
     let film = &desc.film;
     let [x0, x1, y0, y1] = film.pixel_bounds;
-    let tiles = split_into_tiles(film.pixel_bounds, args.tile);
-    let output = args.output.clone().unwrap_or_else(|| {
-        let mut p = PathBuf::from(&film.filename);
-        p.set_extension("exr");
-        p
-    });
     eprintln!(
         "kiln: {} ({} triangles, {} spheres, {} other quadrics, {} lights), {}x{} ({}x{} rendered), {} spp, {} tiles, {} threads",
         args.scene.display(),
@@ -133,51 +206,50 @@ pub fn run(args: RenderArgs) -> Result<()> {
         x1 - x0,
         y1 - y0,
         renderer.settings().samples_per_pixel,
-        tiles.len(),
-        pool.current_num_threads(),
+        tiles,
+        threads,
     );
-    let progress = if args.quiet {
-        ProgressBar::hidden()
+}
+
+/// A progress bar over tiles (over iterations for SPPM), hidden with --quiet.
+fn progress_bar(args: &RenderArgs, renderer: &Renderer, tiles: usize) -> ProgressBar {
+    if args.quiet {
+        return ProgressBar::hidden();
+    }
+    let units = kiln_render::progress_units(renderer, tiles);
+    let bar = ProgressBar::new(units);
+    // SPPM renders every tile together, an iteration at a time.
+    let what = if units == tiles as u64 {
+        "tiles"
     } else {
-        let units = kiln_render::progress_units(&renderer, tiles.len());
-        let bar = ProgressBar::new(units);
-        // SPPM renders every tile together, an iteration at a time.
-        let what = if units == tiles.len() as u64 {
-            "tiles"
-        } else {
-            "iterations"
-        };
-        bar.set_style(
-            ProgressStyle::with_template(&format!(
-                "{{spinner}} [{{elapsed_precise}}] [{{wide_bar}}] {{pos}}/{{len}} {what} ({{eta}} left)"
-            ))
-            .expect("the template is valid")
-            .progress_chars("=> "),
-        );
-        bar
+        "iterations"
     };
-    let render_start = Instant::now();
-    let results = pool.install(|| render_tiles(&renderer, &tiles, &|| progress.inc(1)));
-    progress.finish_and_clear();
-    let render_time = render_start.elapsed();
-    let mut frame = RgbBuffer::new(film.xresolution, film.yresolution, x0, y0, x1 - x0, y1 - y0)
-        .with_aovs(kiln_render::aov_names(film.gbuffer));
-    let mut stats = TileStats::default();
-    for r in results {
-        stats.merge(&r.stats);
-        let tile =
-            kiln_farm::tile_image(r, (film.xresolution, film.yresolution), renderer.settings());
-        frame.paste(&tile)?;
-    }
-    if let Some(why) = stats.cut_off_error() {
-        bail!("{}: {why}; no image was written", args.scene.display());
-    }
-    kiln_image::write_exr(&output, &frame)
-        .with_context(|| format!("cannot write {}", output.display()))?;
-    if let Some(preview) = &args.preview {
-        kiln_image::write_png(preview, &frame, args.exposure)
-            .with_context(|| format!("cannot write {}", preview.display()))?;
-    }
+    bar.set_style(
+        ProgressStyle::with_template(&format!(
+            "{{spinner}} [{{elapsed_precise}}] [{{wide_bar}}] {{pos}}/{{len}} {what} ({{eta}} left)"
+        ))
+        .expect("the template is valid")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Seconds the whole command, the scene's loading and the rendering took.
+struct Times {
+    total: f64,
+    load: f64,
+    render: f64,
+}
+
+/// The summary after the image is written: samples that were not finite, speed, the mean
+/// colour and what adaptive sampling took.
+fn summarise(
+    output: &std::path::Path,
+    frame: &RgbBuffer,
+    stats: &TileStats,
+    renderer: &Renderer,
+    times: Times,
+) {
     if stats.nonfinite > 0 {
         eprintln!(
             "warning: {} samples had NaN or infinite radiance and were counted as black; first ones (pixel x, y, sample):",
@@ -187,13 +259,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
             eprintln!("  {} {} {}", e.x, e.y, e.sample);
         }
     }
-    let secs = render_time.as_secs_f64().max(1e-9);
+    let secs = times.render;
     let mean = frame.mean();
     eprintln!(
         "kiln: wrote {} in {:.2} s (scene {:.2} s, render {:.2} s): {:.3} M samples/s, {:.3} M rays/s, mean RGB {:.5} {:.5} {:.5}",
         output.display(),
-        start.elapsed().as_secs_f64(),
-        load_time.as_secs_f64(),
+        times.total,
+        times.load,
         secs,
         stats.samples as f64 / secs / 1e6,
         stats.rays as f64 / secs / 1e6,
@@ -207,7 +279,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             kiln_render::Integrator::Sppm(_)
         )
     {
-        let pixels = u64::from(x1 - x0) * u64::from(y1 - y0);
+        let pixels = u64::from(frame.width) * u64::from(frame.height);
         let spp = renderer.settings().samples_per_pixel;
         eprintln!(
             "kiln: adaptive sampling (noise threshold {}, from {} samples): {:.1} samples per pixel on average, of {spp}",
@@ -216,5 +288,4 @@ pub fn run(args: RenderArgs) -> Result<()> {
             stats.samples as f64 / pixels.max(1) as f64,
         );
     }
-    Ok(())
 }

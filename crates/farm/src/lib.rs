@@ -10,20 +10,3 @@ pub mod bundle;
 pub mod client;
 pub mod coordinator;
 pub mod worker;
-
-/// A rendered tile as an image of a `frame`-sized frame, with the further channels (a
-/// G-buffer's) its settings asked for: what a worker uploads and `kiln render` pastes.
-pub fn tile_image(
-    result: kiln_render::TileResult,
-    frame: (u32, u32),
-    settings: &kiln_render::RenderSettings,
-) -> kiln_image::RgbBuffer {
-    let r = result.rect;
-    let mut b = kiln_image::RgbBuffer::new(frame.0, frame.1, r.x0, r.y0, r.width, r.height);
-    b.pixels = result.pixels;
-    b.aovs = kiln_image::Aovs {
-        names: kiln_render::aov_names(settings.gbuffer),
-        values: result.aovs,
-    };
-    b
-}

@@ -432,7 +432,14 @@ async fn render_and_upload(
         if let Some(why) = result.stats.cut_off_error() {
             return Err(why);
         }
-        let mut buffer = crate::tile_image(result, loaded2.frame, renderer.settings());
+        let (t, (frame_width, frame_height)) = (result.rect, loaded2.frame);
+        let aovs = kiln_image::Aovs {
+            names: kiln_render::aov_names(renderer.settings().gbuffer),
+            values: result.aovs,
+        };
+        let mut buffer =
+            kiln_image::RgbBuffer::new(frame_width, frame_height, t.x0, t.y0, t.width, t.height)
+                .holding(result.pixels, aovs);
         if let Some(fault) = fault {
             fault.apply(&mut buffer);
         }

@@ -91,6 +91,16 @@ impl RgbBuffer {
         }
     }
 
+    /// This buffer holding `pixels` (row by row, one per pixel of its window) and the
+    /// further channels `aovs`: a rendered tile as an image, as a worker uploads it and
+    /// `kiln render` pastes it.
+    pub fn holding(mut self, pixels: Vec<[f32; 3]>, aovs: Aovs) -> RgbBuffer {
+        debug_assert_eq!(pixels.len(), self.pixels.len());
+        self.pixels = pixels;
+        self.aovs = aovs;
+        self
+    }
+
     /// This buffer with the further channels `names` (sorted here), all zero.
     pub fn with_aovs<S: Into<String>>(mut self, names: impl IntoIterator<Item = S>) -> RgbBuffer {
         let mut names: Vec<String> = names.into_iter().map(Into::into).collect();
