@@ -1,17 +1,158 @@
-//! pbrt-v4's realistic camera's description: its lens file (interfaces of four numbers, `#`
+//! The Camera directive: its place (the current transform, inverted; moving or still),
+//! projection, screen window, lens and shutter; and pbrt-v4's realistic camera's
+//! description: its lens file (interfaces of four numbers, `#`
 //! comments), aperture stop and focus, and the aperture's shape (pbrt-v4's built-in
 //! diaphragms or an image).
 
 use super::Parser;
-use crate::description::{ApertureImage, RealisticLens};
+use crate::description::{ApertureImage, CameraDesc, Projection, RealisticLens};
 use crate::error::{Loc, Result, SceneError};
 use crate::files;
 use crate::params::ParamSet;
+use std::sync::Arc;
 
 /// The built-in diaphragms are rasterised at this resolution, as pbrt-v4 does.
 const APERTURE_RES: usize = 256;
 
 impl Parser {
+    pub(super) fn camera(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
+        self.require_options(loc, "Camera")?;
+        self.camera_medium = self.medium_id(&self.gs.media.1);
+        let camera_from_world = self.gs.ctm;
+        let camera_to_world = camera_from_world.inverse();
+        // A moving camera (its transform differs at the end of the transform times).
+        let camera_to_world_end = self.moving_end().map(|m| m.inverse());
+        if !camera_to_world.is_finite() || camera_to_world_end.is_some_and(|m| !m.is_finite()) {
+            return Err(SceneError::at(
+                loc,
+                "Camera: the current transform cannot be inverted",
+            ));
+        }
+        self.named_coordinate_systems.insert(
+            "camera".into(),
+            (
+                camera_to_world,
+                camera_to_world_end.unwrap_or(camera_to_world),
+            ),
+        );
+        let projection = self.projection(ty, params, loc)?;
+        let screen_window = self.screen_window(params, loc)?;
+        let lens_radius = params.float("lensradius", 0.0)?;
+        let focal_distance = params.float("focaldistance", 1e6)?;
+        if lens_radius < 0.0 || focal_distance <= 0.0 {
+            return Err(SceneError::at(
+                loc,
+                "Camera: lensradius must be >= 0 and focaldistance > 0",
+            ));
+        }
+        let shutter = [
+            params.float("shutteropen", 0.0)?,
+            params.float("shutterclose", 1.0)?,
+        ];
+        if !(shutter[0].is_finite() && shutter[1].is_finite() && shutter[1] > shutter[0]) {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "Camera: the shutter opens at {} and closes at {}, so it never opens (pbrt-v4 refuses this too)",
+                    shutter[0], shutter[1]
+                ),
+            ));
+        }
+        params.mark_used("frameaspectratio");
+        self.check_unused(params, "Camera", &[])?;
+        self.camera = Some(CameraDesc {
+            projection,
+            camera_to_world,
+            camera_to_world_end,
+            lens_radius,
+            focal_distance,
+            screen_window,
+            shutter,
+            loc: loc.clone(),
+        });
+        Ok(())
+    }
+
+    /// The camera's projection by its type: perspective (with its field of view),
+    /// orthographic, spherical or realistic (a lens system).
+    fn projection(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<Projection> {
+        let projection = match ty {
+            "perspective" => Projection::Perspective {
+                fov_degrees: params.float("fov", 90.0)?,
+            },
+            "orthographic" => Projection::Orthographic,
+            "spherical" => Projection::Spherical {
+                equal_area: match params.string("mapping")?.as_deref().unwrap_or("equalarea") {
+                    "equalarea" => true,
+                    "equirectangular" => false,
+                    other => {
+                        return Err(SceneError::at(
+                            &params.loc_of("mapping").unwrap_or_else(|| loc.clone()),
+                            format!(
+                                "Camera 'spherical': \"mapping\" must be \"equalarea\" or \"equirectangular\", got \"{other}\""
+                            ),
+                        ));
+                    }
+                },
+            },
+            "realistic" => Projection::Realistic(Arc::new(self.realistic_lens(params, loc)?)),
+            other => {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "Camera '{other}' is not supported (Kiln has perspective, orthographic, spherical and realistic)"
+                    ),
+                ));
+            }
+        };
+        if let Projection::Perspective { fov_degrees } = projection
+            && !(fov_degrees > 0.0 && fov_degrees < 180.0)
+        {
+            return Err(SceneError::at(
+                loc,
+                format!("Camera: fov {fov_degrees} is not between 0 and 180 degrees"),
+            ));
+        }
+        Ok(projection)
+    }
+
+    /// The screen window: "screenwindow" as given, or derived from "frameaspectratio" as
+    /// pbrt-v4 derives it where the window is not given (None: from the film's aspect).
+    fn screen_window(&mut self, params: &ParamSet, loc: &Loc) -> Result<Option<[f64; 4]>> {
+        Ok(match params.floats("screenwindow")? {
+            None => match params.loc_of("frameaspectratio") {
+                Some(at) => {
+                    let f = params.float("frameaspectratio", 1.0)?;
+                    if !(f.is_finite() && f > 0.0) {
+                        return Err(SceneError::at(
+                            &at,
+                            format!("Camera: \"frameaspectratio\" must be positive, got {f}"),
+                        ));
+                    }
+                    Some(if f > 1.0 {
+                        [-f, f, -1.0, 1.0]
+                    } else {
+                        [-1.0, 1.0, -1.0 / f, 1.0 / f]
+                    })
+                }
+                None => None,
+            },
+            Some(v) if v.len() == 4 => Some([v[0], v[1], v[2], v[3]]),
+            // pbrt-v4 reports this and renders with the default window (its Error is not
+            // fatal): the image is pbrt-v4's with the default, so Kiln warns and does so too.
+            Some(v) => {
+                self.warn(
+                    &params.loc_of("screenwindow").unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "Camera: \"float screenwindow\" has {} values, not 4; ignored, as pbrt-v4 ignores it (the default window is used)",
+                        v.len()
+                    ),
+                );
+                None
+            }
+        })
+    }
+
     pub(super) fn realistic_lens(&mut self, params: &ParamSet, loc: &Loc) -> Result<RealisticLens> {
         let name = params.string("lensfile")?.ok_or_else(|| {
             SceneError::at(

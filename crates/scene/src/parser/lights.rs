@@ -9,18 +9,22 @@ use crate::files;
 use crate::params::ParamSet;
 use crate::spectrum::SpectrumUse;
 use crate::textures::ColorEncoding;
-use glam::DVec3;
+use glam::{DMat4, DVec3};
 use std::sync::Arc;
 
-impl Parser {
-    pub(super) fn light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
-        let params = &self.with_spectrum_files(params)?;
-        self.require_world(loc, "LightSource")?;
-        self.still_at_start(loc, &format!("LightSource '{ty}'"));
-        let scale = params.float("scale", 1.0)? as f32;
-        let scaled = |rgb: Rgb| rgb.map(|c| c * scale);
-        let ctm = self.gs.ctm;
-        let point = |p: [f64; 3]| ctm.transform_point3(DVec3::from(p));
+/// What every LightSource reads before its type's own parameters: its type, "scale", the
+/// current transform, and pbrt-v4's photometric targets ("power" in lumens, "illuminance"
+/// in lux), each refused on a light that does not take it.
+struct Common<'a> {
+    ty: &'a str,
+    scale: f32,
+    ctm: DMat4,
+    power: Option<f32>,
+    illuminance: Option<f32>,
+}
+
+impl<'a> Common<'a> {
+    fn read(ty: &'a str, params: &ParamSet, ctm: DMat4) -> Result<Common<'a>> {
         // pbrt-v4's photometric targets: the spectrum is normalised to luminance 1 (RGB keeps
         // its values), then "power" (lumens) or "illuminance" (lux) sets the brightness.
         let target = |name: &str, allowed: bool| -> Result<Option<f32>> {
@@ -37,230 +41,52 @@ impl Parser {
             // As pbrt-v4: a value that is not positive leaves the light as given.
             Ok((v > 0.0 && v.is_finite()).then_some(v as f32))
         };
+        let scale = params.float("scale", 1.0)? as f32;
         let power = target(
             "power",
             matches!(ty, "point" | "spot" | "goniometric" | "projection"),
         )?;
         let illuminance = target("illuminance", ty == "distant" || ty == "infinite")?;
+        Ok(Common {
+            ty,
+            scale,
+            ctm,
+            power,
+            illuminance,
+        })
+    }
+
+    fn point(&self, p: [f64; 3]) -> DVec3 {
+        self.ctm.transform_point3(DVec3::from(p))
+    }
+
+    /// The colour parameter `name` (white by default) times "scale" and `k`.
+    fn colour(&self, params: &ParamSet, name: &str, k: f32) -> Result<Rgb> {
+        let rgb = params
+            .rgb(name, SpectrumUse::Illuminant)?
+            .unwrap_or([1.0; 3]);
+        Ok(rgb.map(|c| c * self.scale).map(|c| c * k))
+    }
+}
+
+impl Parser {
+    pub(super) fn light(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
+        let params = &self.with_spectrum_files(params)?;
+        self.require_world(loc, "LightSource")?;
+        self.still_at_start(loc, &format!("LightSource '{ty}'"));
+        let c = Common::read(ty, params, self.gs.ctm)?;
         let kind = match ty {
-            "point" => {
-                // Φ = 4π I.
-                let k = power.map_or(1.0, |phi| phi / (4.0 * std::f32::consts::PI));
-                LightKind::Point {
-                    position: point(params.point3("from", [0.0; 3])?),
-                    intensity: scaled(
-                        params
-                            .rgb("I", SpectrumUse::Illuminant)?
-                            .unwrap_or([1.0; 3]),
-                    )
-                    .map(|c| c * k),
-                }
-            }
-            "spot" => {
-                let from = params.point3("from", [0.0; 3])?;
-                let to = params.point3("to", [0.0, 0.0, 1.0])?;
-                let direction = (point(to) - point(from)).normalize();
-                let cone = params.float("coneangle", 30.0)?;
-                let delta = params.float("conedeltaangle", 5.0)?;
-                let (cos_end, cos_start) = (
-                    libm::cos(cone.to_radians()),
-                    libm::cos((cone - delta).to_radians()),
-                );
-                // Φ = 2π I ((1 − cos start) + (cos start − cos end) / 2), pbrt-v4's k_e.
-                let k = power.map_or(1.0, |phi| {
-                    let k_e = 2.0
-                        * std::f64::consts::PI
-                        * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0);
-                    (f64::from(phi) / k_e) as f32
-                });
-                LightKind::Spot {
-                    position: point(from),
-                    direction,
-                    intensity: scaled(
-                        params
-                            .rgb("I", SpectrumUse::Illuminant)?
-                            .unwrap_or([1.0; 3]),
-                    )
-                    .map(|c| c * k),
-                    cos_falloff_end: cos_end,
-                    cos_falloff_start: cos_start,
-                }
-            }
-            "distant" => {
-                let from = DVec3::from(params.point3("from", [0.0; 3])?);
-                let to = DVec3::from(params.point3("to", [0.0, 0.0, 1.0])?);
-                // E = L on a patch facing the light.
-                let k = illuminance.unwrap_or(1.0);
-                LightKind::Distant {
-                    direction: ctm.transform_vector3(from - to).normalize(),
-                    radiance: scaled(
-                        params
-                            .rgb("L", SpectrumUse::Illuminant)?
-                            .unwrap_or([1.0; 3]),
-                    )
-                    .map(|c| c * k),
-                }
-            }
-            "infinite" if illuminance.is_some() && params.loc_of("filename").is_some() => {
-                return Err(SceneError::at(
-                    loc,
-                    "LightSource 'infinite': \"illuminance\" with an image is not supported yet",
-                ));
-            }
-            "infinite" => {
-                let portal = match params.point3s("portal")? {
-                    None => None,
-                    Some(p) if p.len() == 4 => {
-                        let p: [[f64; 3]; 4] = std::array::from_fn(|i| p[i].map(f64::from));
-                        Some(self.check_portal(p, params, loc))
-                    }
-                    Some(p) => {
-                        return Err(SceneError::at(
-                            &params.loc_of("portal").unwrap_or_else(|| loc.clone()),
-                            format!(
-                                "LightSource 'infinite': a \"portal\" has 4 corners, got {}",
-                                p.len()
-                            ),
-                        ));
-                    }
-                };
-                match params.string("filename")? {
-                    Some(name) => {
-                        if params.loc_of("L").is_some() {
-                            return Err(SceneError::at(
-                                loc,
-                                "LightSource 'infinite': give either \"L\" or \"filename\", not both",
-                            ));
-                        }
-                        let path = self.resolve_file(&name, loc)?;
-                        let image = files::images::read_environment(&path, loc)?;
-                        let layout = if image.width == image.height {
-                            EnvironmentLayout::EqualArea
-                        } else if image.width == 2 * image.height {
-                            EnvironmentLayout::LatLong
-                        } else {
-                            return Err(SceneError::at(
-                                loc,
-                                format!(
-                                    "LightSource 'infinite': '{name}' is {}x{}; Kiln reads square equal-area maps (pbrt-v4) or 2:1 lat-long maps",
-                                    image.width, image.height
-                                ),
-                            ));
-                        };
-                        LightKind::ImageInfinite {
-                            image: Arc::new(image),
-                            layout,
-                            scale,
-                            light_to_world: ctm,
-                            portal,
-                        }
-                    }
-                    // E = π L on an upward-facing patch.
-                    None => {
-                        let radiance = scaled(
-                            params
-                                .rgb("L", SpectrumUse::Illuminant)?
-                                .unwrap_or([1.0; 3]),
-                        )
-                        .map(|c| c * illuminance.map_or(1.0, |e| e / std::f32::consts::PI));
-                        match portal {
-                            None => LightKind::UniformInfinite { radiance },
-                            // As pbrt-v4: a constant image behind the portal.
-                            Some(_) => LightKind::ImageInfinite {
-                                image: Arc::new(kiln_image::ImageRgb {
-                                    width: 1,
-                                    height: 1,
-                                    pixels: vec![radiance],
-                                }),
-                                layout: EnvironmentLayout::EqualArea,
-                                scale: 1.0,
-                                light_to_world: ctm,
-                                portal,
-                            },
-                        }
-                    }
-                }
-            }
-            "goniometric" | "projection" => {
-                let Some(name) = params.string("filename")? else {
-                    return Err(SceneError::at(
-                        loc,
-                        format!("LightSource '{ty}': \"string filename\" (an image) is required"),
-                    ));
-                };
-                let path = self.resolve_file(&name, loc)?;
-                let image = files::images::read_environment(&path, loc)?;
-                if image.pixels.iter().flatten().any(|c| !c.is_finite()) {
-                    return Err(SceneError::at(
-                        loc,
-                        format!(
-                            "LightSource '{ty}': '{name}' has pixels that are not finite numbers"
-                        ),
-                    ));
-                }
-                if ty == "goniometric" {
-                    if image.width != image.height {
-                        return Err(SceneError::at(
-                            loc,
-                            format!(
-                                "LightSource 'goniometric': '{name}' is {}x{}; pbrt-v4 takes a square equal-area image",
-                                image.width, image.height
-                            ),
-                        ));
-                    }
-                    // Φ = 4π · the image's mean (of the mean of RGB), as pbrt-v4's k_e.
-                    let k_e =
-                        4.0 * std::f64::consts::PI * crate::photometry::goniometric_mean(&image);
-                    let k = power.map_or(1.0, |phi| per_unit(phi, k_e));
-                    // pbrt-v4 turns the light's y axis into z.
-                    let swap_yz = glam::DMat4::from_cols(
-                        glam::DVec4::X,
-                        glam::DVec4::Z,
-                        glam::DVec4::Y,
-                        glam::DVec4::W,
-                    );
-                    LightKind::Goniometric {
-                        light_to_world: ctm * swap_yz,
-                        intensity: scaled(
-                            params
-                                .rgb("I", SpectrumUse::Illuminant)?
-                                .unwrap_or([1.0; 3]),
-                        )
-                        .map(|c| c * k),
-                        image: Arc::new(image),
-                    }
-                } else {
-                    let fov = params.float("fov", 90.0)?;
-                    if !(fov > 0.0 && fov < 180.0) {
-                        return Err(SceneError::at(
-                            loc,
-                            format!(
-                                "LightSource 'projection': fov {fov} is not between 0 and 180 degrees"
-                            ),
-                        ));
-                    }
-                    let k = power.map_or(1.0, |phi| {
-                        per_unit(phi, crate::photometry::projection_power(&image, fov))
-                    });
-                    // pbrt-v4 flips the light's y, so the image's top row is its +y.
-                    let flip_y = glam::DMat4::from_scale(DVec3::new(1.0, -1.0, 1.0));
-                    LightKind::Projection {
-                        light_to_world: ctm * flip_y,
-                        scale: scale * k,
-                        fov,
-                        image: Arc::new(image),
-                    }
-                }
-            }
+            "point" => point_light(&c, params)?,
+            "spot" => spot_light(&c, params)?,
+            "distant" => distant_light(&c, params)?,
+            "infinite" => self.infinite_light(&c, params, loc)?,
+            "goniometric" => self.goniometric_light(&c, params, loc)?,
+            "projection" => self.projection_light(&c, params, loc)?,
             "dome" => {
                 let up = DVec3::from(params.point3("up", [0.0, 0.0, 1.0])?);
                 LightKind::Dome {
-                    radiance: scaled(
-                        params
-                            .rgb("L", SpectrumUse::Illuminant)?
-                            .unwrap_or([1.0; 3]),
-                    ),
-                    up: ctm.transform_vector3(up).normalize(),
+                    radiance: c.colour(params, "L", 1.0)?,
+                    up: c.ctm.transform_vector3(up).normalize(),
                 }
             }
             other => {
@@ -280,6 +106,160 @@ impl Parser {
             loc: loc.clone(),
         });
         Ok(())
+    }
+
+    /// `LightSource "infinite"`: a constant sky, or an environment map (equal-area square
+    /// or lat-long), either seen through a portal if it has one.
+    fn infinite_light(&mut self, c: &Common, params: &ParamSet, loc: &Loc) -> Result<LightKind> {
+        if c.illuminance.is_some() && params.loc_of("filename").is_some() {
+            return Err(SceneError::at(
+                loc,
+                "LightSource 'infinite': \"illuminance\" with an image is not supported yet",
+            ));
+        }
+        let portal = match params.point3s("portal")? {
+            None => None,
+            Some(p) if p.len() == 4 => {
+                let p: [[f64; 3]; 4] = std::array::from_fn(|i| p[i].map(f64::from));
+                Some(self.check_portal(p, params, loc))
+            }
+            Some(p) => {
+                return Err(SceneError::at(
+                    &params.loc_of("portal").unwrap_or_else(|| loc.clone()),
+                    format!(
+                        "LightSource 'infinite': a \"portal\" has 4 corners, got {}",
+                        p.len()
+                    ),
+                ));
+            }
+        };
+        let Some(name) = params.string("filename")? else {
+            // E = π L on an upward-facing patch.
+            let k = c.illuminance.map_or(1.0, |e| e / std::f32::consts::PI);
+            let radiance = c.colour(params, "L", k)?;
+            return Ok(match portal {
+                None => LightKind::UniformInfinite { radiance },
+                // As pbrt-v4: a constant image behind the portal.
+                Some(_) => LightKind::ImageInfinite {
+                    image: Arc::new(kiln_image::ImageRgb {
+                        width: 1,
+                        height: 1,
+                        pixels: vec![radiance],
+                    }),
+                    layout: EnvironmentLayout::EqualArea,
+                    scale: 1.0,
+                    light_to_world: c.ctm,
+                    portal,
+                },
+            });
+        };
+        if params.loc_of("L").is_some() {
+            return Err(SceneError::at(
+                loc,
+                "LightSource 'infinite': give either \"L\" or \"filename\", not both",
+            ));
+        }
+        let path = self.resolve_file(&name, loc)?;
+        let image = files::images::read_environment(&path, loc)?;
+        let layout = if image.width == image.height {
+            EnvironmentLayout::EqualArea
+        } else if image.width == 2 * image.height {
+            EnvironmentLayout::LatLong
+        } else {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "LightSource 'infinite': '{name}' is {}x{}; Kiln reads square equal-area maps (pbrt-v4) or 2:1 lat-long maps",
+                    image.width, image.height
+                ),
+            ));
+        };
+        Ok(LightKind::ImageInfinite {
+            image: Arc::new(image),
+            layout,
+            scale: c.scale,
+            light_to_world: c.ctm,
+            portal,
+        })
+    }
+
+    /// The image a goniometric or projection light requires ("string filename"), with its
+    /// name; every pixel finite.
+    fn light_image(
+        &mut self,
+        c: &Common,
+        params: &ParamSet,
+        loc: &Loc,
+    ) -> Result<(String, kiln_image::ImageRgb)> {
+        let ty = c.ty;
+        let Some(name) = params.string("filename")? else {
+            return Err(SceneError::at(
+                loc,
+                format!("LightSource '{ty}': \"string filename\" (an image) is required"),
+            ));
+        };
+        let path = self.resolve_file(&name, loc)?;
+        let image = files::images::read_environment(&path, loc)?;
+        if image.pixels.iter().flatten().any(|c| !c.is_finite()) {
+            return Err(SceneError::at(
+                loc,
+                format!("LightSource '{ty}': '{name}' has pixels that are not finite numbers"),
+            ));
+        }
+        Ok((name, image))
+    }
+
+    /// `LightSource "goniometric"`: a point light whose intensity over directions is a
+    /// square equal-area image.
+    fn goniometric_light(&mut self, c: &Common, params: &ParamSet, loc: &Loc) -> Result<LightKind> {
+        let (name, image) = self.light_image(c, params, loc)?;
+        if image.width != image.height {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "LightSource 'goniometric': '{name}' is {}x{}; pbrt-v4 takes a square equal-area image",
+                    image.width, image.height
+                ),
+            ));
+        }
+        // Φ = 4π · the image's mean (of the mean of RGB), as pbrt-v4's k_e.
+        let k_e = 4.0 * std::f64::consts::PI * crate::photometry::goniometric_mean(&image);
+        let k = c.power.map_or(1.0, |phi| per_unit(phi, k_e));
+        // pbrt-v4 turns the light's y axis into z.
+        let swap_yz = DMat4::from_cols(
+            glam::DVec4::X,
+            glam::DVec4::Z,
+            glam::DVec4::Y,
+            glam::DVec4::W,
+        );
+        Ok(LightKind::Goniometric {
+            light_to_world: c.ctm * swap_yz,
+            intensity: c.colour(params, "I", k)?,
+            image: Arc::new(image),
+        })
+    }
+
+    /// `LightSource "projection"`: an image projected from a point through a field of view.
+    fn projection_light(&mut self, c: &Common, params: &ParamSet, loc: &Loc) -> Result<LightKind> {
+        let (_, image) = self.light_image(c, params, loc)?;
+        let fov = params.float("fov", 90.0)?;
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(SceneError::at(
+                loc,
+                format!("LightSource 'projection': fov {fov} is not between 0 and 180 degrees"),
+            ));
+        }
+        let k = c.power.map_or(1.0, |phi| {
+            per_unit(phi, crate::photometry::projection_power(&image, fov))
+        });
+        // pbrt-v4 flips the light's y, so the image's top row is its +y.
+        let flip_y = DMat4::from_scale(DVec3::new(1.0, -1.0, 1.0));
+        Ok(LightKind::Projection {
+            light_to_world: c.ctm * flip_y,
+            scale: c.scale * k,
+            fov,
+            image: Arc::new(image),
+        })
     }
 
     /// A portal's corners, warned about as pbrt-v4 does if they are not a rectangle (the
@@ -422,6 +402,53 @@ impl Parser {
         }));
         Ok(())
     }
+}
+
+/// `LightSource "point"`: Φ = 4π I.
+fn point_light(c: &Common, params: &ParamSet) -> Result<LightKind> {
+    let k = c
+        .power
+        .map_or(1.0, |phi| phi / (4.0 * std::f32::consts::PI));
+    Ok(LightKind::Point {
+        position: c.point(params.point3("from", [0.0; 3])?),
+        intensity: c.colour(params, "I", k)?,
+    })
+}
+
+/// `LightSource "spot"`: Φ = 2π I ((1 − cos start) + (cos start − cos end) / 2), pbrt-v4's
+/// k_e.
+fn spot_light(c: &Common, params: &ParamSet) -> Result<LightKind> {
+    let from = params.point3("from", [0.0; 3])?;
+    let to = params.point3("to", [0.0, 0.0, 1.0])?;
+    let direction = (c.point(to) - c.point(from)).normalize();
+    let cone = params.float("coneangle", 30.0)?;
+    let delta = params.float("conedeltaangle", 5.0)?;
+    let (cos_end, cos_start) = (
+        libm::cos(cone.to_radians()),
+        libm::cos((cone - delta).to_radians()),
+    );
+    let k = c.power.map_or(1.0, |phi| {
+        let k_e = 2.0 * std::f64::consts::PI * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0);
+        (f64::from(phi) / k_e) as f32
+    });
+    Ok(LightKind::Spot {
+        position: c.point(from),
+        direction,
+        intensity: c.colour(params, "I", k)?,
+        cos_falloff_end: cos_end,
+        cos_falloff_start: cos_start,
+    })
+}
+
+/// `LightSource "distant"`: E = L on a patch facing the light.
+fn distant_light(c: &Common, params: &ParamSet) -> Result<LightKind> {
+    let from = DVec3::from(params.point3("from", [0.0; 3])?);
+    let to = DVec3::from(params.point3("to", [0.0, 0.0, 1.0])?);
+    let k = c.illuminance.unwrap_or(1.0);
+    Ok(LightKind::Distant {
+        direction: c.ctm.transform_vector3(from - to).normalize(),
+        radiance: c.colour(params, "L", k)?,
+    })
 }
 
 /// The scale that makes a light of power `k_e` per unit scale emit `phi` (none where it

@@ -209,10 +209,26 @@ impl Parser {
         loc: &Loc,
     ) -> Result<MaterialId> {
         let params = &self.with_spectrum_files(params)?;
+        let kind = self.material_kind(ty, params, loc)?;
+        params.mark_used("type");
+        let normal = self.normal_perturbation(params, loc)?;
+        self.check_unused(params, &format!("material '{ty}'"), &[])?;
+        let id = MaterialId(self.materials.len() as u32);
+        self.materials.push(MaterialDesc {
+            normal,
+            kind,
+            name,
+            loc: loc.clone(),
+        });
+        Ok(id)
+    }
+
+    /// The material of type `ty` from its parameters.
+    fn material_kind(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<MaterialKind> {
         let reflectance = |default: f32| -> Result<RgbValue> {
             self.rgb_value_or(params, "reflectance", SpectrumUse::Albedo, [default; 3])
         };
-        let kind = match ty {
+        Ok(match ty {
             "diffuse" => MaterialKind::Diffuse {
                 reflectance: reflectance(0.5)?,
             },
@@ -224,118 +240,15 @@ impl Parser {
             "thindielectric" => MaterialKind::ThinDielectric {
                 eta: self.scalar_eta(params, 1.5)?,
             },
-            "conductor" => {
-                let roughness = self.roughness(params)?;
-                match self.rgb_value(params, "reflectance", SpectrumUse::Albedo)? {
-                    Some(reflectance) => MaterialKind::ConductorReflectance {
-                        reflectance,
-                        roughness,
-                    },
-                    None => MaterialKind::Conductor {
-                        eta: self.rgb_value_or(
-                            params,
-                            "eta",
-                            SpectrumUse::Unbounded,
-                            named("metal-Cu-eta"),
-                        )?,
-                        k: self.rgb_value_or(
-                            params,
-                            "k",
-                            SpectrumUse::Unbounded,
-                            named("metal-Cu-k"),
-                        )?,
-                        roughness,
-                        spectra: conductor_spectra(params, "eta", "k"),
-                    },
-                }
-            }
+            "conductor" => self.conductor(params)?,
             "coateddiffuse" => MaterialKind::CoatedDiffuse {
                 reflectance: reflectance(0.5)?,
                 roughness: self.roughness(params)?,
                 eta: self.scalar_eta(params, 1.5)?,
                 layer: self.layer(params)?,
             },
-            "coatedconductor" => {
-                let prefixed =
-                    |p: &str| -> Result<Roughness> { self.prefixed_roughness(params, p) };
-                MaterialKind::CoatedConductor {
-                    interface_roughness: prefixed("interface.")?,
-                    interface_eta: match params.rgb("interface.eta", SpectrumUse::Unbounded)? {
-                        Some(rgb) => rgb[1],
-                        None => 1.5,
-                    },
-                    conductor_eta: self.rgb_value_or(
-                        params,
-                        "conductor.eta",
-                        SpectrumUse::Unbounded,
-                        named("metal-Cu-eta"),
-                    )?,
-                    conductor_k: self.rgb_value_or(
-                        params,
-                        "conductor.k",
-                        SpectrumUse::Unbounded,
-                        named("metal-Cu-k"),
-                    )?,
-                    conductor_spectra: conductor_spectra(params, "conductor.eta", "conductor.k"),
-                    reflectance: self.rgb_value(params, "reflectance", SpectrumUse::Albedo)?,
-                    conductor_roughness: prefixed("conductor.")?,
-                    layer: self.layer(params)?,
-                }
-            }
-            "hair" => {
-                let given = |n: &str| params.loc_of(n).is_some();
-                let absorption = if given("sigma_a") {
-                    HairAbsorption::SigmaA(self.rgb_value_or(
-                        params,
-                        "sigma_a",
-                        SpectrumUse::Unbounded,
-                        [0.0; 3],
-                    )?)
-                } else if given("reflectance") || given("color") {
-                    let name = if given("reflectance") {
-                        "reflectance"
-                    } else {
-                        "color"
-                    };
-                    HairAbsorption::Reflectance(self.rgb_value_or(
-                        params,
-                        name,
-                        SpectrumUse::Albedo,
-                        [0.5; 3],
-                    )?)
-                } else if given("eumelanin") || given("pheomelanin") {
-                    HairAbsorption::Melanin {
-                        eumelanin: self.float_value(params, "eumelanin", 0.0)?,
-                        pheomelanin: self.float_value(params, "pheomelanin", 0.0)?,
-                    }
-                } else {
-                    // pbrt-v4's default: brown hair.
-                    HairAbsorption::Melanin {
-                        eumelanin: FloatValue::Constant(1.3),
-                        pheomelanin: FloatValue::Constant(0.0),
-                    }
-                };
-                // pbrt-v4 ignores the ways not taken (with a warning; Kiln's unused-parameter
-                // check is spared them).
-                for name in [
-                    "sigma_a",
-                    "reflectance",
-                    "color",
-                    "eumelanin",
-                    "pheomelanin",
-                ] {
-                    if given(name) {
-                        params.mark_used(name);
-                    }
-                }
-                MaterialKind::Hair {
-                    absorption,
-                    eta: self.float_value(params, "eta", 1.55)?,
-                    beta_m: self.float_value(params, "beta_m", 0.3)?,
-                    beta_n: self.float_value(params, "beta_n", 0.3)?,
-                    alpha: self.float_value(params, "alpha", 2.0)?,
-                }
-            }
+            "coatedconductor" => self.coated_conductor(params)?,
+            "hair" => self.hair(params)?,
             "diffusetransmission" => MaterialKind::DiffuseTransmission {
                 reflectance: self.rgb_value_or(
                     params,
@@ -351,50 +264,8 @@ impl Parser {
                 )?,
                 scale: params.float("scale", 1.0)? as f32,
             },
-            "measured" => {
-                let Some(name) = params.string("filename")? else {
-                    return Err(SceneError::at(
-                        loc,
-                        "material 'measured' needs \"string filename\" (an RGL .bsdf file)",
-                    ));
-                };
-                let at = params.loc_of("filename").unwrap_or_else(|| loc.clone());
-                let path = self.resolve_file(&name, &at)?;
-                let brdf = match self.measured.get(&path) {
-                    Some(b) => b.clone(),
-                    None => {
-                        let b = Arc::new(crate::files::measured::read_measured(&path, &at)?);
-                        self.measured.insert(path, b.clone());
-                        b
-                    }
-                };
-                MaterialKind::Measured(brdf)
-            }
-            "mix" => {
-                let names = params.strings("materials")?.unwrap_or_default();
-                let at = params.loc_of("materials").unwrap_or_else(|| loc.clone());
-                if names.len() != 2 {
-                    return Err(SceneError::at(
-                        &at,
-                        format!(
-                            "material 'mix' needs two named materials in \"string materials\", got {}",
-                            names.len()
-                        ),
-                    ));
-                }
-                let id = |n: &String| {
-                    self.named_materials.get(n).copied().ok_or_else(|| {
-                        SceneError::at(
-                            &at,
-                            format!("material 'mix': no material named '{n}' is defined before it"),
-                        )
-                    })
-                };
-                MaterialKind::Mix {
-                    materials: [id(&names[0])?, id(&names[1])?],
-                    amount: self.float_value(params, "amount", 0.5)?,
-                }
-            }
+            "measured" => self.measured_material(params, loc)?,
+            "mix" => self.mix(params, loc)?,
             "interface" | "" | "none" => MaterialKind::Interface,
             other => {
                 return Err(SceneError::at(
@@ -404,10 +275,180 @@ impl Parser {
                     ),
                 ));
             }
+        })
+    }
+
+    /// `"conductor"`: a reflectance (an artist's colour), or eta and k (copper's by
+    /// default), spectral where both were given as spectra.
+    fn conductor(&mut self, params: &ParamSet) -> Result<MaterialKind> {
+        let roughness = self.roughness(params)?;
+        Ok(
+            match self.rgb_value(params, "reflectance", SpectrumUse::Albedo)? {
+                Some(reflectance) => MaterialKind::ConductorReflectance {
+                    reflectance,
+                    roughness,
+                },
+                None => MaterialKind::Conductor {
+                    eta: self.rgb_value_or(
+                        params,
+                        "eta",
+                        SpectrumUse::Unbounded,
+                        named("metal-Cu-eta"),
+                    )?,
+                    k: self.rgb_value_or(
+                        params,
+                        "k",
+                        SpectrumUse::Unbounded,
+                        named("metal-Cu-k"),
+                    )?,
+                    roughness,
+                    spectra: conductor_spectra(params, "eta", "k"),
+                },
+            },
+        )
+    }
+
+    /// `"coatedconductor"`: a dielectric interface over a conductor, each with its
+    /// roughness (parameters prefixed "interface." and "conductor.").
+    fn coated_conductor(&mut self, params: &ParamSet) -> Result<MaterialKind> {
+        let prefixed = |p: &str| -> Result<Roughness> { self.prefixed_roughness(params, p) };
+        Ok(MaterialKind::CoatedConductor {
+            interface_roughness: prefixed("interface.")?,
+            interface_eta: match params.rgb("interface.eta", SpectrumUse::Unbounded)? {
+                Some(rgb) => rgb[1],
+                None => 1.5,
+            },
+            conductor_eta: self.rgb_value_or(
+                params,
+                "conductor.eta",
+                SpectrumUse::Unbounded,
+                named("metal-Cu-eta"),
+            )?,
+            conductor_k: self.rgb_value_or(
+                params,
+                "conductor.k",
+                SpectrumUse::Unbounded,
+                named("metal-Cu-k"),
+            )?,
+            conductor_spectra: conductor_spectra(params, "conductor.eta", "conductor.k"),
+            reflectance: self.rgb_value(params, "reflectance", SpectrumUse::Albedo)?,
+            conductor_roughness: prefixed("conductor.")?,
+            layer: self.layer(params)?,
+        })
+    }
+
+    /// `"hair"`: absorption given (in pbrt-v4's order of preference) as sigma_a, as a
+    /// reflectance, or by melanin concentrations, brown hair by default.
+    fn hair(&mut self, params: &ParamSet) -> Result<MaterialKind> {
+        let given = |n: &str| params.loc_of(n).is_some();
+        let absorption = if given("sigma_a") {
+            HairAbsorption::SigmaA(self.rgb_value_or(
+                params,
+                "sigma_a",
+                SpectrumUse::Unbounded,
+                [0.0; 3],
+            )?)
+        } else if given("reflectance") || given("color") {
+            let name = if given("reflectance") {
+                "reflectance"
+            } else {
+                "color"
+            };
+            HairAbsorption::Reflectance(self.rgb_value_or(
+                params,
+                name,
+                SpectrumUse::Albedo,
+                [0.5; 3],
+            )?)
+        } else if given("eumelanin") || given("pheomelanin") {
+            HairAbsorption::Melanin {
+                eumelanin: self.float_value(params, "eumelanin", 0.0)?,
+                pheomelanin: self.float_value(params, "pheomelanin", 0.0)?,
+            }
+        } else {
+            // pbrt-v4's default: brown hair.
+            HairAbsorption::Melanin {
+                eumelanin: FloatValue::Constant(1.3),
+                pheomelanin: FloatValue::Constant(0.0),
+            }
         };
-        params.mark_used("type");
-        // pbrt-v4 reads a normal map's values as they are (linear), and prefers it to a
-        // displacement when a material has both.
+        // pbrt-v4 ignores the ways not taken (with a warning; Kiln's unused-parameter
+        // check is spared them).
+        for name in [
+            "sigma_a",
+            "reflectance",
+            "color",
+            "eumelanin",
+            "pheomelanin",
+        ] {
+            if given(name) {
+                params.mark_used(name);
+            }
+        }
+        Ok(MaterialKind::Hair {
+            absorption,
+            eta: self.float_value(params, "eta", 1.55)?,
+            beta_m: self.float_value(params, "beta_m", 0.3)?,
+            beta_n: self.float_value(params, "beta_n", 0.3)?,
+            alpha: self.float_value(params, "alpha", 2.0)?,
+        })
+    }
+
+    /// `"measured"`: an RGL .bsdf file, read once per scene however many materials use it.
+    fn measured_material(&mut self, params: &ParamSet, loc: &Loc) -> Result<MaterialKind> {
+        let Some(name) = params.string("filename")? else {
+            return Err(SceneError::at(
+                loc,
+                "material 'measured' needs \"string filename\" (an RGL .bsdf file)",
+            ));
+        };
+        let at = params.loc_of("filename").unwrap_or_else(|| loc.clone());
+        let path = self.resolve_file(&name, &at)?;
+        let brdf = match self.measured.get(&path) {
+            Some(b) => b.clone(),
+            None => {
+                let b = Arc::new(crate::files::measured::read_measured(&path, &at)?);
+                self.measured.insert(path, b.clone());
+                b
+            }
+        };
+        Ok(MaterialKind::Measured(brdf))
+    }
+
+    /// `"mix"`: two materials named before it, and the amount of the second.
+    fn mix(&mut self, params: &ParamSet, loc: &Loc) -> Result<MaterialKind> {
+        let names = params.strings("materials")?.unwrap_or_default();
+        let at = params.loc_of("materials").unwrap_or_else(|| loc.clone());
+        if names.len() != 2 {
+            return Err(SceneError::at(
+                &at,
+                format!(
+                    "material 'mix' needs two named materials in \"string materials\", got {}",
+                    names.len()
+                ),
+            ));
+        }
+        let id = |n: &String| {
+            self.named_materials.get(n).copied().ok_or_else(|| {
+                SceneError::at(
+                    &at,
+                    format!("material 'mix': no material named '{n}' is defined before it"),
+                )
+            })
+        };
+        Ok(MaterialKind::Mix {
+            materials: [id(&names[0])?, id(&names[1])?],
+            amount: self.float_value(params, "amount", 0.5)?,
+        })
+    }
+
+    /// A normal map or a bump map by "displacement". pbrt-v4 reads a normal map's values as
+    /// they are (linear), and prefers it to a displacement when a material has both.
+    fn normal_perturbation(
+        &mut self,
+        params: &ParamSet,
+        loc: &Loc,
+    ) -> Result<NormalPerturbationDesc> {
         let normal = match params.string("normalmap")? {
             Some(file) if !file.is_empty() => NormalPerturbationDesc::NormalMap(
                 self.texture_image(&file, ColorEncoding::Linear, loc)?,
@@ -420,15 +461,7 @@ impl Parser {
             },
         };
         params.mark_used("displacement");
-        self.check_unused(params, &format!("material '{ty}'"), &[])?;
-        let id = MaterialId(self.materials.len() as u32);
-        self.materials.push(MaterialDesc {
-            normal,
-            kind,
-            name,
-            loc: loc.clone(),
-        });
-        Ok(id)
+        Ok(normal)
     }
 }
 

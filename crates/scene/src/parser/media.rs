@@ -18,10 +18,36 @@ const CIE_Y_INTEGRAL: f32 = 106.856_895;
 type GridBox = ([f32; 3], [f32; 3]);
 
 /// A medium's coefficients per unit density (`scale` applied) and its phase function.
-struct Coefficients {
-    sigma_a: [f32; 3],
-    sigma_s: [f32; 3],
-    phase: PhaseDesc,
+pub(super) struct Coefficients {
+    pub sigma_a: [f32; 3],
+    pub sigma_s: [f32; 3],
+    pub phase: PhaseDesc,
+}
+
+/// `"homogeneous"`: constant coefficients, and emission Le (times "Lescale").
+fn homogeneous_medium(
+    params: &ParamSet,
+    name: &str,
+    loc: &Loc,
+    c: Coefficients,
+) -> Result<MediumKind> {
+    let le_scale = params.float("Lescale", 1.0)? as f32;
+    let le = params
+        .rgb("Le", SpectrumUse::Illuminant)?
+        .unwrap_or([0.0; 3])
+        .map(|v| v * le_scale);
+    if le.iter().any(|v| *v < 0.0) {
+        return Err(SceneError::at(
+            loc,
+            format!("medium '{name}': Le must not be negative"),
+        ));
+    }
+    Ok(MediumKind::Homogeneous {
+        sigma_a: c.sigma_a,
+        sigma_s: c.sigma_s,
+        le,
+        phase: c.phase,
+    })
 }
 
 impl Parser {
@@ -67,25 +93,16 @@ impl Parser {
             ));
         }
         let kind = match ty.as_str() {
-            "homogeneous" => {
-                let le_scale = params.float("Lescale", 1.0)? as f32;
-                let le = params
-                    .rgb("Le", SpectrumUse::Illuminant)?
-                    .unwrap_or([0.0; 3])
-                    .map(|v| v * le_scale);
-                if le.iter().any(|v| *v < 0.0) {
-                    return Err(SceneError::at(
-                        loc,
-                        format!("medium '{name}': Le must not be negative"),
-                    ));
-                }
-                MediumKind::Homogeneous {
+            "homogeneous" => homogeneous_medium(
+                params,
+                &name,
+                loc,
+                Coefficients {
                     sigma_a,
                     sigma_s,
-                    le,
                     phase,
-                }
-            }
+                },
+            )?,
             "uniformgrid" => MediumKind::Grid(Arc::new(self.grid_medium(
                 params,
                 &name,
@@ -109,39 +126,16 @@ impl Parser {
                     phase,
                 },
             )?,
-            "cloud" => {
-                let box_ = self.medium_box(params, &name, loc, ([0.0; 3], [1.0; 3]))?;
-                let wispiness = params.float("wispiness", 1.0)? as f32;
-                let frequency = params.float("frequency", 5.0)? as f32;
-                let density = params.float("density", 1.0)? as f32;
-                if ![wispiness, frequency, density]
-                    .iter()
-                    .all(|v| v.is_finite())
-                    || density < 0.0
-                {
-                    return Err(SceneError::at(
-                        loc,
-                        format!(
-                            "medium '{name}': density, wispiness and frequency must be finite, density not negative"
-                        ),
-                    ));
-                }
-                MediumKind::Grid(Arc::new(GridMediumDesc {
+            "cloud" => self.cloud_medium(
+                params,
+                &name,
+                loc,
+                Coefficients {
                     sigma_a,
                     sigma_s,
                     phase,
-                    density: GridDensity::Cloud {
-                        density,
-                        wispiness,
-                        frequency,
-                    },
-                    emission: GridEmission::None,
-                    p0: box_.0,
-                    p1: box_.1,
-                    medium_to_world: self.gs.ctm,
-                    lattice: Lattice::Centred,
-                }))
-            }
+                },
+            )?,
             other => {
                 return Err(SceneError::at(
                     loc,
@@ -161,6 +155,47 @@ impl Parser {
         });
         self.named_media.insert(name, id);
         Ok(())
+    }
+
+    /// `"cloud"`: pbrt-v4's procedural cloud (noise-shaped density) over a box.
+    fn cloud_medium(
+        &mut self,
+        params: &ParamSet,
+        name: &str,
+        loc: &Loc,
+        c: Coefficients,
+    ) -> Result<MediumKind> {
+        let box_ = self.medium_box(params, name, loc, ([0.0; 3], [1.0; 3]))?;
+        let wispiness = params.float("wispiness", 1.0)? as f32;
+        let frequency = params.float("frequency", 5.0)? as f32;
+        let density = params.float("density", 1.0)? as f32;
+        if ![wispiness, frequency, density]
+            .iter()
+            .all(|v| v.is_finite())
+            || density < 0.0
+        {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "medium '{name}': density, wispiness and frequency must be finite, density not negative"
+                ),
+            ));
+        }
+        Ok(MediumKind::Grid(Arc::new(GridMediumDesc {
+            sigma_a: c.sigma_a,
+            sigma_s: c.sigma_s,
+            phase: c.phase,
+            density: GridDensity::Cloud {
+                density,
+                wispiness,
+                frequency,
+            },
+            emission: GridEmission::None,
+            p0: box_.0,
+            p1: box_.1,
+            medium_to_world: self.gs.ctm,
+            lattice: Lattice::Centred,
+        })))
     }
 
     /// A grid given inline ("float <name>", nx*ny*nz values) or from a Mitsuba .vol file
@@ -377,7 +412,7 @@ impl Parser {
         Ok((p0, p1))
     }
 
-    fn check_medium_transform(&self, name: &str, loc: &Loc) -> Result<()> {
+    pub(super) fn check_medium_transform(&self, name: &str, loc: &Loc) -> Result<()> {
         let det = self.gs.ctm.determinant();
         if !det.is_finite() || det.abs() < 1e-12 {
             return Err(SceneError::at(
@@ -386,208 +421,6 @@ impl Parser {
             ));
         }
         Ok(())
-    }
-
-    /// pbrt-v4's "nanovdb": a float density grid and an optional temperature grid read from a
-    /// NanoVDB file, looked up trilinearly in the grid's index space over the union of the
-    /// grids' world boxes, as pbrt-v4's `NanoVDBMedium` does. The grids are copied into dense
-    /// arrays over that box (with a sample of margin), so lookups cost what a uniform grid's do.
-    fn nanovdb_medium(
-        &mut self,
-        params: &ParamSet,
-        name: &str,
-        loc: &Loc,
-        c: Coefficients,
-    ) -> Result<MediumKind> {
-        let Coefficients {
-            sigma_a,
-            sigma_s,
-            phase,
-        } = c;
-        use files::nanovdb;
-        let file = params.string("filename")?.ok_or_else(|| {
-            SceneError::at(
-                loc,
-                format!("medium '{name}': a nanovdb medium needs \"string filename\""),
-            )
-        })?;
-        let at = params.loc_of("filename").unwrap_or_else(|| loc.clone());
-        let path = self.resolve_file(&file, &at)?;
-        let bytes = files::read_bytes(&path, &at)?;
-        let fail =
-            |e: String| SceneError::at(&at, format!("NanoVDB file '{}': {e}", path.display()));
-        let density_name = params
-            .string("gridname")?
-            .unwrap_or_else(|| "density".into());
-        let temperature_name = params
-            .string("temperaturename")?
-            .unwrap_or_else(|| "temperature".into());
-        let density = match nanovdb::read_grid(&bytes, &density_name).map_err(fail)? {
-            Some(g) => g,
-            None => {
-                let names = nanovdb::grid_names(&bytes).map_err(fail)?;
-                return Err(fail(format!(
-                    "it has no grid named '{density_name}' (it has {}); name the density grid with \"string gridname\"",
-                    if names.is_empty() {
-                        "none".to_string()
-                    } else {
-                        names.join(", ")
-                    }
-                )));
-            }
-        };
-        let temperature = nanovdb::read_grid(&bytes, &temperature_name).map_err(fail)?;
-        drop(bytes);
-        for g in std::iter::once(&density).chain(&temperature) {
-            if g.class != nanovdb::CLASS_FOG_VOLUME && g.class != nanovdb::CLASS_UNKNOWN {
-                return Err(fail(format!(
-                    "grid '{}' is not a fog volume (NanoVDB class {}); a medium's grids hold densities, as pbrt-v4 requires",
-                    g.name, g.class
-                )));
-            }
-        }
-        if let Some(t) = &temperature
-            && t.map != density.map
-        {
-            return Err(fail(format!(
-                "grids '{}' and '{}' have different index-to-world maps; Kiln needs them to share one",
-                density.name, t.name
-            )));
-        }
-        let le_scale = params.float("Lescale", 1.0)? as f32;
-        let (offset, t_scale) = temperature_mapping(params)?;
-        if ![le_scale, offset, t_scale].iter().all(|v| v.is_finite()) || le_scale < 0.0 {
-            return Err(SceneError::at(
-                loc,
-                format!(
-                    "medium '{name}': Lescale, temperatureoffset and temperaturescale must be finite, Lescale not negative"
-                ),
-            ));
-        }
-        self.check_medium_transform(name, loc)?;
-        // pbrt-v4's bounds: the union of the grids' world boxes, in single precision.
-        let (mut p0, mut p1) = (
-            density.world_bbox.0.map(|v| v as f32),
-            density.world_bbox.1.map(|v| v as f32),
-        );
-        if let Some(t) = &temperature {
-            for a in 0..3 {
-                p0[a] = p0[a].min(t.world_bbox.0[a] as f32);
-                p1[a] = p1[a].max(t.world_bbox.1[a] as f32);
-            }
-        }
-        if (0..3).any(|a| p1[a].partial_cmp(&p0[a]) != Some(std::cmp::Ordering::Greater)) {
-            // No active voxels: pbrt-v4's medium is empty there, and so is this one.
-            self.warn(
-                loc,
-                format!(
-                    "medium '{name}': grid '{}' has no active voxels; the medium is empty",
-                    density.name
-                ),
-            );
-            return Ok(MediumKind::Homogeneous {
-                sigma_a: [0.0; 3],
-                sigma_s: [0.0; 3],
-                le: [0.0; 3],
-                phase,
-            });
-        }
-        // The samples whose trilinear footprint reaches into the box, with one of margin.
-        let map = density.map;
-        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        for c in 0..8 {
-            let corner = [0, 1, 2].map(|a| if c >> a & 1 == 1 { p1[a] } else { p0[a] });
-            let i = map.world_to_index(corner);
-            for a in 0..3 {
-                lo[a] = lo[a].min(i[a]);
-                hi[a] = hi[a].max(i[a]);
-            }
-        }
-        let first = lo.map(|v| v.floor() as i64 - 1);
-        let last = hi.map(|v| v.floor() as i64 + 2);
-        if first
-            .iter()
-            .chain(&last)
-            .any(|v| *v < i32::MIN as i64 || *v > i32::MAX as i64)
-        {
-            return Err(fail(format!(
-                "grid '{}': its box is out of the index range",
-                density.name
-            )));
-        }
-        let first = first.map(|v| v as i32);
-        let dims = [0, 1, 2].map(|a| (last[a] - first[a] as i64 + 1) as usize);
-        let sample = |g: &nanovdb::NanoVdbGrid| -> Result<VoxelGrid> {
-            let values = g.dense(first, dims).map_err(fail)?;
-            Ok(VoxelGrid {
-                nx: dims[0],
-                ny: dims[1],
-                nz: dims[2],
-                values,
-            })
-        };
-        let mut density_grid = sample(&density)?;
-        let mut negative = 0usize;
-        for v in density_grid.values.iter_mut() {
-            if !v.is_finite() {
-                return Err(fail(format!(
-                    "grid '{}' holds a value {v} that is not finite",
-                    density.name
-                )));
-            }
-            if *v < 0.0 {
-                negative += 1;
-                *v = 0.0;
-            }
-        }
-        if negative > 0 {
-            self.warn(
-                loc,
-                format!("medium '{name}': grid '{}' has {negative} negative densities; they are taken as 0", density.name),
-            );
-        }
-        let emission = match &temperature {
-            Some(t) if le_scale > 0.0 => {
-                let grid = sample(t)?;
-                if let Some(v) = grid.values.iter().find(|v| !v.is_finite()) {
-                    return Err(fail(format!(
-                        "grid '{}' holds a value {v} that is not finite",
-                        t.name
-                    )));
-                }
-                GridEmission::Temperature {
-                    temperature: grid,
-                    offset,
-                    t_scale,
-                    scale: None,
-                    le_scale,
-                }
-            }
-            _ => GridEmission::None,
-        };
-        // Unit box -> medium space -> index space (single-precision inverse map, as pbrt-v4
-        // looks up) -> samples.
-        let size = [0, 1, 2].map(|a| p1[a] as f64 - p0[a] as f64);
-        let inv = glam::DMat3::from_cols_array(&map.inv.map(f64::from)).transpose();
-        let box_to_medium = glam::DMat4::from_translation(glam::DVec3::from(p0.map(f64::from)))
-            * glam::DMat4::from_scale(glam::DVec3::from(size));
-        let medium_to_index = glam::DMat4::from_mat3(inv)
-            * glam::DMat4::from_translation(-glam::DVec3::from(map.vec.map(f64::from)));
-        let index_to_samples =
-            glam::DMat4::from_translation(-glam::DVec3::from(first.map(f64::from)));
-        Ok(MediumKind::Grid(Arc::new(GridMediumDesc {
-            sigma_a,
-            sigma_s,
-            phase,
-            density: GridDensity::Scalar(density_grid),
-            emission,
-            p0,
-            p1,
-            medium_to_world: self.gs.ctm,
-            lattice: Lattice::Affine {
-                to_samples: index_to_samples * medium_to_index * box_to_medium,
-            },
-        })))
     }
 
     /// pbrt-v4's "rgbgrid": RGB `sigma_a`, `sigma_s` and `Le` per voxel (nx·ny·nz triples
@@ -702,7 +535,7 @@ impl Parser {
 /// How a grid's temperature becomes a blackbody's, as pbrt-v4 reads it for "uniformgrid" and
 /// "nanovdb": (T - offset) * scale, the offset given as "temperatureoffset" or, under its
 /// older name, "temperaturecutoff".
-fn temperature_mapping(params: &ParamSet) -> Result<(f32, f32)> {
+pub(super) fn temperature_mapping(params: &ParamSet) -> Result<(f32, f32)> {
     let offset = match params.float_opt("temperatureoffset")? {
         Some(v) => v,
         None => params.float("temperaturecutoff", 0.0)?,

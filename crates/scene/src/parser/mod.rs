@@ -16,9 +16,11 @@
 
 mod camera;
 mod cursor;
+mod curves;
 mod lights;
 mod materials;
 mod media;
+mod nanovdb;
 mod options;
 mod shapes;
 mod state;

@@ -2,6 +2,7 @@
 //! from PLY and OBJ files), with the graphics state they are made in.
 
 use super::Parser;
+use super::curves::curve_from_params;
 use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
 use crate::files;
@@ -12,106 +13,12 @@ use std::sync::Arc;
 impl Parser {
     pub(super) fn shape(&mut self, ty: &str, params: &ParamSet, loc: &Loc) -> Result<()> {
         self.require_world(loc, "Shape")?;
-        let mut displacement = None;
-        let kind = match ty {
-            "sphere" => {
-                let radius = params.float("radius", 1.0)?;
-                if !(radius > 0.0 && radius.is_finite()) {
-                    return Err(SceneError::at(loc, "sphere: radius must be positive"));
-                }
-                let (z0, z1) = (
-                    params.float("zmin", -radius)?,
-                    params.float("zmax", radius)?,
-                );
-                // pbrt-v4 orders the two and clamps them to the sphere.
-                ShapeKind::Sphere {
-                    radius,
-                    z_min: z0.min(z1).clamp(-radius, radius),
-                    z_max: z0.max(z1).clamp(-radius, radius),
-                    phi_max: phi_max(params, loc)?,
-                }
-            }
-            "disk" => {
-                let radius = params.float("radius", 1.0)?;
-                let inner_radius = params.float("innerradius", 0.0)?;
-                if !(radius >= 0.0 && inner_radius >= 0.0 && radius.is_finite()) {
-                    return Err(SceneError::at(
-                        loc,
-                        "disk: radius and innerradius must be non-negative",
-                    ));
-                }
-                ShapeKind::Disk {
-                    height: params.float("height", 0.0)?,
-                    radius,
-                    inner_radius,
-                    phi_max: phi_max(params, loc)?,
-                }
-            }
-            "cylinder" => {
-                let radius = params.float("radius", 1.0)?;
-                if !(radius >= 0.0 && radius.is_finite()) {
-                    return Err(SceneError::at(loc, "cylinder: radius must be non-negative"));
-                }
-                let (z0, z1) = (params.float("zmin", -1.0)?, params.float("zmax", 1.0)?);
-                ShapeKind::Cylinder {
-                    radius,
-                    z_min: z0.min(z1),
-                    z_max: z0.max(z1),
-                    phi_max: phi_max(params, loc)?,
-                }
-            }
-            "revolution" => ShapeKind::Revolution(Arc::new(revolution_from_params(params, loc)?)),
-            "curve" => ShapeKind::Curve(Arc::new(curve_from_params(params, loc)?)),
-            "trianglemesh" => ShapeKind::Mesh(Arc::new(mesh_from_params(params, loc)?)),
-            "loopsubdiv" => ShapeKind::Mesh(Arc::new(loop_subdiv_from_params(params, loc)?)),
-            "bilinearmesh" => ShapeKind::Mesh(Arc::new(bilinear_from_params(params, loc)?)),
-            "plymesh" | "objmesh" => {
-                let name = params.string("filename")?.ok_or_else(|| {
-                    SceneError::at(loc, format!("{ty}: \"string filename\" is required"))
-                })?;
-                let path = self.resolve_file(&name, loc)?;
-                let mesh = if ty == "plymesh" {
-                    displacement = self.mesh_displacement(params, loc)?;
-                    let mesh = files::ply::read_ply(&path, loc)?;
-                    if displacement.is_some() && mesh.uvs.is_none() {
-                        return Err(SceneError::at(
-                            loc,
-                            format!(
-                                "plymesh: displacement needs per-vertex uv coordinates, and '{name}' has none (pbrt-v4 requires them too)"
-                            ),
-                        ));
-                    }
-                    mesh
-                } else {
-                    files::obj::read_obj(&path, loc)?
-                };
-                ShapeKind::Mesh(Arc::new(mesh))
-            }
-            other => {
-                return Err(SceneError::at(
-                    loc,
-                    format!(
-                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, loopsubdiv, plymesh, objmesh, sphere, disk, cylinder, curve, and its own revolution)"
-                    ),
-                ));
-            }
-        };
+        let (kind, displacement) = self.shape_kind(ty, params, loc)?;
         let alpha = match self.float_value(params, "alpha", 1.0)? {
             FloatValue::Constant(a) if a >= 1.0 => None,
             a => Some(a),
         };
-        let priority = params.int("priority", 0)?;
-        let priority = u32::try_from(priority)
-            .ok()
-            .filter(|&p| p <= 1_000_000)
-            .ok_or_else(|| {
-                SceneError::at(
-                    &params.loc_of("priority").unwrap_or_else(|| loc.clone()),
-                    format!(
-                        "\"priority\" is {priority}; nested dielectric priorities run from 0 (not nested) to 1000000"
-                    ),
-                )
-            })?;
+        let priority = priority(params, loc)?;
         self.check_unused(params, &format!("Shape '{ty}'"), &["emissionfilename"])?;
         if let ShapeKind::Mesh(mesh) = &kind
             && matches!(
@@ -158,6 +65,130 @@ impl Parser {
         }
         Ok(())
     }
+
+    /// The shape of type `ty` from its parameters (a plymesh with its displacement).
+    fn shape_kind(
+        &mut self,
+        ty: &str,
+        params: &ParamSet,
+        loc: &Loc,
+    ) -> Result<(ShapeKind, Option<MeshDisplacement>)> {
+        let kind = match ty {
+            "sphere" => sphere_from_params(params, loc)?,
+            "disk" => disk_from_params(params, loc)?,
+            "cylinder" => cylinder_from_params(params, loc)?,
+            "revolution" => ShapeKind::Revolution(Arc::new(revolution_from_params(params, loc)?)),
+            "curve" => ShapeKind::Curve(Arc::new(curve_from_params(params, loc)?)),
+            "trianglemesh" => ShapeKind::Mesh(Arc::new(mesh_from_params(params, loc)?)),
+            "loopsubdiv" => ShapeKind::Mesh(Arc::new(loop_subdiv_from_params(params, loc)?)),
+            "bilinearmesh" => ShapeKind::Mesh(Arc::new(bilinear_from_params(params, loc)?)),
+            "plymesh" | "objmesh" => return self.mesh_file(ty, params, loc),
+            other => {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "Shape '{other}' is not supported (Kiln has trianglemesh, bilinearmesh, loopsubdiv, plymesh, objmesh, sphere, disk, cylinder, curve, and its own revolution)"
+                    ),
+                ));
+            }
+        };
+        Ok((kind, None))
+    }
+
+    /// `"plymesh"` or `"objmesh"`: a mesh read from "filename"; a plymesh may be displaced.
+    fn mesh_file(
+        &mut self,
+        ty: &str,
+        params: &ParamSet,
+        loc: &Loc,
+    ) -> Result<(ShapeKind, Option<MeshDisplacement>)> {
+        let name = params
+            .string("filename")?
+            .ok_or_else(|| SceneError::at(loc, format!("{ty}: \"string filename\" is required")))?;
+        let path = self.resolve_file(&name, loc)?;
+        if ty != "plymesh" {
+            let mesh = files::obj::read_obj(&path, loc)?;
+            return Ok((ShapeKind::Mesh(Arc::new(mesh)), None));
+        }
+        let displacement = self.mesh_displacement(params, loc)?;
+        let mesh = files::ply::read_ply(&path, loc)?;
+        if displacement.is_some() && mesh.uvs.is_none() {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "plymesh: displacement needs per-vertex uv coordinates, and '{name}' has none (pbrt-v4 requires them too)"
+                ),
+            ));
+        }
+        Ok((ShapeKind::Mesh(Arc::new(mesh)), displacement))
+    }
+}
+
+/// `"sphere"`: pbrt-v4 orders "zmin" and "zmax" and clamps them to the sphere.
+fn sphere_from_params(params: &ParamSet, loc: &Loc) -> Result<ShapeKind> {
+    let radius = params.float("radius", 1.0)?;
+    if !(radius > 0.0 && radius.is_finite()) {
+        return Err(SceneError::at(loc, "sphere: radius must be positive"));
+    }
+    let (z0, z1) = (
+        params.float("zmin", -radius)?,
+        params.float("zmax", radius)?,
+    );
+    Ok(ShapeKind::Sphere {
+        radius,
+        z_min: z0.min(z1).clamp(-radius, radius),
+        z_max: z0.max(z1).clamp(-radius, radius),
+        phi_max: phi_max(params, loc)?,
+    })
+}
+
+/// `"disk"`: at "height" on z, from "innerradius" to "radius".
+fn disk_from_params(params: &ParamSet, loc: &Loc) -> Result<ShapeKind> {
+    let radius = params.float("radius", 1.0)?;
+    let inner_radius = params.float("innerradius", 0.0)?;
+    if !(radius >= 0.0 && inner_radius >= 0.0 && radius.is_finite()) {
+        return Err(SceneError::at(
+            loc,
+            "disk: radius and innerradius must be non-negative",
+        ));
+    }
+    Ok(ShapeKind::Disk {
+        height: params.float("height", 0.0)?,
+        radius,
+        inner_radius,
+        phi_max: phi_max(params, loc)?,
+    })
+}
+
+/// `"cylinder"`: about z from "zmin" to "zmax" (ordered).
+fn cylinder_from_params(params: &ParamSet, loc: &Loc) -> Result<ShapeKind> {
+    let radius = params.float("radius", 1.0)?;
+    if !(radius >= 0.0 && radius.is_finite()) {
+        return Err(SceneError::at(loc, "cylinder: radius must be non-negative"));
+    }
+    let (z0, z1) = (params.float("zmin", -1.0)?, params.float("zmax", 1.0)?);
+    Ok(ShapeKind::Cylinder {
+        radius,
+        z_min: z0.min(z1),
+        z_max: z0.max(z1),
+        phi_max: phi_max(params, loc)?,
+    })
+}
+
+/// A nested dielectric's "priority": 0 (not nested) to 1000000.
+fn priority(params: &ParamSet, loc: &Loc) -> Result<u32> {
+    let priority = params.int("priority", 0)?;
+    u32::try_from(priority)
+        .ok()
+        .filter(|&p| p <= 1_000_000)
+        .ok_or_else(|| {
+            SceneError::at(
+                &params.loc_of("priority").unwrap_or_else(|| loc.clone()),
+                format!(
+                    "\"priority\" is {priority}; nested dielectric priorities run from 0 (not nested) to 1000000"
+                ),
+            )
+        })
 }
 
 impl Parser {
@@ -189,171 +220,6 @@ impl Parser {
     }
 }
 
-/// pbrt-v4's "curve": control points "P" in the "bezier" or uniform "bspline" basis of
-/// "degree" 2 or 3, all turned into cubic Bézier segments; "width" (or "width0" and
-/// "width1", spread linearly over the segments), "type" flat, cylinder or ribbon (ribbons
-/// need a normal "N" at each segment end), "splitdepth".
-fn curve_from_params(params: &ParamSet, loc: &Loc) -> Result<CurveData> {
-    let at = |name: &str| params.loc_of(name).unwrap_or_else(|| loc.clone());
-    let cp = params
-        .point3s("P")?
-        .ok_or_else(|| SceneError::at(loc, "curve: \"point3 P\" is required"))?;
-    let degree = params.int("degree", 3)?;
-    if degree != 2 && degree != 3 {
-        return Err(SceneError::at(
-            &at("degree"),
-            format!("curve: \"degree\" must be 2 or 3, got {degree}"),
-        ));
-    }
-    let d = degree as usize;
-    let basis = params.string("basis")?.unwrap_or_else(|| "bezier".into());
-    let n = cp.len();
-    let v = |p: [f32; 3]| glam::Vec3::from(p);
-    // Each segment as cubic Bézier control points.
-    let segments: Vec<[glam::Vec3; 4]> = match basis.as_str() {
-        "bezier" => {
-            if n < d + 1 || (n - 1) % d != 0 {
-                return Err(SceneError::at(
-                    &at("P"),
-                    format!(
-                        "curve: {n} control points do not make degree-{d} Bézier segments ({} + k·{d} are needed)",
-                        d + 1
-                    ),
-                ));
-            }
-            (0..(n - 1) / d)
-                .map(|s| {
-                    let p = &cp[s * d..];
-                    if d == 3 {
-                        [v(p[0]), v(p[1]), v(p[2]), v(p[3])]
-                    } else {
-                        elevate([v(p[0]), v(p[1]), v(p[2])])
-                    }
-                })
-                .collect()
-        }
-        "bspline" => {
-            if n < d + 1 {
-                return Err(SceneError::at(
-                    &at("P"),
-                    format!(
-                        "curve: a degree-{d} b-spline needs at least {} control points, got {n}",
-                        d + 1
-                    ),
-                ));
-            }
-            (0..n - d)
-                .map(|s| {
-                    let p = &cp[s..];
-                    if d == 3 {
-                        // The uniform cubic b-spline segment's Bézier points.
-                        let (p0, p1, p2, p3) = (v(p[0]), v(p[1]), v(p[2]), v(p[3]));
-                        let (p01, p12, p23) = (
-                            p0.lerp(p1, 2.0 / 3.0),
-                            p1.lerp(p2, 1.0 / 3.0),
-                            p2.lerp(p3, 1.0 / 3.0),
-                        );
-                        let p012 = p1.lerp(p2, 2.0 / 3.0);
-                        [p01.lerp(p12, 0.5), p12, p012, p012.lerp(p23, 0.5)]
-                    } else {
-                        let (p0, p1, p2) = (v(p[0]), v(p[1]), v(p[2]));
-                        elevate([p0.lerp(p1, 0.5), p1, p1.lerp(p2, 0.5)])
-                    }
-                })
-                .collect()
-        }
-        other => {
-            return Err(SceneError::at(
-                &at("basis"),
-                format!("curve: \"basis\" must be \"bezier\" or \"bspline\", got \"{other}\""),
-            ));
-        }
-    };
-    let width = params.float("width", 1.0)?;
-    let (w0, w1) = (
-        params.float("width0", width)?,
-        params.float("width1", width)?,
-    );
-    if !(w0 >= 0.0 && w1 >= 0.0 && w0.is_finite() && w1.is_finite()) {
-        return Err(SceneError::at(
-            loc,
-            "curve: widths must be non-negative numbers",
-        ));
-    }
-    let count = segments.len();
-    let widths = (0..count)
-        .map(|s| {
-            let f = |k: usize| (w0 + (w1 - w0) * k as f64 / count as f64) as f32;
-            [f(s), f(s + 1)]
-        })
-        .collect();
-    let kind = match params.string("type")?.as_deref().unwrap_or("flat") {
-        "flat" => CurveType::Flat,
-        "cylinder" => CurveType::Cylinder,
-        "ribbon" => CurveType::Ribbon,
-        other => {
-            return Err(SceneError::at(
-                &at("type"),
-                format!("curve: \"type\" must be flat, cylinder or ribbon, got \"{other}\""),
-            ));
-        }
-    };
-    let normals = match (params.point3s("N")?, kind) {
-        (Some(ns), CurveType::Ribbon) => {
-            if ns.len() != count + 1 {
-                return Err(SceneError::at(
-                    &at("N"),
-                    format!(
-                        "curve: a ribbon of {count} segments needs {} normals, got {}",
-                        count + 1,
-                        ns.len()
-                    ),
-                ));
-            }
-            Some((0..count).map(|s| [ns[s], ns[s + 1]]).collect())
-        }
-        (None, CurveType::Ribbon) => {
-            return Err(SceneError::at(
-                loc,
-                "curve: a \"ribbon\" needs normals \"N\" at its segment ends",
-            ));
-        }
-        // pbrt-v4 ignores normals on other types, with a warning.
-        (_, _) => None,
-    };
-    let split_depth = params.int("splitdepth", 3)?;
-    if !(0..=8).contains(&split_depth) {
-        return Err(SceneError::at(
-            &at("splitdepth"),
-            format!("curve: \"splitdepth\" must be 0 to 8, got {split_depth}"),
-        ));
-    }
-    if let Some(i) = segments.iter().flatten().position(|p| !p.is_finite()) {
-        return Err(SceneError::at(
-            &at("P"),
-            format!("curve: control point {i} is not finite"),
-        ));
-    }
-    Ok(CurveData {
-        segments: segments.iter().map(|s| s.map(|p| p.to_array())).collect(),
-        widths,
-        normals,
-        kind,
-        split_depth: split_depth as u32,
-    })
-}
-
-/// The cubic Bézier control points of a quadratic Bézier curve.
-fn elevate(p: [glam::Vec3; 3]) -> [glam::Vec3; 4] {
-    [
-        p[0],
-        p[0].lerp(p[1], 2.0 / 3.0),
-        p[2].lerp(p[1], 2.0 / 3.0),
-        p[2],
-    ]
-}
-
-/// A quadric's "phimax", in degrees, clamped to [0, 360] as pbrt-v4 does, in radians.
 /// Kiln's "revolution": `"point2 contour"` (required: two or more points (r, z), r ≥ 0),
 /// optional `"vector2 normals"` (one per point), `"float creaseangle"` (degrees, 30 by
 /// default) and `"float phimax"`.
@@ -423,6 +289,7 @@ fn revolution_from_params(params: &ParamSet, loc: &Loc) -> Result<RevolutionDesc
     })
 }
 
+/// A quadric's "phimax", in degrees, clamped to [0, 360] as pbrt-v4 does, in radians.
 fn phi_max(params: &ParamSet, loc: &Loc) -> Result<f64> {
     let degrees = params.float("phimax", 360.0)?;
     if degrees.is_nan() {
