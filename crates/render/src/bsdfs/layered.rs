@@ -134,6 +134,25 @@ impl Rng {
     }
 }
 
+/// What every walk of one `f` estimate shares: the interface light leaves by and the other
+/// one, the exit's depth, the direction light leaves along and the exit's sample of it,
+/// and the medium's phase function.
+struct Exits<'a, 'b> {
+    exit: Layer<'a, 'b>,
+    non_exit: Layer<'a, 'b>,
+    exit_z: f32,
+    wi: Vec3A,
+    wis: BsdfSample,
+    phase: Phase,
+}
+
+/// Where a walk is: its throughput, depth in the layer and direction.
+struct Walker {
+    beta: Color,
+    z: f32,
+    w: Vec3A,
+}
+
 impl LayeredBxdf<'_> {
     fn phase(&self) -> Phase {
         Phase::HenyeyGreenstein { g: self.g }
@@ -173,113 +192,147 @@ impl LayeredBxdf<'_> {
             let Some(wis) = exit.sample(wi, rng.f(), rng.u2(), Lobes::Transmission, true) else {
                 continue;
             };
-            let mut beta = wos.f * wos.wi.z.abs() / wos.pdf;
-            let mut z = self.thickness;
-            let mut w = wos.wi;
-            for depth in 0..self.max_depth {
-                if depth > 3 && beta.max_element() < 0.25 {
-                    let q = (1.0 - beta.max_element()).max(0.0);
-                    if rng.f() < q {
-                        break;
-                    }
-                    beta /= 1.0 - q;
-                }
-                if !self.scatters() {
-                    z = if z == self.thickness {
-                        0.0
-                    } else {
-                        self.thickness
-                    };
-                    beta *= tr(self.thickness, w);
-                } else {
-                    let dz = -libm::logf(1.0 - rng.f()) * w.z.abs();
-                    let zp = if w.z > 0.0 { z + dz } else { z - dz };
-                    if zp == z {
-                        continue;
-                    }
-                    if 0.0 < zp && zp < self.thickness {
-                        // Scattering inside the layer: light leaving through the exit
-                        // toward wi, by MIS between the phase function and the exit's
-                        // sampled direction.
-                        let wt = if exit.is_specular() {
-                            1.0
-                        } else {
-                            power_heuristic(wis.pdf, phase.p(-w, -wis.wi))
-                        };
-                        f += beta
-                            * self.albedo
-                            * phase.p(-w, -wis.wi)
-                            * wt
-                            * tr(zp - exit_z, wis.wi)
-                            * wis.f
-                            / wis.pdf;
-                        let (pw, ppdf) = phase.sample(-w, rng.u2());
-                        if ppdf == 0.0 || pw.z == 0.0 {
-                            continue;
-                        }
-                        // Sampled exactly: p / pdf = 1.
-                        beta *= self.albedo;
-                        w = pw;
-                        z = zp;
-                        if ((z < exit_z && w.z > 0.0) || (z > exit_z && w.z < 0.0))
-                            && !exit.is_specular()
-                        {
-                            let f_exit = exit.f(-w, wi, false);
-                            if f_exit != Color::ZERO {
-                                let exit_pdf = exit.pdf(wi, -w, Lobes::Transmission);
-                                let wt = power_heuristic(ppdf, exit_pdf);
-                                f += beta * tr(zp - exit_z, pw) * f_exit * wt;
-                            }
-                        }
-                        continue;
-                    }
-                    z = zp.clamp(0.0, self.thickness);
-                }
-                if z == exit_z {
-                    // Reflection off the exit interface, back into the layer.
-                    let Some(bs) = exit.sample(-w, rng.f(), rng.u2(), Lobes::Reflection, false)
-                    else {
-                        break;
-                    };
-                    beta *= bs.f * bs.wi.z.abs() / bs.pdf;
-                    w = bs.wi;
-                } else {
-                    // At the other interface: light that reflects here and leaves.
-                    if !non_exit.is_specular() {
-                        let wt = if exit.is_specular() {
-                            1.0
-                        } else {
-                            power_heuristic(wis.pdf, non_exit.pdf(-w, -wis.wi, Lobes::All))
-                        };
-                        f += beta
-                            * non_exit.f(-w, -wis.wi, false)
-                            * wis.wi.z.abs()
-                            * wt
-                            * tr(self.thickness, wis.wi)
-                            * wis.f
-                            / wis.pdf;
-                    }
-                    let Some(bs) = non_exit.sample(-w, rng.f(), rng.u2(), Lobes::Reflection, false)
-                    else {
-                        break;
-                    };
-                    beta *= bs.f * bs.wi.z.abs() / bs.pdf;
-                    w = bs.wi;
-                    if !exit.is_specular() {
-                        let f_exit = exit.f(-w, wi, false);
-                        if f_exit != Color::ZERO {
-                            let wt = if non_exit.is_specular() {
-                                1.0
-                            } else {
-                                power_heuristic(bs.pdf, exit.pdf(wi, -w, Lobes::Transmission))
-                            };
-                            f += beta * tr(self.thickness, bs.wi) * f_exit * wt;
-                        }
-                    }
-                }
-            }
+            let exits = Exits {
+                exit,
+                non_exit,
+                exit_z,
+                wi,
+                wis,
+                phase,
+            };
+            self.walk(&exits, &wos, &mut rng, &mut f);
         }
         f / n as f32
+    }
+
+    /// One random walk between the interfaces from the entry sample `wos`, adding to `f`
+    /// the light it carries out through the exit toward `wi`, in the order it meets it.
+    fn walk(&self, x: &Exits, wos: &BsdfSample, rng: &mut Rng, f: &mut Color) {
+        let mut at = Walker {
+            beta: wos.f * wos.wi.z.abs() / wos.pdf,
+            z: self.thickness,
+            w: wos.wi,
+        };
+        for depth in 0..self.max_depth {
+            if depth > 3 && at.beta.max_element() < 0.25 {
+                let q = (1.0 - at.beta.max_element()).max(0.0);
+                if rng.f() < q {
+                    break;
+                }
+                at.beta /= 1.0 - q;
+            }
+            if !self.scatters() {
+                at.z = if at.z == self.thickness {
+                    0.0
+                } else {
+                    self.thickness
+                };
+                at.beta *= tr(self.thickness, at.w);
+            } else {
+                let dz = -libm::logf(1.0 - rng.f()) * at.w.z.abs();
+                let zp = if at.w.z > 0.0 { at.z + dz } else { at.z - dz };
+                if zp == at.z {
+                    continue;
+                }
+                if 0.0 < zp && zp < self.thickness {
+                    self.scatter_inside(x, zp, rng, &mut at, f);
+                    continue;
+                }
+                at.z = zp.clamp(0.0, self.thickness);
+            }
+            let reflected = if at.z == x.exit_z {
+                // Reflection off the exit interface, back into the layer.
+                x.exit
+                    .sample(-at.w, rng.f(), rng.u2(), Lobes::Reflection, false)
+                    .map(|bs| {
+                        at.beta *= bs.f * bs.wi.z.abs() / bs.pdf;
+                        at.w = bs.wi;
+                    })
+            } else {
+                self.reflect_off_non_exit(x, rng, &mut at, f)
+            };
+            if reflected.is_none() {
+                break;
+            }
+        }
+    }
+
+    /// Scattering inside the layer at depth `zp`: light leaving through the exit toward wi,
+    /// by MIS between the phase function and the exit's sampled direction, then the phase
+    /// function's new direction (and, by it, light leaving through the exit).
+    fn scatter_inside(&self, x: &Exits, zp: f32, rng: &mut Rng, at: &mut Walker, f: &mut Color) {
+        let (exit, wis, phase) = (x.exit, &x.wis, x.phase);
+        let wt = if exit.is_specular() {
+            1.0
+        } else {
+            power_heuristic(wis.pdf, phase.p(-at.w, -wis.wi))
+        };
+        *f += at.beta
+            * self.albedo
+            * phase.p(-at.w, -wis.wi)
+            * wt
+            * tr(zp - x.exit_z, wis.wi)
+            * wis.f
+            / wis.pdf;
+        let (pw, ppdf) = phase.sample(-at.w, rng.u2());
+        if ppdf == 0.0 || pw.z == 0.0 {
+            return;
+        }
+        // Sampled exactly: p / pdf = 1.
+        at.beta *= self.albedo;
+        at.w = pw;
+        at.z = zp;
+        if ((at.z < x.exit_z && at.w.z > 0.0) || (at.z > x.exit_z && at.w.z < 0.0))
+            && !exit.is_specular()
+        {
+            let f_exit = exit.f(-at.w, x.wi, false);
+            if f_exit != Color::ZERO {
+                let exit_pdf = exit.pdf(x.wi, -at.w, Lobes::Transmission);
+                let wt = power_heuristic(ppdf, exit_pdf);
+                *f += at.beta * tr(zp - x.exit_z, pw) * f_exit * wt;
+            }
+        }
+    }
+
+    /// At the interface the light does not leave by: light that reflects there and
+    /// leaves, then the walk's reflection off it (None: the walk ends).
+    fn reflect_off_non_exit(
+        &self,
+        x: &Exits,
+        rng: &mut Rng,
+        at: &mut Walker,
+        f: &mut Color,
+    ) -> Option<()> {
+        let (exit, non_exit, wis) = (x.exit, x.non_exit, &x.wis);
+        if !non_exit.is_specular() {
+            let wt = if exit.is_specular() {
+                1.0
+            } else {
+                power_heuristic(wis.pdf, non_exit.pdf(-at.w, -wis.wi, Lobes::All))
+            };
+            *f += at.beta
+                * non_exit.f(-at.w, -wis.wi, false)
+                * wis.wi.z.abs()
+                * wt
+                * tr(self.thickness, wis.wi)
+                * wis.f
+                / wis.pdf;
+        }
+        let bs = non_exit.sample(-at.w, rng.f(), rng.u2(), Lobes::Reflection, false)?;
+        at.beta *= bs.f * bs.wi.z.abs() / bs.pdf;
+        at.w = bs.wi;
+        if !exit.is_specular() {
+            let f_exit = exit.f(-at.w, x.wi, false);
+            if f_exit != Color::ZERO {
+                let wt = if non_exit.is_specular() {
+                    1.0
+                } else {
+                    power_heuristic(bs.pdf, exit.pdf(x.wi, -at.w, Lobes::Transmission))
+                };
+                *f += at.beta * tr(self.thickness, bs.wi) * f_exit * wt;
+            }
+        }
+        Some(())
     }
 
     /// A direction by a random walk through the layers; `f` and `pdf` are those of the

@@ -24,14 +24,13 @@
 //!
 //! [`Light::emit`]: crate::lights::Light::emit
 
+mod flight;
 pub mod map;
 
 pub use map::{Gather, Photon, PhotonMap};
 
 use crate::lights::{EmittedRay, Light, SceneSphere};
 use crate::math::{Color, Frame, Ray, luminance, offset_origin};
-use crate::media::MediumEvent;
-use crate::media::subsurface::Walk;
 use crate::sampling::{AliasTable, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::NO_MEDIUM;
@@ -395,170 +394,5 @@ impl<'a> Shooter<'a> {
                 _ => None,
             },
         }
-    }
-
-    /// Traces photon `index` of `count` for `pass`.
-    fn trace(&self, pass: Pass, index: u64, count: u64, stored: &mut Stored) {
-        let scene = self.scene;
-        let salt = match pass {
-            Pass::Caustic { .. } => 0xc0ff_ee00,
-            Pass::Volume => 0x5ca7_7e12,
-        };
-        let mut rng = TrackingRng::new(index.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ salt);
-        let Some(Launch {
-            light,
-            emitted,
-            mut beta,
-            mut ray,
-        }) = launch(scene, &self.table, self.sphere, count, &mut rng)
-        else {
-            return;
-        };
-        let start = luminance(beta);
-        let mut medium = self.start_medium(light, &emitted);
-        // Events so far, and whether all were specular.
-        let mut events = 0u32;
-        let mut only_specular = true;
-        let mut pass_throughs = 0u32;
-        let mut nesting = crate::nesting::Nesting::default();
-        // The subsurface walk the photon is on (its events do not count in `events`).
-        let mut walk = Walk::default();
-        loop {
-            let found = scene.geometry.intersect(&ray, f32::INFINITY);
-            if let Some(m) = medium {
-                let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-                // Photons carry no medium emission: the lights that are media shoot their own.
-                let med = walk.medium(&scene.media, m);
-                match med.sample_interaction(&ray, t_max, &mut rng, &mut beta, |_| {}) {
-                    MediumEvent::Crossed => {}
-                    // A photon whose walk is cut off is lost (the camera paths report theirs).
-                    MediumEvent::Absorbed | MediumEvent::CutOff => return,
-                    MediumEvent::Scattered(t) => {
-                        let p = ray.at(t);
-                        let photon = Photon {
-                            p,
-                            wi: -ray.dir,
-                            n: Vec3A::ZERO,
-                            power: beta,
-                        };
-                        // Inside a subsurface material the photon walks on, stored nowhere:
-                        // camera paths walk there themselves (and a walk ends a caustic).
-                        let in_walk = scene.is_walk_medium(m);
-                        match pass {
-                            Pass::Caustic { .. } if in_walk => {}
-                            Pass::Caustic { volume } => {
-                                if volume && events > 0 && only_specular {
-                                    stored.volume.push(photon);
-                                }
-                                return;
-                            }
-                            Pass::Volume if events > 0 && !in_walk => stored.volume.push(photon),
-                            Pass::Volume => {}
-                        }
-                        if in_walk {
-                            if !walk.take_event(self.walk_depth) {
-                                return;
-                            }
-                        } else {
-                            events += 1;
-                            if events >= self.max_depth {
-                                return;
-                            }
-                        }
-                        let phase = walk.medium(&scene.media, m).phase();
-                        // Phase functions are sampled exactly: the throughput is unchanged.
-                        let (wi, _) =
-                            phase.sample(-ray.dir, Vec2::new(rng.next_f32(), rng.next_f32()));
-                        only_specular = false;
-                        if !self.survives(&mut beta, start, &mut rng) {
-                            return;
-                        }
-                        ray = ray.spawn(p, wi);
-                        continue;
-                    }
-                }
-            }
-            let Some(mut hit) = found else { return };
-            let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, &nesting, ray.dir) else {
-                // An interface: straight on, into the medium on the other side.
-                let before = medium;
-                if !super::pass_through(
-                    scene,
-                    &hit,
-                    &mut ray,
-                    &mut medium,
-                    &mut nesting,
-                    &mut pass_throughs,
-                ) {
-                    return;
-                }
-                scene.enter_walk(&hit, ray.dir, before, medium, &mut walk);
-                continue;
-            };
-            let specular = bsdf.is_specular();
-            if let Pass::Caustic { .. } = pass
-                && !specular
-            {
-                if events > 0 && only_specular {
-                    // The side the photon arrived on.
-                    let n = if ray.dir.dot(hit.ns) < 0.0 {
-                        hit.ns
-                    } else {
-                        -hit.ns
-                    };
-                    stored.surface.push(Photon {
-                        p: hit.p,
-                        wi: -ray.dir,
-                        n,
-                        power: beta,
-                    });
-                }
-                return;
-            }
-            // Met from inside a subsurface walk, the surface is one of the walk's events.
-            let in_walk = medium.is_some_and(|m| scene.is_walk_medium(m));
-            if in_walk {
-                if !walk.take_event(self.walk_depth) {
-                    return;
-                }
-            } else if events >= self.max_depth {
-                return;
-            }
-            let Some(bounce) = scatter(&bsdf, &hit, ray.dir, &mut rng) else {
-                return;
-            };
-            let wi = bounce.wi;
-            beta *= bounce.weight;
-            if !beta.is_finite() || beta == Color::ZERO {
-                return;
-            }
-            if !in_walk {
-                events += 1;
-            }
-            only_specular &= bounce.specular;
-            if !self.survives(&mut beta, start, &mut rng) {
-                return;
-            }
-            let before = medium;
-            if !nesting.cross(&scene.nested, &hit, ray.dir, wi, &mut medium) {
-                return;
-            }
-            scene.enter_walk(&hit, wi, before, medium, &mut walk);
-            ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
-        }
-    }
-
-    /// Russian roulette after an event: with weight-aware roulette a photon survives with
-    /// probability min(1, throughput / starting power) and carries its power divided by it.
-    fn survives(&self, beta: &mut Color, start: f32, rng: &mut TrackingRng) -> bool {
-        if self.roulette == Roulette::Off {
-            return true;
-        }
-        let q = (luminance(*beta) / start).min(1.0);
-        if q <= 0.0 || rng.next_f32() >= q {
-            return false;
-        }
-        *beta /= q;
-        true
     }
 }

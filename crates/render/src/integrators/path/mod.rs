@@ -1,0 +1,286 @@
+//! The (volumetric) path tracer: next-event estimation with multiple importance sampling,
+//! Russian roulette, free-flight sampling through media, VolumeLight interiors, and the
+//! caustic photon maps' gathers.
+//!
+//! A path is a small state ([`PathState`]) advanced by one step per segment: through the
+//! medium the segment crosses (`medium.rs`), along a VolumeLight's interior
+//! (`interior.rs`), to the surface it reaches ([`surface_emission`], then `surface.rs`) or
+//! off to the lights at infinity ([`escape`]). Each estimator keeps its own part of the
+//! state: the previous vertex for the MIS weights ([`PrevVertex`]), where the ray travels
+//! ([`Travel`]: its medium, the nested shapes it is inside, its subsurface walk), the
+//! VolumeLight interior it is in ([`Interior`]) and the photon maps' gathers ([`Gather`]).
+
+mod gather;
+mod interior;
+mod medium;
+mod surface;
+
+use super::direct::{emission_weight, survives_roulette};
+use super::{PathSettings, Prepass};
+use crate::gbuffer::VisibleSurface;
+use crate::math::{Color, Ray};
+use crate::media::subsurface::Walk;
+use crate::nesting::Nesting;
+use crate::sampling::PixelSampler;
+use crate::scene::Scene;
+use crate::shapes::SurfaceHit;
+use crate::work::Work;
+use gather::Gather;
+use glam::Vec3A;
+use interior::Interior;
+
+/// What a path tracer step needs besides the path.
+pub(super) struct PathContext<'a> {
+    pub scene: &'a Scene,
+    pub settings: &'a PathSettings,
+    pub prepass: &'a Prepass,
+    /// The scale of the camera's pixel footprint for texture filtering.
+    pub footprint: f32,
+}
+
+/// Everything a path carries from one segment to the next: what it has gathered and
+/// carries, how far it has come, and the state each of its estimators owns.
+struct PathState {
+    /// Radiance gathered so far.
+    l: Color,
+    /// Throughput.
+    beta: Color,
+    /// The radiance scaling of refractions so far, which Russian roulette undoes.
+    eta_scale: f32,
+    /// Bounces so far, towards maxdepth. A subsurface walk is one: the refraction that
+    /// entered it counts, and its scatterings and reflections inside do not (see
+    /// [`Travel::walk`]).
+    depth: u32,
+    /// Scattering vertices so far, a walk's included: what the sampler's dimensions,
+    /// the tracking numbers and Russian roulette go by.
+    vertices: u32,
+    prev: PrevVertex,
+    travel: Travel,
+    interior: Interior,
+    gather: Gather,
+    /// For a G-buffer: whether to note the first surface with a BSDF, and what it was.
+    want_visible: bool,
+    visible: Option<VisibleSurface>,
+}
+
+/// What the previous scattering vertex knew, for weighting emission found by BSDF or phase
+/// sampling against light sampling.
+#[derive(Clone, Copy)]
+struct PrevVertex {
+    /// Whether it was the camera or a specular bounce (its emission counts in full).
+    first_or_specular: bool,
+    p: Vec3A,
+    /// Its shading normal (zero in a medium), which the light sampler's choice depends on.
+    n: Vec3A,
+    /// The density it sampled the current direction with.
+    pdf: f32,
+    /// Some bounce so far scattered non-specularly (pbrt-v4's regularize waits for one).
+    any_non_specular: bool,
+}
+
+impl PrevVertex {
+    /// The camera at `origin`.
+    fn camera(origin: Vec3A) -> PrevVertex {
+        PrevVertex {
+            first_or_specular: true,
+            p: origin,
+            n: Vec3A::ZERO,
+            pdf: 0.0,
+            any_non_specular: false,
+        }
+    }
+
+    /// The MIS weight of `light`'s emission met at `x` (normal `n`, zero in a medium) along
+    /// `dir`, which this vertex sampled with density `pdf`.
+    fn emission_weight(
+        &self,
+        ctx: &PathContext,
+        light: u32,
+        pdf: f32,
+        dir: Vec3A,
+        x: Vec3A,
+        n: Vec3A,
+    ) -> f32 {
+        emission_weight(ctx.settings, self.first_or_specular, pdf, || {
+            ctx.scene.light_pdf(light, self.p, self.n, dir, x, n)
+        })
+    }
+}
+
+/// Where the ray travels: the participating medium it is in, the nested dielectric shapes
+/// it is inside, and the subsurface walk it is on.
+struct Travel {
+    medium: Option<u32>,
+    /// Medium segments so far (each gets its own tracking numbers).
+    segments: u32,
+    nesting: Nesting,
+    /// The subsurface walk: its events (scatterings, and reflections off the inside of its
+    /// surface, up to the integrator's `walk_depth`) and its coefficients where they came
+    /// from a texture.
+    walk: Walk,
+    /// Interface surfaces crossed without scattering.
+    pass_throughs: u32,
+}
+
+impl Travel {
+    /// Whether the ray is inside a subsurface material's interior.
+    fn in_walk(&self, scene: &Scene) -> bool {
+        self.medium.is_some_and(|m| scene.is_walk_medium(m))
+    }
+
+    /// Crosses `hit` straight on (an interface): false when the path should end.
+    fn pass_through(&mut self, scene: &Scene, hit: &SurfaceHit, ray: &mut Ray) -> bool {
+        let before = self.medium;
+        if !super::pass_through(
+            scene,
+            hit,
+            ray,
+            &mut self.medium,
+            &mut self.nesting,
+            &mut self.pass_throughs,
+        ) {
+            return false;
+        }
+        scene.enter_walk(hit, ray.dir, before, self.medium, &mut self.walk);
+        true
+    }
+
+    /// Leaves `hit`, reached along `dir`, along `wi`: into (or out of) a nested shape or
+    /// the medium on that side, and a walk's interior. False when the path should end.
+    fn scatter(&mut self, scene: &Scene, hit: &SurfaceHit, dir: Vec3A, wi: Vec3A) -> bool {
+        let before = self.medium;
+        if !self
+            .nesting
+            .cross(&scene.nested, hit, dir, wi, &mut self.medium)
+        {
+            return false;
+        }
+        scene.enter_walk(hit, wi, before, self.medium, &mut self.walk);
+        true
+    }
+}
+
+impl PathState {
+    /// Russian roulette after a scattering event: the path goes on, or stops.
+    fn roulette(&mut self, settings: &PathSettings, sampler: &mut PixelSampler) -> Next {
+        if survives_roulette(
+            &mut self.beta,
+            self.eta_scale,
+            self.vertices,
+            settings,
+            sampler,
+        ) {
+            Next::Continue
+        } else {
+            Next::Stop
+        }
+    }
+}
+
+/// What the path does after a step.
+enum Next {
+    /// Trace the next segment.
+    Continue,
+    /// Go on to the surface the segment reached.
+    Surface,
+    /// The path ends.
+    Stop,
+}
+
+/// Radiance arriving along `ray`; `work` counts what it cost.
+pub(super) fn path_li(
+    ctx: &PathContext,
+    mut ray: Ray,
+    sampler: &mut PixelSampler,
+    work: &mut Work,
+    visible: Option<&mut Option<VisibleSurface>>,
+) -> Color {
+    let mut state = PathState {
+        l: Color::ZERO,
+        beta: Color::ONE,
+        eta_scale: 1.0,
+        depth: 0,
+        vertices: 0,
+        prev: PrevVertex::camera(ray.origin),
+        travel: Travel {
+            medium: ctx.scene.camera_medium,
+            segments: 0,
+            nesting: Nesting::default(),
+            walk: Walk::default(),
+            pass_throughs: 0,
+        },
+        interior: Interior::default(),
+        gather: Gather::default(),
+        want_visible: visible.is_some(),
+        visible: None,
+    };
+    loop {
+        work.rays += 1;
+        let found = ctx.scene.geometry.intersect(&ray, f32::INFINITY);
+        if state.travel.medium.is_some() {
+            match medium::medium_step(ctx, &mut state, &mut ray, found.as_ref(), sampler, work) {
+                Next::Continue => continue,
+                Next::Stop => break,
+                Next::Surface => {}
+            }
+        }
+        state.interior_segment(ctx.scene, &ray, found.as_ref());
+        let Some(hit) = found else {
+            escape(ctx, &mut state, &ray);
+            break;
+        };
+        surface_emission(ctx, &mut state, &ray, &hit, work);
+        match surface::surface_step(ctx, &mut state, &mut ray, &hit, sampler, work) {
+            Next::Continue | Next::Surface => {}
+            Next::Stop => break,
+        }
+    }
+    if let Some(out) = visible {
+        *out = state.visible;
+    }
+    state.l
+}
+
+/// A ray that left the scene: the lights at infinity.
+fn escape(ctx: &PathContext, state: &mut PathState, ray: &Ray) {
+    let scene = ctx.scene;
+    // The caustic photons of the lights at infinity counted this path's light.
+    if state.gather.after_caustic_gather() {
+        return;
+    }
+    for &i in &scene.infinite_lights {
+        let le = scene.lights[i as usize].infinite_le(ray.origin, ray.dir);
+        if le != Color::ZERO {
+            let prev = &state.prev;
+            let w = prev.emission_weight(ctx, i, prev.pdf, ray.dir, Vec3A::ZERO, Vec3A::ZERO);
+            state.l += state.beta * le * w;
+        }
+    }
+}
+
+/// Emission of the light whose surface the ray reached, weighted against light sampling.
+fn surface_emission(
+    ctx: &PathContext,
+    state: &mut PathState,
+    ray: &Ray,
+    hit: &SurfaceHit,
+    work: &mut Work,
+) {
+    let scene = ctx.scene;
+    let Some(light_id) = hit.light else {
+        return;
+    };
+    let light = &scene.lights[light_id as usize];
+    // Reached through specular bounces from a vertex that gathered caustic photons: the
+    // photon map has already counted it (every light shoots photons).
+    if state.gather.after_caustic_gather() {
+        return;
+    }
+    let (le, traced) = light.le(&scene.light_context(), hit.p, hit.ng, hit.ns, -ray.dir);
+    work.rays += traced;
+    if le != Color::ZERO {
+        let prev = &state.prev;
+        let w = prev.emission_weight(ctx, light_id, prev.pdf, ray.dir, hit.p, hit.ng);
+        state.l += state.beta * le * w;
+    }
+}

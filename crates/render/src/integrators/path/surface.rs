@@ -1,0 +1,152 @@
+//! A path at the surface it reached: straight on through an interface, or a scattering
+//! vertex (the caustic photons' gather, a light sample, the next direction by BSDF
+//! sampling), with the first one noted for a G-buffer.
+
+use super::super::direct::{Vertex, sample_direct};
+use super::super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
+use super::{Next, PathContext, PathState};
+use crate::bsdfs::Bsdf;
+use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
+use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::sampling::PixelSampler;
+use crate::shapes::SurfaceHit;
+use crate::work::Work;
+use glam::Vec3A;
+use kiln_scene::LightStrategy;
+
+/// Scattering at a surface: caustic photons, a light sample, and the next direction by
+/// BSDF sampling; or straight on through an interface.
+pub(super) fn surface_step(
+    ctx: &PathContext,
+    state: &mut PathState,
+    ray: &mut Ray,
+    hit: &SurfaceHit,
+    sampler: &mut PixelSampler,
+    work: &mut Work,
+) -> Next {
+    let (scene, settings) = (ctx.scene, ctx.settings);
+    // Shading may perturb the normal (bump and normal maps): shade a copy of the hit.
+    let hit = &mut hit.clone();
+    let Some(mut bsdf) = scene.bsdf_nested(hit, ctx.footprint, &state.travel.nesting, ray.dir)
+    else {
+        // An interface: continue straight through without counting a bounce.
+        if !state.travel.pass_through(scene, hit, ray) {
+            return Next::Stop;
+        }
+        return Next::Continue;
+    };
+    if state.gather.ending {
+        return Next::Stop;
+    }
+    if state.depth == 0 && state.want_visible {
+        state.visible = Some(visible_surface(hit, &bsdf, -ray.dir));
+    }
+    // Met from inside a subsurface walk, the surface is one of the walk's events.
+    let in_walk = state.travel.in_walk(scene);
+    if (state.depth == settings.max_depth && !in_walk) || bsdf.is_black() {
+        return Next::Stop;
+    }
+    if settings.regularize && state.prev.any_non_specular {
+        bsdf.regularize();
+    }
+    if in_walk {
+        if !state.travel.walk.take_event(settings.walk_depth) {
+            return Next::Stop;
+        }
+    } else {
+        state.depth += 1;
+    }
+    state.vertices += 1;
+    scatter(ctx, state, ray, hit, &bsdf, sampler, work)
+}
+
+/// A scattering vertex at `hit` with `bsdf`: the caustic photons' gather, a light sample,
+/// and the next direction by BSDF sampling.
+fn scatter(
+    ctx: &PathContext,
+    state: &mut PathState,
+    ray: &mut Ray,
+    hit: &SurfaceHit,
+    bsdf: &Bsdf,
+    sampler: &mut PixelSampler,
+    work: &mut Work,
+) -> Next {
+    let (scene, settings) = (ctx.scene, ctx.settings);
+    let frame = Frame::new(hit.ns, hit.dpdu);
+    let wo = frame.to_local(-ray.dir);
+    if let Some(gathered) = state
+        .gather
+        .at_surface(ctx, hit, bsdf, &frame, ray.dir, state.beta)
+    {
+        state.l += gathered;
+    }
+    let base = CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * (state.vertices - 1);
+    sampler.set_dimension(base);
+    if !bsdf.is_specular()
+        && settings.strategy != LightStrategy::BsdfOnly
+        && !scene.light_sampler.is_empty()
+    {
+        let v = Vertex {
+            p: hit.p,
+            surface: Some(hit),
+            medium: state.travel.medium,
+            time: ray.time,
+            last: state.depth == settings.max_depth,
+        };
+        let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
+        let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
+        state.l += state.beta * sample_direct(scene, settings, &v, f, pdf, sampler, work);
+    }
+    sampler.set_dimension(base + 3);
+    let uc = sampler.get_1d();
+    let u = sampler.get_2d();
+    let Some(bs) = bsdf.sample(wo, uc, u) else {
+        return Next::Stop;
+    };
+    let wi = frame.to_world(bs.wi);
+    state.beta *= bs.f * wi.dot(hit.ns).abs() / bs.pdf;
+    if !state.beta.is_finite() || state.beta == Color::ZERO {
+        return Next::Stop;
+    }
+    state.prev.first_or_specular = bs.specular;
+    state.prev.any_non_specular |= !bs.specular;
+    state.prev.pdf = bs.pdf;
+    state.prev.p = hit.p;
+    state.prev.n = hit.ns;
+    if bs.eta != 1.0 {
+        state.eta_scale *= bs.eta * bs.eta;
+    }
+    if !state.travel.scatter(scene, hit, ray.dir, wi) {
+        return Next::Stop;
+    }
+    *ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+    state.interior.crossed(hit.surface.volume, hit.ng, wi);
+    state.roulette(settings, sampler)
+}
+
+/// The first surface a camera ray reached, for a G-buffer: its normals turned toward the
+/// camera and its reflectance toward it estimated as pbrt-v4 does, from fixed BSDF samples.
+fn visible_surface(hit: &SurfaceHit, bsdf: &Bsdf, toward_camera: Vec3A) -> VisibleSurface {
+    let frame = Frame::new(hit.ns, hit.dpdu);
+    let wo = frame.to_local(toward_camera);
+    let mut albedo = Color::ZERO;
+    for i in 0..RHO_SAMPLES {
+        let (uc, u) = rho_sample(i);
+        if let Some(bs) = bsdf.sample(wo, uc, u)
+            && bs.pdf > 0.0
+        {
+            albedo += bs.f * bs.wi.z.abs() / bs.pdf;
+        }
+    }
+    // Both normals face the camera, as pbrt-v4's VisibleSurface turns them.
+    let facing = |n: Vec3A| if n.dot(toward_camera) < 0.0 { -n } else { n };
+    VisibleSurface {
+        p: hit.p,
+        ng: facing(hit.ng),
+        ns: facing(hit.ns),
+        uv: hit.uv,
+        albedo: albedo / RHO_SAMPLES as f32,
+        dpdx: Vec3A::ZERO,
+        dpdy: Vec3A::ZERO,
+    }
+}
