@@ -198,7 +198,7 @@ impl Coordinator {
                 (state.store.tiles(id, total)?, state.store.verified(id)?)
             };
             job.restore(kept);
-            job.verified = verified;
+            job.verification.verified = verified;
             // The last complete pass is merged again: the coordinator may have stopped
             // before writing it. (A job that ended keeps its result as it is.)
             let merge = (job.state == JobState::Running)

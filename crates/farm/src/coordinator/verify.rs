@@ -8,10 +8,10 @@
 //! what they rendered unchecked). Which passes are checked is a function of the tile and
 //! the pass alone, so it is the same at every restart.
 //!
-//! Plain state, like `job.rs`: no I/O, no clock, no lock.
+//! Plain state, like `job/`: no I/O, no clock, no lock.
 
 use kiln_image::RgbBuffer;
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 
 /// The most renders of one tile pass kept while no two agree; past it, the attempt fails.
 pub const MAX_CANDIDATES: usize = 4;
@@ -135,6 +135,82 @@ impl Checks {
     /// Forgets the renders of `tile` (it starts again).
     pub fn forget_tile(&mut self, tile: usize) {
         self.pending.remove(&tile);
+    }
+}
+
+/// A job's verification: the fraction of its tile passes rendered twice, the renders held
+/// until a second agrees, whose unchecked renders each tile's sums hold, and how many tile
+/// passes were kept after two workers agreed.
+#[derive(Debug, Default)]
+pub(super) struct Verification {
+    fraction: f64,
+    checks: Checks,
+    /// Per tile: the workers whose renders, not compared with another's, its sums hold.
+    unchecked_by: Vec<BTreeSet<String>>,
+    /// Tile passes kept after two workers agreed on them.
+    pub verified: u64,
+}
+
+impl Verification {
+    /// Checks `fraction` of the tile passes of a job of `tiles` tiles.
+    pub fn new(fraction: f64, tiles: usize) -> Verification {
+        Verification {
+            fraction,
+            checks: Checks::default(),
+            unchecked_by: vec![BTreeSet::new(); tiles],
+            verified: 0,
+        }
+    }
+
+    /// Whether `tile`'s pass `pass` is rendered twice and compared before it is kept.
+    pub fn is_checked(&self, tile: usize, pass: u32) -> bool {
+        is_checked(self.fraction, tile, pass)
+    }
+
+    /// Whether `worker` rendered `tile`'s checked pass `pass` already.
+    pub fn has_rendered(&self, tile: usize, pass: u32, worker: &str) -> bool {
+        self.checks.has_rendered(tile, pass, worker)
+    }
+
+    /// The workers whose unchecked renders `tile`'s sums hold.
+    pub fn unchecked_by(&self, tile: usize) -> &BTreeSet<String> {
+        &self.unchecked_by[tile]
+    }
+
+    /// Records whose unchecked renders `tile`'s sums now hold.
+    pub fn set_unchecked_by(&mut self, tile: usize, workers: BTreeSet<String>) {
+        self.unchecked_by[tile] = workers;
+    }
+
+    /// Judges a render of `tile`'s checked pass `pass` (counting a pass kept).
+    pub fn judge(&mut self, tile: usize, pass: u32, render: Candidate) -> Verdict {
+        let verdict = self.checks.judge(tile, pass, render);
+        if let Verdict::Keep { .. } = verdict {
+            self.verified += 1;
+        }
+        verdict
+    }
+
+    /// The tiles whose sums hold `worker`'s unchecked renders.
+    pub fn tiles_unchecked_by(&self, worker: &str) -> Vec<usize> {
+        (0..self.unchecked_by.len())
+            .filter(|&t| self.unchecked_by[t].contains(worker))
+            .collect()
+    }
+
+    /// Forgets the renders of checked passes `worker` gave (it was set aside).
+    pub fn forget_worker(&mut self, worker: &str) {
+        self.checks.forget_worker(worker);
+    }
+
+    /// Forgets the renders held for `tile` (it starts again).
+    pub fn forget_tile(&mut self, tile: usize) {
+        self.checks.forget_tile(tile);
+    }
+
+    /// How many tile passes have renders waiting for a second worker's.
+    pub fn held(&self) -> usize {
+        self.checks.held()
     }
 }
 

@@ -53,6 +53,23 @@ impl Delivery {
     }
 }
 
+/// A job's webhook: where its call stands, and how often the job was made to run again
+/// after it ended (extended, or reopened): a call announcing an earlier end must not count
+/// for the next.
+#[derive(Debug, Clone, Default)]
+pub(super) struct WebhookState {
+    pub delivery: Delivery,
+    pub round: u64,
+}
+
+impl WebhookState {
+    /// The job runs again: its next end is announced by a round of its own.
+    pub fn run_again(&mut self) {
+        self.delivery = Delivery::Waiting;
+        self.round += 1;
+    }
+}
+
 /// Checks a webhook URL when a job is created: http or https, with a host.
 pub fn check_url(url: &str) -> Result<(), String> {
     let parsed = reqwest::Url::parse(url).map_err(|e| format!("webhook '{url}': {e}"))?;
@@ -74,7 +91,7 @@ impl Coordinator {
                 let Some(url) = job.spec.webhook.clone() else {
                     continue;
                 };
-                if job.state == JobState::Running || job.webhook != Delivery::Waiting {
+                if job.state == JobState::Running || job.webhook.delivery != Delivery::Waiting {
                     continue;
                 }
                 // Answered, or given up on, before a restart: done.
@@ -83,11 +100,11 @@ impl Coordinator {
                     .webhook(job.id)
                     .unwrap_or(WebhookOutcome::Pending);
                 if outcome != WebhookOutcome::Pending {
-                    job.webhook = Delivery::Recorded(outcome);
+                    job.webhook.delivery = Delivery::Recorded(outcome);
                     continue;
                 }
-                job.webhook = Delivery::Calling;
-                due.push((job.id, url, job.webhook_round));
+                job.webhook.delivery = Delivery::Calling;
+                due.push((job.id, url, job.webhook.round));
             }
             due
         };
@@ -106,13 +123,13 @@ impl Coordinator {
         let Some(job) = state.jobs.get_mut(&id) else {
             return false;
         };
-        if job.webhook_round != round {
+        if job.webhook.round != round {
             return false;
         }
         if let Err(e) = state.store.set_webhook(id, outcome) {
             tracing::warn!("job {id}: cannot record its webhook's outcome: {e}");
         }
-        job.webhook = delivery;
+        job.webhook.delivery = delivery;
         true
     }
 
@@ -121,7 +138,7 @@ impl Coordinator {
         self.lock()
             .jobs
             .get(&id)
-            .is_some_and(|j| j.webhook_round == round)
+            .is_some_and(|j| j.webhook.round == round)
     }
 
     async fn deliver(&self, id: u64, url: String, round: u64) {

@@ -1,0 +1,124 @@
+//! Lending a job's tiles: how many passes each tile has done, which lease renders its next,
+//! the queue of tiles to lend next, the tiles parked two passes ahead of the slowest, and
+//! the failed attempts. Tiles run at most one pass ahead of the slowest: every tile's pass
+//! p is lent before any tile's pass p + 2.
+
+use std::collections::VecDeque;
+
+pub(super) struct Lending {
+    /// Per tile: how many passes it has done.
+    pub done: Vec<u32>,
+    /// Per tile: the lease rendering its next pass.
+    pub lent: Vec<Option<u64>>,
+    /// Tiles whose next pass may be lent, in order; a tile may sit here after it stopped
+    /// being lendable (lending checks), so lending never scans the whole job.
+    queue: VecDeque<usize>,
+    /// Tiles two passes ahead of the slowest, waiting for it.
+    parked: Vec<usize>,
+    /// Failed attempts at each tile's current pass.
+    attempts: Vec<u32>,
+    pub failures: u32,
+}
+
+impl Lending {
+    /// `tiles` tiles, none started, all queued.
+    pub fn new(tiles: usize) -> Lending {
+        Lending {
+            done: vec![0; tiles],
+            lent: vec![None; tiles],
+            queue: (0..tiles).collect(),
+            parked: Vec::new(),
+            attempts: vec![0; tiles],
+            failures: 0,
+        }
+    }
+
+    /// The pass the slowest tile is on: every tile has done this many passes.
+    pub fn frontier(&self) -> u32 {
+        self.done.iter().copied().min().unwrap_or(0)
+    }
+
+    /// The next tile to lend, taken off the queue, of a job of `passes` passes; tiles
+    /// `skip` says are not for this worker (a checked pass it has rendered already) stay
+    /// queued, at the front.
+    pub fn next(&mut self, passes: usize, skip: impl Fn(usize, u32) -> bool) -> Option<usize> {
+        let frontier = self.frontier();
+        let mut not_for_this_one = Vec::new();
+        let found = loop {
+            let Some(t) = self.queue.pop_front() else {
+                break None;
+            };
+            let d = self.done[t];
+            if self.lent[t].is_some() || d as usize >= passes {
+                continue;
+            }
+            if d > frontier + 1 {
+                self.parked.push(t);
+                continue;
+            }
+            if skip(t, d) {
+                not_for_this_one.push(t);
+                continue;
+            }
+            break Some(t);
+        };
+        for t in not_for_this_one.into_iter().rev() {
+            self.queue.push_front(t);
+        }
+        found
+    }
+
+    /// `tile` is not lent any more and goes to the front of the queue (a job finishes
+    /// sooner without stragglers).
+    pub fn give_back(&mut self, tile: usize) {
+        self.lent[tile] = None;
+        self.queue.push_front(tile);
+    }
+
+    /// `lease` ended without a result: if it still holds `tile`, the tile is given back.
+    pub fn lease_lost(&mut self, tile: usize, lease: u64) {
+        if self.lent[tile] == Some(lease) {
+            self.give_back(tile);
+        }
+    }
+
+    /// An attempt at `tile` failed: it is given back; returns its failed attempts at this
+    /// pass.
+    pub fn attempt_failed(&mut self, tile: usize) -> u32 {
+        self.failures += 1;
+        self.attempts[tile] += 1;
+        self.give_back(tile);
+        self.attempts[tile]
+    }
+
+    /// `tile` did its pass: it moves on, and back to the end of the queue unless that was
+    /// the last of the job's `passes`.
+    pub fn advance(&mut self, tile: usize, passes: usize) {
+        self.done[tile] += 1;
+        self.attempts[tile] = 0;
+        self.lent[tile] = None;
+        if (self.done[tile] as usize) < passes {
+            self.queue.push_back(tile);
+        }
+    }
+
+    /// The slowest tile moved on: the tiles waiting for it may go on.
+    pub fn release_parked(&mut self) {
+        self.queue.extend(self.parked.drain(..));
+    }
+
+    /// Every tile with passes left and no lease queued afresh, in order (after `lent` was
+    /// reset, for a restore, or with more passes).
+    pub fn requeue(&mut self, passes: usize) {
+        self.queue = (0..self.done.len())
+            .filter(|&i| (self.done[i] as usize) < passes && self.lent[i].is_none())
+            .collect();
+    }
+
+    /// No tile lent, none parked, every unfinished tile queued: as after a restart.
+    pub fn reset(&mut self, passes: usize) {
+        self.lent = vec![None; self.done.len()];
+        self.parked.clear();
+        self.requeue(passes);
+    }
+}

@@ -1,0 +1,553 @@
+//! One job in memory: its tiles and passes, what became of each tile (how many passes it
+//! has done, which lease renders its next), the queue of tiles to lend next, attempts and
+//! failures, the frames the finished tiles are pasted into, and the progress it reports.
+//!
+//! A job renders its frame in passes (cumulative samples per pixel, one pass by default).
+//! A tile's pass continues the running sums its previous pass left (carried in the tile's
+//! EXR as integer channels), so each pixel after N samples is the same bytes as
+//! `kiln render --spp N`. Tiles run at most one pass ahead of the slowest: every tile's
+//! pass p is lent before any tile's pass p + 2. When the last tile of a pass comes back
+//! the whole frame at that pass is complete and is merged.
+//!
+//! The state is split by concern, each part with its own file: the schedule of passes
+//! (`schedule.rs`), lending the tiles (`lending.rs`), the frames (`frames.rs`), restoring
+//! them from the store (`restore.rs`); verification's state is `verify.rs`'s
+//! [`Verification`], the webhook's `webhooks.rs`'s [`WebhookState`].
+//!
+//! Bookkeeping only: it reads the scene once to plan the tiles, and otherwise must never do
+//! I/O, touch the store or the leases, or read a clock (callers pass `now`).
+
+mod frames;
+mod lending;
+mod restore;
+mod schedule;
+
+use super::MAX_TILE_ATTEMPTS;
+use super::error::{PlanError, TileRejected};
+use super::verify::{Candidate, Verdict, Verification};
+use super::webhooks::WebhookState;
+use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
+use crate::bundle;
+use frames::Frames;
+use kiln_image::{RgbBuffer, Windows};
+use kiln_render::{SumsLayout, TileRect, TileSums, split_into_tiles};
+use lending::Lending;
+use schedule::{Schedule, check_passes};
+use std::collections::BTreeSet;
+use std::path::Path;
+use std::sync::Arc;
+use tokio::time::Instant;
+
+pub(super) struct Job {
+    pub id: u64,
+    pub spec: JobSpec,
+    pub state: JobState,
+    pub error: Option<String>,
+    /// Why a job renders tiles again (a worker whose unchecked renders its sums held was
+    /// set aside), for the status.
+    pub notice: Option<String>,
+    pub merge_seconds: Option<f64>,
+    pub tiles: Vec<TileRect>,
+    schedule: Schedule,
+    lending: Lending,
+    frames: Frames,
+    pub verification: Verification,
+    pub webhook: WebhookState,
+    /// The id of the last lease this job granted (0 for none): jobs of equal priority
+    /// take turns by it.
+    pub last_lent: u64,
+    rate: Rate,
+}
+
+/// When the rate is counted from: the first lease after the job was created, resumed or
+/// extended (time spent queued behind other jobs is not rendering), and the samples done
+/// by then.
+#[derive(Debug, Clone, Copy, Default)]
+struct Rate {
+    started: Option<Instant>,
+    samples_at_start: u64,
+}
+
+/// What a tile's upload did to its job.
+#[derive(Debug)]
+pub(super) enum Landed {
+    /// It was a pass the job already had (a repeated upload): nothing changed.
+    Nothing,
+    /// The tile moved on by a pass.
+    Tile,
+    /// It was the last tile of pass `pass`: the frame at that pass is complete.
+    Pass { pass: u32, frame: Arc<RgbBuffer> },
+}
+
+impl Job {
+    /// Loads the job's scene (unpacked under `scenes`) to learn its frame, tiles and passes.
+    /// Parser errors name files relative to the bundle, not the data directory.
+    pub fn plan(
+        scenes: &Path,
+        id: u64,
+        spec: JobSpec,
+        state: JobState,
+        max_frame_pixels: u64,
+    ) -> Result<Job, PlanError> {
+        if spec.tile == 0 {
+            return Err(PlanError::ZeroTile);
+        }
+        let scene = bundle::cached_scene(scenes, &spec.scene)
+            .ok_or_else(|| PlanError::NoScene(spec.scene.clone()))?;
+        let root = scenes.join(&spec.scene);
+        let mut desc = kiln_scene::load_file_within(&scene, &root)
+            .map_err(|e| PlanError::Scene(bundle::relative_message(&e, &root)))?;
+        desc.apply_overrides(&spec.overrides())
+            .map_err(PlanError::Overrides)?;
+        desc.check_frame_size(max_frame_pixels)
+            .map_err(PlanError::Overrides)?;
+        let spp = desc.sampler.pixel_samples;
+        let passes = spec.passes.clone().unwrap_or_else(|| vec![spp]);
+        check_passes(&passes, 0)?;
+        let sppm = desc.integrator.kind == kiln_scene::IntegratorKind::Sppm;
+        if sppm && passes.len() > 1 {
+            return Err(PlanError::Passes(
+                "SPPM renders in one pass (its photon radius shrinks over all its iterations together): give no passes"
+                    .into(),
+            ));
+        }
+        let f = &desc.film;
+        let [x0, x1, y0, y1] = f.pixel_bounds;
+        let frame = RgbBuffer::new(f.xresolution, f.yresolution, x0, y0, x1 - x0, y1 - y0)
+            .with_aovs(kiln_render::aov_names(f.gbuffer));
+        let tiles = split_into_tiles(f.pixel_bounds, spec.tile);
+        let verify = spec.verify.unwrap_or(0.0);
+        if !(0.0..=1.0).contains(&verify) {
+            return Err(PlanError::Verify(verify));
+        }
+        let sums =
+            (!sppm).then(|| kiln_render::RenderSettings::from_description(&desc).sums_layout());
+        let schedule = Schedule {
+            passes,
+            sums,
+            legacy: false,
+        };
+        Ok(Job::with(id, spec, state, tiles, schedule, frame, verify))
+    }
+
+    /// A job that cannot be planned again at a restart (its record or its scene bundle is
+    /// damaged or gone): kept in the list with the reason, with no tiles. One that was
+    /// still running has failed; a finished one keeps its state (its frame is a file).
+    pub fn damaged(id: u64, spec: Option<JobSpec>, state: JobState, reason: String) -> Job {
+        let spec = spec.unwrap_or(JobSpec {
+            scene: String::new(),
+            spp: None,
+            resolution: None,
+            tile: 1,
+            seed: None,
+            passes: None,
+            verify: None,
+            priority: 0,
+            webhook: None,
+        });
+        let state = if state == JobState::Running {
+            JobState::Failed
+        } else {
+            state
+        };
+        let frame = RgbBuffer::new(0, 0, 0, 0, 0, 0);
+        let schedule = Schedule {
+            passes: Vec::new(),
+            sums: None,
+            legacy: false,
+        };
+        let mut job = Job::with(id, spec, state, Vec::new(), schedule, frame, 0.0);
+        job.error = Some(reason);
+        job
+    }
+
+    /// A job of `tiles` on `schedule` in a frame like `black`, none started, checking the
+    /// fraction `verify` of its tile passes.
+    fn with(
+        id: u64,
+        spec: JobSpec,
+        state: JobState,
+        tiles: Vec<TileRect>,
+        schedule: Schedule,
+        black: RgbBuffer,
+        verify: f64,
+    ) -> Job {
+        let n = tiles.len();
+        Job {
+            id,
+            spec,
+            state,
+            error: None,
+            notice: None,
+            merge_seconds: None,
+            tiles,
+            schedule,
+            lending: Lending::new(n),
+            frames: Frames::new(black),
+            verification: Verification::new(verify, n),
+            webhook: WebhookState::default(),
+            last_lent: 0,
+            rate: Rate::default(),
+        }
+    }
+
+    fn samples_done(&self) -> u64 {
+        (0..self.tiles.len())
+            .map(|i| {
+                self.tiles[i].pixel_count()
+                    * u64::from(self.schedule.samples_after(self.lending.done[i]))
+            })
+            .sum()
+    }
+
+    /// Progress as the API reports it; the rate counts samples since the job's first lease
+    /// after it was created, the coordinator resumed it, or it was extended.
+    pub fn status(&self, now: Instant) -> JobStatus {
+        let last = self.schedule.last_samples();
+        let samples_total: u64 =
+            self.tiles.iter().map(|t| t.pixel_count()).sum::<u64>() * u64::from(last);
+        let samples_done = self.samples_done().min(samples_total);
+        let rate = self.rate.started.map_or(0.0, |started| {
+            let secs = now.saturating_duration_since(started).as_secs_f64();
+            let samples = samples_done.saturating_sub(self.rate.samples_at_start) as f64;
+            // Until a second has passed the figure says little; none is better.
+            if secs < 1.0 { 0.0 } else { samples / secs }
+        });
+        let progress = if samples_total == 0 {
+            1.0
+        } else {
+            samples_done as f64 / samples_total as f64
+        };
+        let finished = (0..self.tiles.len())
+            .filter(|&t| self.is_finished(t))
+            .count();
+        let (width, height) = self.frames.size();
+        JobStatus {
+            id: self.id,
+            state: self.state,
+            width,
+            height,
+            tiles_total: self.tiles.len() as u32,
+            tiles_done: finished as u32,
+            samples_total,
+            samples_done,
+            progress,
+            samples_per_second: rate,
+            eta_seconds: (rate > 0.0 && self.state == JobState::Running)
+                .then(|| (samples_total - samples_done) as f64 / rate),
+            failures: self.lending.failures,
+            error: self.error.clone(),
+            merge_seconds: self.merge_seconds,
+            passes: self.schedule.passes.clone(),
+            passes_done: self.frames.written,
+            samples_per_pixel_done: self.schedule.samples_after(self.frames.written),
+            tile_passes_verified: self.verification.verified,
+            tile_passes_held: self.verification.held() as u32,
+            notice: self.notice.clone(),
+            priority: self.spec.priority,
+            webhook: self.webhook.delivery.describe(),
+        }
+    }
+
+    /// The frame as far as it has come: the newest pass some tiles have finished, over the
+    /// last complete one (black before any tile is back).
+    pub fn frame_so_far(&self) -> Arc<RgbBuffer> {
+        self.frames.so_far()
+    }
+
+    /// Whether passes are merged into the result file: a result can be downloaded.
+    pub fn has_result(&self) -> bool {
+        self.frames.written > 0
+    }
+
+    /// The next tile to lend `worker` and the pass it is to render, taken off the queue.
+    /// A checked pass `worker` has rendered already waits for another worker.
+    pub fn next_pending(&mut self, worker: &str) -> Option<(usize, PassRange)> {
+        let verification = &self.verification;
+        let t = self.lending.next(self.schedule.len(), |t, d| {
+            verification.has_rendered(t, d, worker)
+        })?;
+        Some((t, self.schedule.range(self.lending.done[t])))
+    }
+
+    /// Whether an upload of `tile`'s pass `pass` would move the tile on (it is the pass the
+    /// tile is on, and the job still has it).
+    pub fn expects(&self, tile: usize, pass: u32) -> bool {
+        self.lending.done[tile] == pass && (pass as usize) < self.schedule.len()
+    }
+
+    /// Whether `tile`'s pass `pass` is rendered twice and compared before it is kept.
+    pub fn is_checked(&self, tile: usize, pass: u32) -> bool {
+        self.verification.is_checked(tile, pass)
+    }
+
+    /// The workers whose unchecked renders `tile`'s sums hold once `worker`'s unchecked
+    /// render of its next pass is kept.
+    pub fn unchecked_after(&self, tile: usize, worker: &str) -> BTreeSet<String> {
+        let mut chain = self.verification.unchecked_by(tile).clone();
+        chain.insert(worker.to_string());
+        chain
+    }
+
+    /// Judges a render of `tile`'s checked pass `pass`: held until another worker's render
+    /// agrees with it (the tile goes back to the front of the queue for that). Returns the
+    /// verdict, and the workers whose unchecked renders the sums hold (a checked pass adds
+    /// none).
+    pub fn judge(
+        &mut self,
+        tile: usize,
+        pass: u32,
+        render: Candidate,
+    ) -> (Verdict, BTreeSet<String>) {
+        let chain = self.verification.unchecked_by(tile).clone();
+        let verdict = self.verification.judge(tile, pass, render);
+        if let Verdict::Held = verdict {
+            self.lending.give_back(tile);
+        }
+        (verdict, chain)
+    }
+
+    /// The tiles whose sums hold `worker`'s unchecked renders.
+    pub fn tiles_unchecked_by(&self, worker: &str) -> Vec<usize> {
+        self.verification.tiles_unchecked_by(worker)
+    }
+
+    /// Forgets the renders of checked passes `worker` gave (it was set aside).
+    pub fn forget_worker(&mut self, worker: &str) {
+        self.verification.forget_worker(worker);
+    }
+
+    /// Marks `tile` as lent under `lease` at `now`.
+    pub fn lend(&mut self, tile: usize, lease: u64, now: Instant) {
+        self.lending.lent[tile] = Some(lease);
+        if self.rate.started.is_none() {
+            self.rate = Rate {
+                started: Some(now),
+                samples_at_start: self.samples_done(),
+            };
+        }
+    }
+
+    /// Whether `tile` has every pass done.
+    pub fn is_finished(&self, tile: usize) -> bool {
+        self.lending.done[tile] as usize >= self.schedule.len()
+    }
+
+    /// `lease` ended without a result (it expired): if it still holds `tile`, the tile goes
+    /// back to the front of the queue, since a job finishes sooner without stragglers.
+    pub fn lease_lost(&mut self, tile: usize, lease: u64) {
+        self.lending.lease_lost(tile, lease);
+    }
+
+    /// An attempt at `tile` failed: the tile goes back to the front of the queue, or, after
+    /// [`MAX_TILE_ATTEMPTS`], fails the job. Returns whether the job failed now.
+    pub fn attempt_failed(&mut self, tile: usize, reason: &str) -> bool {
+        let attempts = self.lending.attempt_failed(tile);
+        if attempts >= MAX_TILE_ATTEMPTS && self.state == JobState::Running {
+            self.state = JobState::Failed;
+            let t = self.tiles[tile];
+            self.error = Some(format!(
+                "tile {tile} ({}x{} at {},{}) failed {MAX_TILE_ATTEMPTS} times; last: {reason}",
+                t.width, t.height, t.x0, t.y0
+            ));
+            return true;
+        }
+        false
+    }
+
+    /// Where tile `idx` lies and what its pass `pass` must hold: what an upload must match.
+    pub fn spot(&self, idx: usize, pass: PassRange) -> TileSpot {
+        TileSpot {
+            frame: self.frames.size(),
+            window: self.tiles[idx].into(),
+            sums: self.schedule.sums.map(|g| (g, pass.to)),
+        }
+    }
+
+    /// Which of this job's tiles has the windows `tile`.
+    pub fn find_tile(&self, tile: &Windows) -> Option<usize> {
+        if (tile.frame_width, tile.frame_height) != self.frames.size() {
+            return None;
+        }
+        let window = data_window(tile);
+        self.tiles.iter().position(|&r| Rect::from(r) == window)
+    }
+
+    /// A checked tile of pass `pass` came back: pasted into that pass's frame, and the tile
+    /// moves on. A pass the tile has already done (a repeated upload), or one past the
+    /// job's last (it was stopped meanwhile), changes nothing.
+    pub fn complete_tile(
+        &mut self,
+        idx: usize,
+        pass: u32,
+        tile: &RgbBuffer,
+        unchecked_by: BTreeSet<String>,
+    ) -> Result<Landed, kiln_image::ImageError> {
+        let done = &self.lending.done;
+        if done[idx] != pass || pass as usize >= self.schedule.len() {
+            if done[idx] == pass {
+                self.lending.lent[idx] = None;
+            }
+            return Ok(Landed::Nothing);
+        }
+        // A pass other tiles are past with no frame building for it (their rows of it were
+        // forgotten; this tile starts again behind them) is never whole: nothing to paste.
+        let whole_possible = self.frames.is_building(pass)
+            || !done.iter().enumerate().any(|(i, &d)| i != idx && d > pass);
+        let full = whole_possible && self.frames.paste(pass, tile, self.tiles.len())?;
+        self.verification.set_unchecked_by(idx, unchecked_by);
+        self.lending.advance(idx, self.schedule.len());
+        if !full {
+            return Ok(Landed::Tile);
+        }
+        let frame = self.frames.finish(pass);
+        // The frontier moved: the tiles waiting for it may go on.
+        self.lending.release_parked();
+        Ok(Landed::Pass { pass, frame })
+    }
+
+    /// Records that pass `pass` is merged into the result file; returns whether it was the
+    /// last pass (the job is done).
+    pub fn merged(&mut self, pass: u32) -> bool {
+        self.frames.merged(pass);
+        self.frames.written as usize >= self.schedule.len()
+    }
+
+    /// Samples per pixel at the end of the last pass.
+    pub fn last_samples(&self) -> u32 {
+        self.schedule.last_samples()
+    }
+
+    /// Samples per pixel at the end of pass `pass`.
+    pub fn samples_of_pass(&self, pass: u32) -> u32 {
+        self.schedule.samples_of_pass(pass)
+    }
+
+    /// Whether every tile has done pass `pass` (or a later one).
+    pub fn has_complete(&self, pass: u32) -> bool {
+        self.frames.has_complete(pass)
+    }
+
+    /// Whether the result file already holds pass `pass` or a later one.
+    pub fn is_written(&self, pass: u32) -> bool {
+        self.frames.written > pass
+    }
+
+    /// The complete pass to merge after a restore, if the result file may lack it.
+    pub fn to_merge(&self) -> Option<(u32, Arc<RgbBuffer>)> {
+        self.frames.complete()
+    }
+
+    /// Counts the rate afresh from the next lease (the samples done so far were done
+    /// before).
+    pub fn restart_rate(&mut self) {
+        self.rate.started = None;
+    }
+
+    /// Ends the job after the pass its slowest tile is on. Returns whether the schedule
+    /// changed (the spec is updated to say so).
+    pub fn stop_after_pass(&mut self) -> bool {
+        // The pass in progress ends the job; the renderer keeps the footprint of the
+        // samples it was created for (see set_spec_passes), so the pass's tiles still to
+        // come are rendered as those already back were.
+        let f = self.lending.frontier() as usize;
+        if self.state != JobState::Running || f + 1 >= self.schedule.len() {
+            return false;
+        }
+        self.schedule.passes.truncate(f + 1);
+        self.frames.stop_after(f as u32);
+        self.set_spec_passes();
+        true
+    }
+
+    /// The spec this job would have with `more` passes after its last, or why it cannot
+    /// have them.
+    pub fn check_extend(&self, more: &[u32]) -> Result<JobSpec, PlanError> {
+        let passes = self.schedule.extended(more, self.state, self.spec.spp)?;
+        let mut spec = self.spec.clone();
+        spec.passes = Some(passes);
+        Ok(spec)
+    }
+
+    /// Runs a done job again (tiles of it are to be rendered again): its result no longer
+    /// counts until its last pass is merged again, and its webhook is called again then.
+    pub fn reopen(&mut self) {
+        self.state = JobState::Running;
+        self.error = None;
+        self.run_again();
+    }
+
+    /// What running again after an end (a reopening or an extension) resets: the rate
+    /// counts afresh, and the job's next end is announced by a webhook round of its own.
+    fn run_again(&mut self) {
+        self.restart_rate();
+        self.webhook.run_again();
+    }
+
+    /// Adds passes beyond the last ([`Job::check_extend`] says whether it may): a done job
+    /// runs again from where it ended.
+    pub fn extend(&mut self, more: &[u32]) -> Result<(), PlanError> {
+        self.check_extend(more)?;
+        self.schedule.passes.extend_from_slice(more);
+        self.set_spec_passes();
+        if self.state == JobState::Done {
+            self.state = JobState::Running;
+        }
+        self.lending.requeue(self.schedule.len());
+        // It will end again: its webhook is called again then.
+        self.run_again();
+        Ok(())
+    }
+
+    /// Records the schedule in the spec. Its `spp` stays what the job was created with:
+    /// it sets the renderer's texture footprint, which every pass of the job must share.
+    fn set_spec_passes(&mut self) {
+        self.spec.passes = Some(self.schedule.passes.clone());
+    }
+}
+
+/// A tile's place: its frame's size, its window in it, and the running sums it must carry
+/// (with a G-buffer's or not, and after how many samples).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct TileSpot {
+    frame: (u32, u32),
+    window: Rect,
+    sums: Option<(SumsLayout, u32)>,
+}
+
+impl TileSpot {
+    /// The number of pixels the tile holds.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.window.width) * u64::from(self.window.height)
+    }
+
+    /// Checks that an uploaded tile has this place's windows, finite pixels, and running
+    /// sums of its pass.
+    pub fn check(&self, tile: &RgbBuffer) -> Result<(), TileRejected> {
+        let frame = (tile.frame_width, tile.frame_height);
+        let window = data_window(&tile.windows());
+        if (frame, window) != (self.frame, self.window) {
+            return Err(TileRejected::Windows { frame, window });
+        }
+        if tile.pixels.iter().any(|p| p.iter().any(|v| !v.is_finite())) {
+            return Err(TileRejected::NonFinite);
+        }
+        if let Some((layout, samples)) = self.sums {
+            let rect = kiln_render::TileRect::from(self.window);
+            let words = &tile.words;
+            TileSums::check_words(rect, layout, &words.names, &words.values, samples)
+                .map_err(TileRejected::Sums)?;
+        }
+        Ok(())
+    }
+}
+
+/// An image's data window.
+fn data_window(b: &Windows) -> Rect {
+    Rect {
+        x0: b.x0,
+        y0: b.y0,
+        width: b.width,
+        height: b.height,
+    }
+}
