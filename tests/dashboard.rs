@@ -8,10 +8,9 @@
 //! not blank and a console without errors. Where Chromium or Selenium is missing it
 //! prints SKIPPED.
 
-use crate::farm::{in_process, start_worker_with};
+use crate::farm::Farm;
 use crate::util::{repo, scene};
 use kiln_farm::api::{JobSpec, JobState};
-use kiln_farm::client::Client;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -45,13 +44,10 @@ fn the_dashboard_works_in_a_real_browser() {
         println!("SKIPPED the_dashboard_works_in_a_real_browser: {why}");
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
-    let rt = tokio::runtime::Runtime::new().unwrap();
     let token = "s3cret-dashboard-token";
-    let url = in_process(&rt, &dir.path().join("data"), Some(token));
-    let client = Client::new(&url, Some(token.to_string()));
-    let bundle = kiln_farm::bundle::pack(&scene("materials/scene.pbrt")).unwrap();
-    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let farm = Farm::in_process(Some(token));
+    let (rt, client, url, dir) = (&farm.rt, &farm.client, &farm.url, &farm.dir);
+    let digest = farm.upload(&scene("materials/scene.pbrt"));
     let spec = |passes: Vec<u32>, priority: i32| JobSpec {
         scene: digest.clone(),
         spp: None,
@@ -77,7 +73,7 @@ fn the_dashboard_works_in_a_real_browser() {
     let shot = dir.path().join("dashboard.png");
     let mut driver = Command::new("python3")
         .arg(repo().join("tests/dashboard/drive.py"))
-        .args(["--url", &url, "--token", token])
+        .args(["--url", url, "--token", token])
         .args([
             "--watch",
             &watch.to_string(),
@@ -100,13 +96,7 @@ fn the_dashboard_works_in_a_real_browser() {
         let line = line.unwrap();
         println!("{line}");
         if line == "dashboard: signed in" && worker.is_none() {
-            worker = Some(start_worker_with(
-                &url,
-                "w1",
-                &dir.path().join("cache"),
-                &dir.path().join("w.log"),
-                &["--token", token],
-            ));
+            worker = Some(farm.worker("w1"));
         }
         said += &line;
         said.push('\n');

@@ -19,23 +19,58 @@ fn runtime() -> Result<tokio::runtime::Runtime> {
         .context("cannot start the async runtime")
 }
 
+/// SIGTERM and ctrl-c, listened for from the moment this is made: each
+/// [`Signals::next`] resolves at the next one, so a signal that comes while the process is
+/// busy between two waits is not missed.
+struct Signals {
+    #[cfg(unix)]
+    term: Option<tokio::signal::unix::Signal>,
+    #[cfg(unix)]
+    interrupt: Option<tokio::signal::unix::Signal>,
+}
+
+impl Signals {
+    /// Starts listening. Needs a tokio runtime.
+    fn new() -> Signals {
+        #[cfg(unix)]
+        {
+            use tokio::signal::unix::{SignalKind, signal};
+            Signals {
+                term: signal(SignalKind::terminate()).ok(),
+                interrupt: signal(SignalKind::interrupt()).ok(),
+            }
+        }
+        #[cfg(not(unix))]
+        Signals {}
+    }
+
+    /// Resolves at the next SIGTERM or ctrl-c.
+    async fn next(&mut self) {
+        #[cfg(unix)]
+        {
+            tokio::select! { _ = wait(self.term.as_mut()) => {}, _ = wait(self.interrupt.as_mut()) => {} }
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = tokio::signal::ctrl_c().await;
+        }
+    }
+}
+
+/// Resolves at `signal`'s next delivery; never if it could not be listened for.
+#[cfg(unix)]
+async fn wait(signal: Option<&mut tokio::signal::unix::Signal>) {
+    match signal {
+        Some(s) => {
+            s.recv().await;
+        }
+        None => std::future::pending::<()>().await,
+    }
+}
+
 /// Resolves when the process gets SIGTERM or ctrl-c.
 async fn shutdown_signal() {
-    let ctrl_c = async {
-        let _ = tokio::signal::ctrl_c().await;
-    };
-    #[cfg(unix)]
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
-    #[cfg(not(unix))]
-    let term = std::future::pending::<()>();
-    tokio::select! { _ = ctrl_c => {}, _ = term => {} }
+    Signals::new().next().await;
 }
 
 #[derive(clap::Args)]
@@ -140,13 +175,14 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
         let stop = Arc::new(worker::Stop::default());
         let flag = stop.clone();
         let who = name.clone();
+        let mut signals = Signals::new();
         tokio::spawn(async move {
-            shutdown_signal().await;
+            signals.next().await;
             // Finish the tile in hand, then leave; a second signal leaves at once, giving
             // the tile back.
             flag.after_tile.store(true, Ordering::SeqCst);
             eprintln!("kiln worker {who}: stopping after this tile (signal again to stop now)");
-            shutdown_signal().await;
+            signals.next().await;
             flag.now.store(true, Ordering::SeqCst);
         });
         eprintln!("kiln worker {name}: {threads} threads");
