@@ -3,6 +3,7 @@
 mod util;
 
 mod analytic;
+mod architecture;
 mod cli;
 mod dashboard;
 mod determinism;

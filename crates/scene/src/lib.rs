@@ -30,12 +30,14 @@ pub mod files;
 mod lexer;
 pub mod loop_subdiv;
 pub mod measured_media;
+pub mod mesh;
 mod params;
 mod parser;
 pub mod photometry;
 mod rgb_spectrum;
 pub mod spectrum;
 pub mod textures;
+pub mod voxel_grid;
 
 pub use description::*;
 pub use error::{Diagnostic, Loc, SceneError, Severity};

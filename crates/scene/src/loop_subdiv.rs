@@ -7,7 +7,7 @@
 //! on the boundary, by (1/8, 3/4, 1/8) along it; odd (edge) vertices are 3/8 of the edge's
 //! ends plus 1/8 of the two opposite corners, or the midpoint on the boundary.
 
-use crate::description::TriangleMeshData;
+use crate::mesh::TriangleMeshData;
 use std::collections::HashMap;
 
 /// The most triangles a subdivision may make (16.8 million).

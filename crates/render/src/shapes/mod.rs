@@ -28,6 +28,10 @@ pub use quadric::{Quadric, QuadricShape};
 pub use sphere::Sphere;
 pub use triangle::barycentrics;
 
+/// The bytes one quadric primitive takes (a surface of revolution's strip sector is one):
+/// what a shape's primitive count costs in memory.
+pub const QUADRIC_BYTES: usize = std::mem::size_of::<Quadric>();
+
 use crate::math::Ray;
 use crate::textures::FloatTexture;
 use glam::{Affine3A, Vec2, Vec3A};

@@ -308,7 +308,7 @@ pub fn strips(
             "a contour of {} points makes {} strip sectors, more than Kiln's limit of {MAX_SECTORS} (about {} GiB of primitives); use fewer points",
             contour.len(),
             segments.saturating_mul(sectors),
-            (MAX_SECTORS * std::mem::size_of::<super::Quadric>()) >> 30
+            (MAX_SECTORS * super::QUADRIC_BYTES) >> 30
         )));
     }
     let mut out = Vec::with_capacity(segments * sectors);

@@ -6,14 +6,7 @@ use crate::spectrum::Rgb;
 use glam::DMat4;
 use std::sync::Arc;
 
-/// A voxel grid of scalar values, x fastest: `values[(z * ny + y) * nx + x]`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct VoxelGrid {
-    pub nx: usize,
-    pub ny: usize,
-    pub nz: usize,
-    pub values: Vec<f32>,
-}
+pub use crate::voxel_grid::VoxelGrid;
 
 /// Index into [`SceneDescription::media`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -1,8 +1,8 @@
 //! Images a scene refers to: texture images, and environment maps for the "infinite" light.
 
-use crate::description::ImageRgb;
 use crate::error::{Loc, Result, SceneError};
 use crate::textures::{ColorEncoding, ImageData, TextureImage};
+use kiln_image::ImageRgb;
 use std::path::Path;
 
 /// The most pixels an environment map may hold: 16384 x 8192, 1.5 GiB of float RGB. The

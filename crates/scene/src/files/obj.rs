@@ -1,8 +1,8 @@
 //! OBJ meshes, read with `tobj` for the "objmesh" shape.
 
 use super::read_bytes;
-use crate::description::TriangleMeshData;
 use crate::error::{Loc, Result, SceneError};
+use crate::mesh::TriangleMeshData;
 use std::path::Path;
 
 /// Reads every object of an OBJ file into one triangle mesh (materials in the file are ignored:

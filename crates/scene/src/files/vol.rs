@@ -2,8 +2,8 @@
 //! writing for tests and scene generators.
 
 use super::read_bytes;
-use crate::description::VoxelGrid;
 use crate::error::{Loc, Result, SceneError};
+use crate::voxel_grid::VoxelGrid;
 use std::path::Path;
 
 /// A grid read from a Mitsuba `.vol` file: its values and the bounding box the file gives

@@ -1,8 +1,8 @@
 //! Voxel grids of emission multipliers in Kiln's CSV layout (for `AreaLightSource "volume"`).
 
 use super::read_bytes;
-use crate::description::VoxelGrid;
 use crate::error::{Loc, Result, SceneError};
+use crate::voxel_grid::VoxelGrid;
 use std::path::Path;
 
 /// Reads a voxel grid of emission multipliers from CSV.

@@ -7,8 +7,8 @@
 //! file into the scene's [`TriangleMeshData`].
 
 use super::read_bytes;
-use crate::description::TriangleMeshData;
 use crate::error::{Loc, Result, SceneError};
+use crate::mesh::TriangleMeshData;
 use std::path::Path;
 
 /// A triangle mesh read from a PLY file.
