@@ -117,7 +117,7 @@ fn the_dashboard_works_in_a_real_browser() {
     let s = rt.block_on(client.status(cancel)).unwrap();
     assert_eq!(s.state, JobState::Cancelled);
     assert!(std::fs::metadata(&shot).unwrap().len() > 10_000);
-    // The README's picture comes from here: KILN_DASHBOARD_SCREENSHOT=docs/dashboard.png.
+    // The README's picture comes from here: KILN_DASHBOARD_SCREENSHOT=docs/src/dashboard.png.
     if let Ok(keep) = std::env::var("KILN_DASHBOARD_SCREENSHOT") {
         std::fs::copy(&shot, keep).unwrap();
     }

@@ -218,7 +218,7 @@ fn a_camera_sensor_clamps_its_raw_rgb() {
 /// data: KILN_SENSOR_DATA must name a folder holding it (PhysLight's data/camera);
 /// SKIPPED otherwise. Greys within 1.5%, each patch's strongest channel within 6% (pbrt-v4
 /// fits its colour matrix on a measured colour chart that Kiln may not copy; see the
-/// README's Film row).
+/// manual's Films page, docs/src/scene-format/films.md).
 #[test]
 fn a_real_camera_matches_pbrt_v4_within_its_training_difference() {
     let Some(data) = std::env::var_os("KILN_SENSOR_DATA") else {

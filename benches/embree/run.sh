@@ -5,7 +5,8 @@
 #
 # Installs Debian's libembree-dev if no Embree header is found. The binary goes
 # to target/embree/traverse (override the folder with EMBREE_BUILD_DIR).
-# EMBREE_CONFIG and EMBREE_ROBUST are passed through to traverse (see README).
+# EMBREE_CONFIG and EMBREE_ROBUST are passed through to traverse (see README.md beside
+# this script).
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"

@@ -18,7 +18,7 @@
 //! The training reflectances are Kiln's own: 125 smooth spectra of the same sigmoid form,
 //! spanning greys, pastels and saturated colours. pbrt-v4 trains on the 24 patches of a
 //! measured colour chart, which Kiln may not copy; the two fits differ by a few percent in
-//! saturated colours (README, Film).
+//! saturated colours (the manual's Films page, docs/src/scene-format/films.md).
 
 use crate::files::sensor_curves::SensorCurves;
 use crate::rgb_spectrum::{Upsampler, grid};
