@@ -1,6 +1,7 @@
 //! ARCHITECTURE.md's structural claims, checked against the source: no import circle
 //! between modules, kiln-render's layers used only downwards, the "knows nothing of"
-//! invariants, no source file over 1,000 lines and no production function over 120.
+//! invariants, no source file over 1,000 lines and no production function over 120, no
+//! code after a test module, and `kiln render` without the farm crate.
 //!
 //! The source is read as text: comments, strings and `#[cfg(test)]` modules are dropped,
 //! and every `crate::` and `super::` path (in `use` lines and in code) is resolved to the
@@ -644,6 +645,41 @@ fn no_source_file_over_1000_lines_and_no_function_over_120() {
         }
     }
     assert!(big.is_empty(), "{}", big.join("\n"));
+}
+
+#[test]
+fn no_code_follows_a_test_module() {
+    let (mut after, mut seen) = (Vec::new(), 0);
+    for file in modules().values() {
+        let code = code_of(&std::fs::read_to_string(file).unwrap());
+        let Some(at) = code.find("#[cfg(test)]\nmod tests {") else {
+            continue;
+        };
+        seen += 1;
+        let open = at + code[at..].find('{').unwrap();
+        let rest = &code[matching_brace(&code, open) + 1..];
+        if !rest.trim().is_empty() {
+            after.push(file.strip_prefix(repo()).unwrap().display().to_string());
+        }
+    }
+    assert!(
+        seen > 30,
+        "only {seen} test modules found: the search is wrong"
+    );
+    assert!(after.is_empty(), "code after the test module in {after:?}");
+}
+
+/// `kiln render` goes through kiln-scene, kiln-render and kiln-image, never the farm.
+#[test]
+fn kiln_render_needs_no_farm() {
+    let file = repo().join("crates/cli/src/render.rs");
+    let code = code_of(&std::fs::read_to_string(&file).unwrap());
+    assert!(
+        !code.contains("kiln_farm"),
+        "{} uses kiln_farm",
+        file.display()
+    );
+    assert!(code.contains("kiln_render") && code.contains("kiln_image"));
 }
 
 /// Every function with a body: its name, first line and length in lines.
