@@ -164,15 +164,8 @@ fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
     let err = rt
         .block_on(client.create_job(
             &JobSpec {
-                scene: digest,
-                spp: None,
-                resolution: None,
                 tile: 8,
-                seed: None,
-                passes: None,
-                verify: None,
-                priority: 0,
-                webhook: None,
+                ..Farm::spec(&digest)
             },
             None,
         ))
@@ -231,18 +224,10 @@ fn tokens_limits_bad_requests_and_bad_scenes_get_clear_errors() {
         assert!(text.starts_with("{\"error\":"), "{method} {path}: {text}");
     }
     // A retried submit with the same Idempotency-Key makes one job.
-    let good = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
-    let digest = rt.block_on(client.upload_scene(good.bytes)).unwrap();
     let spec = JobSpec {
-        scene: digest,
         spp: Some(1),
-        resolution: None,
         tile: 8,
-        seed: None,
-        passes: None,
-        verify: None,
-        priority: 0,
-        webhook: None,
+        ..Farm::spec(&farm.upload(&scene("furnace/scene.pbrt")))
     };
     let a = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
     let b = rt.block_on(client.create_job(&spec, Some("k1"))).unwrap();
