@@ -115,41 +115,78 @@ fn safe_relative(rel: &str) -> Option<PathBuf> {
 /// The longest name one path component may have (what common file systems allow).
 const MAX_NAME_BYTES: usize = 255;
 
+/// The longest path an entry may have, in bytes (Linux's PATH_MAX): the file systems that
+/// unpack it refuse longer ones.
+pub const MAX_PATH_BYTES: usize = 4096;
+
+/// The most folders an entry's path may pass through. A scene's files sit a few folders
+/// deep; thousands of levels only make every check and every unpacking slow.
+pub const MAX_DEPTH: usize = 64;
+
+/// The most entries a bundle may hold: a scene reads tens or thousands of files, never
+/// this many, and each is an inode wherever it is unpacked.
+pub const MAX_ENTRIES: usize = 65_536;
+
 /// Checks that a bundle's entry names can all be files in one folder tree: no NUL, no
-/// component longer than [`MAX_NAME_BYTES`], no name twice, and no name that is both a
-/// file and a folder (`a` and `a/b`). A name the file system would refuse is the
-/// bundle's fault, said here; what fails after this is the server's.
+/// component longer than [`MAX_NAME_BYTES`], no path longer than [`MAX_PATH_BYTES`] or
+/// deeper than [`MAX_DEPTH`], no name twice, and no name that is both a file and a folder
+/// (`a` and `a/b`). A name the file system would refuse is the bundle's fault, said here;
+/// what fails after this is the server's. Time and memory are linear in the names' total
+/// length (times the log of their count, for one sort).
 fn check_names(names: &[&Path]) -> Result<(), BundleError> {
     let corrupt = |m: String| Err(BundleError::Corrupt(m));
-    let mut files = std::collections::HashSet::new();
-    let mut folders = std::collections::HashSet::new();
+    // What is shown of a name in a message: its start, for the longest.
+    let shown = |name: &Path| {
+        let text = name.display().to_string();
+        match text.char_indices().nth(80) {
+            Some((cut, _)) => format!("{}...", &text[..cut]),
+            None => text,
+        }
+    };
     for name in names {
-        let shown = name.display();
+        if name.as_os_str().len() > MAX_PATH_BYTES {
+            return corrupt(format!(
+                "path '{}' is {} bytes long; the most is {MAX_PATH_BYTES}",
+                shown(name),
+                name.as_os_str().len()
+            ));
+        }
+        let mut depth = 0;
         for c in name.components() {
+            depth += 1;
             let c = c.as_os_str().as_encoded_bytes();
             if c.contains(&0) {
                 return corrupt(format!(
                     "path '{}' holds a NUL byte",
-                    shown.to_string().escape_debug()
+                    shown(name).escape_debug()
                 ));
             }
             if c.len() > MAX_NAME_BYTES {
                 return corrupt(format!(
-                    "a name in path '{shown}' is longer than {MAX_NAME_BYTES} bytes"
+                    "a name in path '{}' is longer than {MAX_NAME_BYTES} bytes",
+                    shown(name)
                 ));
             }
         }
-        if !files.insert(name.to_path_buf()) {
-            return corrupt(format!("path '{shown}' is in it twice"));
-        }
-        let mut parent = name.parent();
-        while let Some(p) = parent.filter(|p| !p.as_os_str().is_empty()) {
-            folders.insert(p.to_path_buf());
-            parent = p.parent();
+        if depth > MAX_DEPTH + 1 {
+            return corrupt(format!(
+                "path '{}' is {} folders deep; the most is {MAX_DEPTH}",
+                shown(name),
+                depth - 1
+            ));
         }
     }
-    if let Some(both) = files.iter().find(|f| folders.contains(*f)) {
-        return corrupt(format!("'{}' is both a file and a folder", both.display()));
+    // Sorted by components, a path's descendants follow it at once ("a", "a/b", "a-b"):
+    // a name twice, or a file that is also a folder, is next to its other self.
+    let mut sorted = names.to_vec();
+    sorted.sort_unstable();
+    for pair in sorted.windows(2) {
+        if pair[0] == pair[1] {
+            return corrupt(format!("path '{}' is in it twice", shown(pair[0])));
+        }
+        if pair[1].starts_with(pair[0]) {
+            return corrupt(format!("'{}' is both a file and a folder", shown(pair[0])));
+        }
     }
     Ok(())
 }
@@ -176,6 +213,11 @@ fn index(r: &mut (impl Read + Seek), len: u64) -> Result<Index, BundleError> {
         return Err(corrupt("it does not start with KILNBDL1"));
     }
     let count = u32::from_le_bytes(head[8..12].try_into().unwrap());
+    if count as usize > MAX_ENTRIES {
+        return Err(BundleError::Corrupt(format!(
+            "it has {count} entries; the most is {MAX_ENTRIES}"
+        )));
+    }
     let mut pos = 12u64;
     let mut out = Vec::new();
     for _ in 0..count {
@@ -188,8 +230,18 @@ fn index(r: &mut (impl Read + Seek), len: u64) -> Result<Index, BundleError> {
         let mut name = vec![0u8; usize::from(n)];
         r.read_exact(&mut name).map_err(truncated)?;
         let rel = std::str::from_utf8(&name).map_err(|_| corrupt("a path is not UTF-8"))?;
-        let path = safe_relative(rel)
-            .ok_or_else(|| BundleError::Corrupt(format!("path '{rel}' escapes the bundle")))?;
+        if rel.ends_with('/') {
+            return Err(BundleError::Corrupt(format!(
+                "path '{}' names a folder; a bundle holds files",
+                rel.chars().take(80).collect::<String>()
+            )));
+        }
+        let path = safe_relative(rel).ok_or_else(|| {
+            BundleError::Corrupt(format!(
+                "path '{}' escapes the bundle",
+                rel.chars().take(80).collect::<String>()
+            ))
+        })?;
         let mut size = [0u8; 8];
         r.read_exact(&mut size).map_err(truncated)?;
         let size = u64::from_le_bytes(size);
@@ -379,6 +431,64 @@ mod tests {
         evil.extend_from_slice(&0u64.to_le_bytes());
         assert!(matches!(entries(&evil), Err(BundleError::Corrupt(m)) if m.contains("escapes")));
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A bundle of `entries` (name, contents) written by hand, names unchecked.
+    fn raw(entries: &[(&str, &[u8])]) -> Vec<u8> {
+        let mut b = Vec::new();
+        b.extend_from_slice(MAGIC);
+        b.extend_from_slice(&(entries.len() as u32).to_le_bytes());
+        for (name, data) in entries {
+            b.extend_from_slice(&(name.len() as u16).to_le_bytes());
+            b.extend_from_slice(name.as_bytes());
+            b.extend_from_slice(&(data.len() as u64).to_le_bytes());
+            b.extend_from_slice(data);
+        }
+        b
+    }
+
+    fn refused(bytes: &[u8]) -> String {
+        match entries(bytes) {
+            Err(BundleError::Corrupt(m)) => m,
+            other => panic!("not refused as corrupt: {other:?}"),
+        }
+    }
+
+    /// Deep, long and folder-like names and too many entries are the bundle's fault, said
+    /// at once: five entries 32,700 folders deep (which once took the square of their depth
+    /// in memory) are refused in well under a second.
+    #[test]
+    fn deep_long_and_folder_names_and_too_many_entries_are_refused() {
+        let deep = "a/".repeat(32_700) + "f";
+        let deeps: Vec<String> = (0..5).map(|i| format!("{deep}{i}")).collect();
+        let entries_of: Vec<(&str, &[u8])> = std::iter::once(("scene.pbrt", &b""[..]))
+            .chain(deeps.iter().map(|d| (d.as_str(), &b""[..])))
+            .collect();
+        let start = std::time::Instant::now();
+        let m = refused(&raw(&entries_of));
+        assert!(m.contains("bytes long; the most is 4096"), "{m}");
+        assert!(
+            m.len() < 300,
+            "the message quotes the path whole: {} bytes",
+            m.len()
+        );
+        assert!(start.elapsed() < std::time::Duration::from_secs(1));
+        let long = "b/".repeat(2100) + "f";
+        assert!(refused(&raw(&[(&long, b"")])).contains("the most is 4096"));
+        let nested = "c/".repeat(MAX_DEPTH + 1) + "f";
+        assert!(refused(&raw(&[(&nested, b"")])).contains("folders deep; the most is 64"));
+        let just = "c/".repeat(MAX_DEPTH) + "f";
+        assert!(entries(&raw(&[(&just, b"")])).is_ok());
+        assert!(refused(&raw(&[("scene.pbrt", b""), ("d/", b"")])).contains("names a folder"));
+        // A file that is also a folder, even with a name between them in byte order.
+        let m = refused(&raw(&[("a", b""), ("a-b", b""), ("a/c", b"")]));
+        assert!(m.contains("'a' is both a file and a folder"), "{m}");
+        assert!(refused(&raw(&[("x", b""), ("y", b""), ("x", b"")])).contains("twice"));
+        // A table claiming a million entries is refused before any is read.
+        let mut many = raw(&[("scene.pbrt", b"")]);
+        many[8..12].copy_from_slice(&1_000_000u32.to_le_bytes());
+        let m = refused(&many);
+        assert!(m.contains("1000000 entries; the most is 65536"), "{m}");
     }
 
     /// A two-file bundle (a scene including another file) in a fresh folder.

@@ -77,16 +77,21 @@ impl Parser {
         let c = Common::read(ty, params, self.gs.ctm)?;
         let kind = match ty {
             "point" => point_light(&c, params)?,
-            "spot" => spot_light(&c, params)?,
-            "distant" => distant_light(&c, params)?,
+            "spot" => spot_light(&c, params, loc)?,
+            "distant" => distant_light(&c, params, loc)?,
             "infinite" => self.infinite_light(&c, params, loc)?,
             "goniometric" => self.goniometric_light(&c, params, loc)?,
             "projection" => self.projection_light(&c, params, loc)?,
             "dome" => {
                 let up = DVec3::from(params.point3("up", [0.0, 0.0, 1.0])?);
+                let at = params.loc_of("up").unwrap_or_else(|| loc.clone());
                 LightKind::Dome {
                     radiance: c.colour(params, "L", 1.0)?,
-                    up: c.ctm.transform_vector3(up).normalize(),
+                    up: direction(
+                        c.ctm.transform_vector3(up),
+                        "LightSource 'dome': \"up\"",
+                        &at,
+                    )?,
                 }
             }
             other => {
@@ -417,10 +422,15 @@ fn point_light(c: &Common, params: &ParamSet) -> Result<LightKind> {
 
 /// `LightSource "spot"`: Φ = 2π I ((1 − cos start) + (cos start − cos end) / 2), pbrt-v4's
 /// k_e.
-fn spot_light(c: &Common, params: &ParamSet) -> Result<LightKind> {
+fn spot_light(c: &Common, params: &ParamSet, loc: &Loc) -> Result<LightKind> {
     let from = params.point3("from", [0.0; 3])?;
     let to = params.point3("to", [0.0, 0.0, 1.0])?;
-    let direction = (c.point(to) - c.point(from)).normalize();
+    let at = params.loc_of("to").unwrap_or_else(|| loc.clone());
+    let direction = direction(
+        c.point(to) - c.point(from),
+        "LightSource 'spot': \"from\" to \"to\"",
+        &at,
+    )?;
     let cone = params.float("coneangle", 30.0)?;
     let delta = params.float("conedeltaangle", 5.0)?;
     let (cos_end, cos_start) = (
@@ -441,14 +451,35 @@ fn spot_light(c: &Common, params: &ParamSet) -> Result<LightKind> {
 }
 
 /// `LightSource "distant"`: E = L on a patch facing the light.
-fn distant_light(c: &Common, params: &ParamSet) -> Result<LightKind> {
+fn distant_light(c: &Common, params: &ParamSet, loc: &Loc) -> Result<LightKind> {
     let from = DVec3::from(params.point3("from", [0.0; 3])?);
     let to = DVec3::from(params.point3("to", [0.0, 0.0, 1.0])?);
     let k = c.illuminance.unwrap_or(1.0);
+    let at = params.loc_of("to").unwrap_or_else(|| loc.clone());
     Ok(LightKind::Distant {
-        direction: c.ctm.transform_vector3(from - to).normalize(),
+        direction: direction(
+            c.ctm.transform_vector3(from - to),
+            "LightSource 'distant': \"to\" to \"from\"",
+            &at,
+        )?,
         radiance: c.colour(params, "L", k)?,
     })
+}
+
+/// `v` as a unit vector, or an error at `at` saying that `what` has no direction (zero, or
+/// not finite once transformed): a light aimed nowhere would render black, or NaN.
+fn direction(v: DVec3, what: &str, at: &Loc) -> Result<DVec3> {
+    let unit = v.normalize_or_zero();
+    if unit == DVec3::ZERO || !unit.is_finite() {
+        return Err(SceneError::at(
+            at,
+            format!(
+                "{what} has no direction: it is ({}, {}, {}) in world space",
+                v.x, v.y, v.z
+            ),
+        ));
+    }
+    Ok(unit)
 }
 
 /// The scale that makes a light of power `k_e` per unit scale emit `phi` (none where it
@@ -490,5 +521,42 @@ mod tests {
         let y = 0.2126 * radiance[0] + 0.7152 * radiance[1] + 0.0722 * radiance[2];
         assert!((y - 2.0).abs() < 0.01, "{radiance:?}");
         assert!(s.shapes[1].area_light.is_none() && !s.shapes[1].reverse_orientation);
+    }
+    /// A light aimed nowhere (a zero or overflowing direction, once transformed) is an error
+    /// naming its line, not a black or NaN frame; so is a rotation about no axis.
+    #[test]
+    fn lights_aimed_nowhere_are_errors_naming_the_line() {
+        for (text, what) in [
+            (
+                "LightSource \"dome\" \"vector3 up\" [ 0 0 0 ]",
+                "'dome': \"up\"",
+            ),
+            (
+                "LightSource \"distant\" \"point3 from\" [ 1 2 3 ] \"point3 to\" [ 1 2 3 ]",
+                "'distant'",
+            ),
+            (
+                "LightSource \"spot\" \"point3 from\" [ 0 1 0 ] \"point3 to\" [ 0 1 0 ]",
+                "'spot'",
+            ),
+            (
+                "Scale 1e300 1e300 1e300 LightSource \"dome\" \"vector3 up\" [ 1e300 0 0 ]",
+                "'dome': \"up\"",
+            ),
+            ("Scale 0 0 0 LightSource \"distant\"", "'distant'"),
+            ("Rotate 30 1e300 1e300 0", "Rotate about a zero-length axis"),
+        ] {
+            let scene = format!("WorldBegin\n\n{text}\n");
+            let err = crate::load_str(&scene, "lights.pbrt".as_ref(), ".".as_ref())
+                .err()
+                .unwrap_or_else(|| panic!("accepted: {text}"))
+                .to_string();
+            assert!(
+                err.starts_with("lights.pbrt:3:") && err.contains(what),
+                "{text}: {err}"
+            );
+        }
+        // A direction that is fine stays fine.
+        load("WorldBegin\nLightSource \"dome\" \"vector3 up\" [ 0 1 0 ]");
     }
 }

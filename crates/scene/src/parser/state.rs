@@ -108,11 +108,14 @@ impl Parser {
 
     pub(super) fn rotate(&mut self, c: &mut Cursor, loc: &Loc) -> Result<()> {
         let v = c.numbers("Rotate", 4)?;
-        let axis = DVec3::new(v[1], v[2], v[3]);
-        if axis.length_squared() == 0.0 {
-            return Err(SceneError::at(loc, "Rotate about a zero-length axis"));
+        let axis = DVec3::new(v[1], v[2], v[3]).normalize_or_zero();
+        if axis == DVec3::ZERO {
+            return Err(SceneError::at(
+                loc,
+                "Rotate about a zero-length axis (or one too long to normalise)",
+            ));
         }
-        self.apply_transform(DMat4::from_axis_angle(axis.normalize(), v[0].to_radians()));
+        self.apply_transform(DMat4::from_axis_angle(axis, v[0].to_radians()));
         Ok(())
     }
 

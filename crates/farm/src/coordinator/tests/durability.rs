@@ -133,14 +133,18 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
 }
 
 /// Bundles whose entry names the file system would refuse (a file that is also a folder, a
-/// name over 255 bytes, a NUL, a name twice) are the client's mistake: a 400 that says
+/// name over 255 bytes, a NUL, a name twice, a folder's name, a path thousands of folders
+/// deep) are the client's mistake: a 400 that says
 /// which, never a 500 with the server's path, and nothing is left behind.
 #[tokio::test]
 async fn bundles_whose_names_cannot_be_files_are_refused() {
     let f = farm(None);
     let scene = b"WorldBegin\n".to_vec();
     let long = "n".repeat(300);
+    let deep = "d/".repeat(30_000) + "f";
     for (names, words) in [
+        (vec!["scene.pbrt", "d/"], "names a folder"),
+        (vec!["scene.pbrt", deep.as_str()], "the most is 4096"),
         (vec!["scene.pbrt", "a", "a/b"], "both a file and a folder"),
         (vec!["scene.pbrt", "a/b", "a"], "both a file and a folder"),
         (vec!["scene.pbrt", long.as_str()], "longer than 255 bytes"),
