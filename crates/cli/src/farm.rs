@@ -154,8 +154,16 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let name = args.name.unwrap_or_else(|| {
         let host = std::fs::read_to_string("/etc/hostname").unwrap_or_else(|_| "worker".into());
-        format!("{}-{}", host.trim(), std::process::id())
+        // Only what a worker name may hold (a host name may hold more, in principle).
+        let host: String = host
+            .trim()
+            .chars()
+            .filter(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-'))
+            .take(100)
+            .collect();
+        format!("{host}-{}", std::process::id())
     });
+    kiln_farm::api::check_worker_name(&name).map_err(anyhow::Error::msg)?;
     let cache_dir = args
         .cache_dir
         .unwrap_or_else(|| std::env::temp_dir().join("kiln-bundles"));

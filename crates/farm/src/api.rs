@@ -245,6 +245,25 @@ pub struct LeaseRequest {
     pub worker: String,
 }
 
+/// The longest worker name, in bytes.
+pub const MAX_WORKER_NAME: usize = 128;
+
+/// Checks a worker's name: 1 to [`MAX_WORKER_NAME`] bytes of letters, digits and `.`, `_`,
+/// `-`, `:`, `@` (a host name, a pod's, `host-pid`). The coordinator keeps a record per
+/// name, so a name is bounded; `kiln worker` checks its own before it starts.
+pub fn check_worker_name(name: &str) -> Result<(), String> {
+    let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-' | ':' | '@');
+    if name.is_empty() || name.len() > MAX_WORKER_NAME || !name.chars().all(allowed) {
+        let shown: String = name.chars().take(40).collect();
+        return Err(format!(
+            "worker name '{}{}' is not 1 to {MAX_WORKER_NAME} of letters, digits and . _ - : @",
+            shown.escape_debug(),
+            if name.chars().count() > 40 { "..." } else { "" }
+        ));
+    }
+    Ok(())
+}
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Failure {
     pub reason: String,

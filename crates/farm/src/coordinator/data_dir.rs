@@ -24,7 +24,50 @@ impl DataDir {
         for sub in [dir.scenes(), dir.root.join("jobs")] {
             std::fs::create_dir_all(&sub).map_err(|e| Error::io(&sub, e))?;
         }
+        dir.remove_leftovers();
         Ok(dir)
+    }
+
+    /// Removes what a coordinator that stopped mid-write left behind: uploads in progress
+    /// (`scenes/.upload.*`), bundles half unpacked (`scenes/.<digest>.*.tmp`) and merged
+    /// frames half written (`jobs/<id>/*.tmp`). None of them is anything's only copy: an
+    /// upload was never acknowledged, and a frame is merged again from the kept tiles.
+    fn remove_leftovers(&self) {
+        let entries = |dir: &Path| -> Vec<std::fs::DirEntry> {
+            std::fs::read_dir(dir)
+                .map(|d| d.flatten().collect())
+                .unwrap_or_default()
+        };
+        for e in entries(&self.scenes()) {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            let half_unpacked = name.starts_with('.') && name.ends_with(".tmp");
+            if name.starts_with(".upload.") || half_unpacked {
+                let path = e.path();
+                let removed = if path.is_dir() {
+                    std::fs::remove_dir_all(&path)
+                } else {
+                    std::fs::remove_file(&path)
+                };
+                match removed {
+                    Ok(()) => tracing::info!("removed {}, left by an earlier run", path.display()),
+                    Err(err) => tracing::warn!("cannot remove {}: {err}", path.display()),
+                }
+            }
+        }
+        for job in entries(&self.root.join("jobs")) {
+            for e in entries(&job.path()) {
+                let path = e.path();
+                if path.extension().is_some_and(|x| x == "tmp") {
+                    match std::fs::remove_file(&path) {
+                        Ok(()) => {
+                            tracing::info!("removed {}, left by an earlier run", path.display())
+                        }
+                        Err(err) => tracing::warn!("cannot remove {}: {err}", path.display()),
+                    }
+                }
+            }
+        }
     }
 
     /// Where bundles are unpacked, one folder per digest (see [`bundle::unpack_into_cache`]).

@@ -39,6 +39,8 @@ pub enum Error {
     UnknownJob(u64),
     #[error("no worker '{0}' is set aside")]
     NotSetAside(String),
+    #[error("{0}")]
+    BadWorkerName(String),
     /// A job whose scene cannot be planned into tiles.
     #[error("{0}")]
     Unplannable(PlanError),
@@ -125,6 +127,18 @@ impl From<tokio::task::JoinError> for Error {
 pub enum PlanError {
     #[error("tile must be at least 1")]
     ZeroTile,
+    /// Tiles of `tile` pixels would cut the frame into more than [`super::job::MAX_TILES`].
+    #[error(
+        "tiles of {tile} pixels cut this {width}x{height} render into {count} tiles; a job has at most {max}: use tiles of at least {least} pixels"
+    )]
+    TooManyTiles {
+        tile: u32,
+        width: u32,
+        height: u32,
+        count: u64,
+        max: u64,
+        least: u32,
+    },
     #[error("no scene with digest '{0}' was uploaded")]
     NoScene(String),
     /// The parser's message, with the data directory's prefix taken off file names.

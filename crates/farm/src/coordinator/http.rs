@@ -123,6 +123,7 @@ impl Error {
             | Error::BadExposure
             | Error::NoTileDigest
             | Error::BadPrepassName
+            | Error::BadWorkerName(_)
             | Error::PrepassDigest
             | Error::BrokenUpload(_)
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,

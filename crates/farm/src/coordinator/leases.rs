@@ -200,7 +200,41 @@ impl Workers {
     pub fn iter(&self) -> impl Iterator<Item = (&String, &WorkerRecord)> {
         self.records.iter()
     }
+
+    /// Forgets the workers last heard from before `before` (never heard from, for those
+    /// only set aside) that are not set aside and hold no lease (`busy` says which do):
+    /// workers come and go, and a record per name ever used must not pile up. Then, past
+    /// [`MAX_WORKERS`] records, forgets the longest unheard of those it may. Returns how
+    /// many it forgot.
+    pub fn forget_unheard(&mut self, before: Instant, busy: impl Fn(&str) -> bool) -> usize {
+        let n = self.records.len();
+        let keep = |name: &String, r: &WorkerRecord| {
+            r.set_aside.is_some() || busy(name) || r.last_seen.is_some_and(|t| t >= before)
+        };
+        self.records.retain(|name, r| keep(name, r));
+        if self.records.len() > MAX_WORKERS {
+            let mut idle: Vec<(Option<Instant>, String)> = self
+                .records
+                .iter()
+                .filter(|(name, r)| r.set_aside.is_none() && !busy(name))
+                .map(|(name, r)| (r.last_seen, name.clone()))
+                .collect();
+            idle.sort();
+            let excess = self.records.len() - MAX_WORKERS;
+            for (_, name) in idle.into_iter().take(excess) {
+                self.records.remove(&name);
+            }
+        }
+        n - self.records.len()
+    }
 }
+
+/// The most workers the coordinator keeps records of (set-aside ones and ones holding a
+/// lease are kept whatever their number).
+pub const MAX_WORKERS: usize = 10_000;
+
+/// How long a worker may stay silent before its record is forgotten (it comes back as new).
+pub const FORGET_WORKERS_AFTER: Duration = Duration::from_secs(3600);
 
 #[cfg(test)]
 mod tests {

@@ -22,6 +22,7 @@ impl Coordinator {
     /// that has one, sharing workers between jobs of equal priority; `None` if there is no
     /// work now.
     pub fn lease(&self, worker: &str) -> Result<Option<Lease>, Error> {
+        crate::api::check_worker_name(worker).map_err(Error::BadWorkerName)?;
         let now = self.now();
         let mut state = self.lock();
         let state = &mut *state;

@@ -277,6 +277,10 @@ impl State {
                 job.lease_lost(held.tile, id);
             }
         }
+        let before = now.checked_sub(leases::FORGET_WORKERS_AFTER).unwrap_or(now);
+        let busy: std::collections::HashSet<&str> =
+            self.leases.iter().map(|(_, h)| h.worker.as_str()).collect();
+        self.workers.forget_unheard(before, |w| busy.contains(w));
     }
 }
 

@@ -38,6 +38,10 @@ use std::path::Path;
 use std::sync::Arc;
 use tokio::time::Instant;
 
+/// The most tiles a job may have. A tile's bookkeeping is some 100 bytes, so this bounds
+/// a job's to about 100 MB, and a 16384x16384 frame can still be cut into tiles of 16.
+pub const MAX_TILES: u64 = 1 << 20;
+
 pub(super) struct Job {
     pub id: u64,
     pub spec: JobSpec,
@@ -113,6 +117,7 @@ impl Job {
         }
         let f = &desc.film;
         let [x0, x1, y0, y1] = f.pixel_bounds;
+        check_tile_count(x1 - x0, y1 - y0, spec.tile)?;
         let frame = RgbBuffer::new(f.xresolution, f.yresolution, x0, y0, x1 - x0, y1 - y0)
             .with_aovs(kiln_render::aov_names(f.gbuffer));
         let tiles = split_into_tiles(f.pixel_bounds, spec.tile);
@@ -504,6 +509,27 @@ impl Job {
     fn set_spec_passes(&mut self) {
         self.spec.passes = Some(self.schedule.passes.clone());
     }
+}
+
+/// Refuses tiles of `tile` pixels that would cut a `width` x `height` render into more than
+/// [`MAX_TILES`], before any is planned, saying the smallest tile that would do.
+fn check_tile_count(width: u32, height: u32, tile: u32) -> Result<(), PlanError> {
+    let count = |t: u32| u64::from(width.div_ceil(t)) * u64::from(height.div_ceil(t));
+    let n = count(tile);
+    if n <= MAX_TILES {
+        return Ok(());
+    }
+    let least = (tile..=width.max(height).max(1))
+        .find(|&t| count(t) <= MAX_TILES)
+        .unwrap_or(tile);
+    Err(PlanError::TooManyTiles {
+        tile,
+        width,
+        height,
+        count: n,
+        max: MAX_TILES,
+        least,
+    })
 }
 
 /// A tile's place: its frame's size, its window in it, and the running sums it must carry

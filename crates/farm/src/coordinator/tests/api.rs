@@ -334,3 +334,48 @@ async fn the_dashboard_is_served_and_its_sign_in_checks_the_token() {
         assert_eq!(status == StatusCode::OK, ok, "{q}: {status}");
     }
 }
+
+/// Tiles of one pixel on an 8192x8192 frame once made the coordinator allocate a gigabyte
+/// for the plan and abort. The tile count is bounded before anything is planned: a 422
+/// that says the limit and the smallest tile that fits, at once.
+#[tokio::test]
+async fn a_job_of_too_many_tiles_is_refused_before_it_is_planned() {
+    let f = farm(None);
+    let scene = upload_scene(&f, 8192, 8192).await;
+    let spec = |tile: u32| JobSpec {
+        scene: scene.clone(),
+        spp: Some(1),
+        resolution: None,
+        tile,
+        seed: None,
+        passes: None,
+        verify: None,
+        priority: 0,
+        webhook: None,
+    };
+    let start = std::time::Instant::now();
+    let (status, body) = call(
+        &f.app,
+        "POST",
+        "/v1/jobs",
+        None,
+        serde_json::to_vec(&spec(1)).unwrap(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+    assert_eq!(
+        error_of(&body),
+        "tiles of 1 pixels cut this 8192x8192 render into 67108864 tiles; a job has at most 1048576: use tiles of at least 8 pixels"
+    );
+    assert!(start.elapsed() < std::time::Duration::from_secs(2));
+    // The smallest tile it names is accepted.
+    let (status, _) = call(
+        &f.app,
+        "POST",
+        "/v1/jobs",
+        None,
+        serde_json::to_vec(&spec(8)).unwrap(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::CREATED);
+}

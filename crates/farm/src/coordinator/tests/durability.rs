@@ -296,3 +296,36 @@ async fn tiles_kept_before_passes_existed_resume_as_done() {
     );
     drop(dir);
 }
+
+/// What a coordinator killed mid-write leaves (an upload streaming to disk, a bundle half
+/// unpacked, a merged frame half written) is removed when the next one opens the data
+/// directory; kept bundles and results are not touched.
+#[tokio::test]
+async fn leftovers_of_a_killed_coordinator_are_removed_at_the_next_start() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    let job = submit_with(&f, 16, 8, 8, |_| {}).await;
+    let scene = f.c.lock().jobs[&job].spec.scene.clone();
+    let Farm { dir, c, app } = f;
+    drop((c, app));
+    let scenes = data.join("scenes");
+    let leftovers = [
+        scenes.join(".upload.4242.7"),
+        scenes.join(format!(".{scene}.4242.3.tmp")),
+        data.join("jobs")
+            .join(job.to_string())
+            .join("result.pass-0.tmp"),
+    ];
+    std::fs::create_dir_all(data.join("jobs").join(job.to_string())).unwrap();
+    std::fs::write(&leftovers[0], b"half an upload").unwrap();
+    std::fs::create_dir_all(leftovers[1].join("models")).unwrap();
+    std::fs::write(&leftovers[2], b"").unwrap();
+    let (_c, app) = open(&data, None);
+    for l in &leftovers {
+        assert!(!l.exists(), "{} is still there", l.display());
+    }
+    assert!(scenes.join(&scene).is_dir(), "the kept bundle was removed");
+    let s = job_status(&app, job).await;
+    assert_eq!(s.state, JobState::Running);
+    drop(dir);
+}
