@@ -248,3 +248,76 @@ fn chaos_random_kills_of_workers_and_the_coordinator_lose_nothing() {
         "too few kills to prove anything"
     );
 }
+
+/// A scene that kills every worker that takes it (here a test fault: workers abort on a
+/// marked scene), on a farm of three workers that restart when they die, as a service
+/// manager restarts them: its job fails within three attempts with the reason, no worker
+/// is set aside (a machine that dies is not to blame), and another job finishes.
+#[test]
+fn a_scene_that_kills_its_workers_fails_its_job_and_blames_no_worker() {
+    let farm = Farm::process();
+    let text = std::fs::read_to_string(scene("furnace/scene.pbrt")).unwrap();
+    let poison_path = crate::util::write_scene(
+        farm.dir.path(),
+        "poison.pbrt",
+        &format!("{}\n{text}", kiln_farm::worker::ABORT_MARKER),
+    );
+    let poison = farm.submit(
+        &poison_path,
+        &[
+            "--spp",
+            "1",
+            "--resolution",
+            "16x16",
+            "--tile",
+            "16",
+            "--priority",
+            "1",
+        ],
+    );
+    let healthy = farm.submit(
+        &scene("furnace/scene.pbrt"),
+        &["--spp", "1", "--resolution", "32x32", "--tile", "16"],
+    );
+    let start = |i: usize, life: u32| {
+        farm.worker_with(
+            &format!("w{i}"),
+            &format!("cache{i}-{life}"),
+            &["--inject-fault", "abort-on-marked-scene"],
+        )
+    };
+    let mut lives = [0u32; 3];
+    let mut workers: Vec<Worker> = (0..3).map(|i| start(i, 0)).collect();
+    let mut deaths = 0;
+    wait_for("both jobs ending", Duration::from_secs(120), || {
+        for (i, w) in workers.iter_mut().enumerate() {
+            if let Some(status) = w.child.try_wait().unwrap() {
+                assert!(!status.success(), "a worker left: {}", w.text());
+                deaths += 1;
+                lives[i] += 1;
+                *w = start(i, lives[i]);
+            }
+        }
+        farm.status(poison).state != JobState::Running
+            && farm.status(healthy).state != JobState::Running
+    });
+    let s = farm.status(poison);
+    assert_eq!((s.state, s.failures), (JobState::Failed, 3), "{s:?}");
+    let error = s.error.unwrap();
+    assert!(
+        error.contains("failed 3 times") && error.contains("expired: it died"),
+        "{error}"
+    );
+    assert!(deaths >= 3, "{deaths} workers died");
+    assert_eq!(farm.status(healthy).state, JobState::Done);
+    let listed: Vec<kiln_farm::api::WorkerStatus> = farm
+        .rt
+        .block_on(async {
+            reqwest::get(format!("{}/v1/workers", farm.url))
+                .await?
+                .json()
+                .await
+        })
+        .unwrap();
+    assert!(listed.iter().all(|w| w.set_aside.is_none()), "{listed:?}");
+}

@@ -134,8 +134,10 @@ pub struct WorkerArgs {
     /// Exit after the coordinator has been unreachable for this many seconds.
     #[arg(long, default_value_t = 600.0)]
     give_up_after: f64,
-    /// For testing verified jobs only: upload wrong pixels on purpose ("flip-low-bit"
-    /// flips the lowest bit of some pixels), as a bad host would.
+    /// For tests only: upload wrong pixels on purpose ("flip-low-bit" flips the lowest bit
+    /// of some pixels), as a bad host would; or abort on a scene marked
+    /// "# kiln-test: abort-worker" ("abort-on-marked-scene"), as a scene that crashes its
+    /// renderer would.
     #[arg(long, value_parser = parse_fault)]
     inject_fault: Option<worker::Fault>,
 }
@@ -143,7 +145,10 @@ pub struct WorkerArgs {
 fn parse_fault(s: &str) -> std::result::Result<worker::Fault, String> {
     match s {
         "flip-low-bit" => Ok(worker::Fault::FlipLowBit),
-        other => Err(format!("unknown fault '{other}' (known: flip-low-bit)")),
+        "abort-on-marked-scene" => Ok(worker::Fault::AbortOnMarkedScene),
+        other => Err(format!(
+            "unknown fault '{other}' (known: flip-low-bit, abort-on-marked-scene)"
+        )),
     }
 }
 

@@ -62,13 +62,20 @@ pub struct WorkerConfig {
     pub fault: Option<Fault>,
 }
 
-/// A fault a worker can be told to inject into what it uploads: how a verified job is
-/// tested against a bad host (a flaky memory bit, a miscompiled math library).
+/// A fault a worker can be told to inject, for tests: how a verified job is tested against
+/// a bad host (a flaky memory bit, a miscompiled math library), and the farm against a
+/// scene that crashes its renderer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Fault {
     /// Flips the lowest bit of the red channel of every seventh pixel of each tile.
     FlipLowBit,
+    /// Aborts the process on loading a scene whose file holds [`ABORT_MARKER`]: a scene
+    /// that crashes every renderer that takes it.
+    AbortOnMarkedScene,
 }
+
+/// The comment that makes a worker with [`Fault::AbortOnMarkedScene`] abort.
+pub const ABORT_MARKER: &str = "# kiln-test: abort-worker";
 
 impl Fault {
     fn apply(self, tile: &mut kiln_image::RgbBuffer) {
@@ -78,6 +85,7 @@ impl Fault {
                     p[0] = f32::from_bits(p[0].to_bits() ^ 1);
                 }
             }
+            Fault::AbortOnMarkedScene => {}
         }
     }
 }
@@ -273,6 +281,12 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
             .map_err(LoadError::Bundle)?
         }
     };
+    if config.fault == Some(Fault::AbortOnMarkedScene)
+        && std::fs::read_to_string(&scene_path).is_ok_and(|t| t.contains(ABORT_MARKER))
+    {
+        eprintln!("kiln worker {}: aborting on a marked scene", config.name);
+        std::process::abort();
+    }
     let overrides = spec.overrides();
     let root = config.cache_dir.join(&spec.scene);
     let share: Arc<dyn SharedPrepass> = Arc::new(CoordinatorShare {

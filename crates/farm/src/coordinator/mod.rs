@@ -251,10 +251,14 @@ impl Coordinator {
         self.lock().jobs.values().map(|j| j.status(now)).collect()
     }
 
-    /// Returns expired leases' tiles to their jobs' queues.
+    /// Returns expired leases' tiles to their jobs' queues (failing a job whose tile has
+    /// now failed too often), and forgets workers long silent.
     pub fn expire_leases(&self) {
         let now = self.now();
-        self.lock().expire_leases(now);
+        let failed = self.lock().expire_leases(now);
+        for job in failed {
+            self.notify(job);
+        }
     }
 }
 
@@ -270,17 +274,28 @@ impl State {
         }
     }
 
-    fn expire_leases(&mut self, now: Instant) {
+    /// Expires what is due at `now`; returns the jobs that failed for it.
+    fn expire_leases(&mut self, now: Instant) -> Vec<u64> {
+        let mut failed = Vec::new();
         for (id, held) in self.leases.expire(now) {
             self.metrics.leases_expired += 1;
-            if let Some(job) = self.jobs.get_mut(&held.job) {
-                job.lease_lost(held.tile, id);
+            if let Some(job) = self.jobs.get_mut(&held.job)
+                && job.lease_expired(held.tile, id, &held.worker)
+            {
+                tracing::warn!(
+                    "job {} failed: {}",
+                    held.job,
+                    job.error.as_deref().unwrap_or_default()
+                );
+                self.persist(held.job);
+                failed.push(held.job);
             }
         }
         let before = now.checked_sub(leases::FORGET_WORKERS_AFTER).unwrap_or(now);
         let busy: std::collections::HashSet<&str> =
             self.leases.iter().map(|(_, h)| h.worker.as_str()).collect();
         self.workers.forget_unheard(before, |w| busy.contains(w));
+        failed
     }
 }
 

@@ -17,6 +17,8 @@ pub(super) struct Lending {
     parked: Vec<usize>,
     /// Failed attempts at each tile's current pass.
     attempts: Vec<u32>,
+    /// The workers whose leases on each tile's current pass expired, in order.
+    expired: Vec<Vec<String>>,
     pub failures: u32,
 }
 
@@ -29,6 +31,7 @@ impl Lending {
             queue: (0..tiles).collect(),
             parked: Vec::new(),
             attempts: vec![0; tiles],
+            expired: vec![Vec::new(); tiles],
             failures: 0,
         }
     }
@@ -82,6 +85,31 @@ impl Lending {
         }
     }
 
+    /// `worker`'s `lease` on `tile` expired (the worker died, hung or lost its link): if it
+    /// still holds the tile, the tile is given back and the expiry counts as a failed
+    /// attempt. Returns the tile's failed attempts if it did.
+    pub fn lease_expired(&mut self, tile: usize, lease: u64, worker: &str) -> Option<u32> {
+        if self.lent[tile] != Some(lease) {
+            return None;
+        }
+        self.give_back(tile);
+        self.expired[tile].push(worker.to_string());
+        self.failures += 1;
+        self.attempts[tile] += 1;
+        Some(self.attempts[tile])
+    }
+
+    /// The workers whose leases on `tile`'s current pass expired, each named once.
+    pub fn expired_on(&self, tile: usize) -> Vec<&str> {
+        let mut names: Vec<&str> = Vec::new();
+        for w in &self.expired[tile] {
+            if !names.contains(&w.as_str()) {
+                names.push(w);
+            }
+        }
+        names
+    }
+
     /// An attempt at `tile` failed: it is given back; returns its failed attempts at this
     /// pass.
     pub fn attempt_failed(&mut self, tile: usize) -> u32 {
@@ -96,6 +124,7 @@ impl Lending {
     pub fn advance(&mut self, tile: usize, passes: usize) {
         self.done[tile] += 1;
         self.attempts[tile] = 0;
+        self.expired[tile].clear();
         self.lent[tile] = None;
         if (self.done[tile] as usize) < passes {
             self.queue.push_back(tile);

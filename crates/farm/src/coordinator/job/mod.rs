@@ -344,10 +344,32 @@ impl Job {
         self.lending.lease_lost(tile, lease);
     }
 
+    /// `worker`'s `lease` on `tile` expired: the tile goes back to the front of the queue,
+    /// and the expiry counts as a failed attempt, so that a scene that kills every renderer
+    /// that takes it fails its job with the reason after [`MAX_TILE_ATTEMPTS`] instead of
+    /// killing workers for ever. The worker is not blamed (a machine can die under any
+    /// scene). Returns whether the job failed.
+    pub fn lease_expired(&mut self, tile: usize, lease: u64, worker: &str) -> bool {
+        let Some(attempts) = self.lending.lease_expired(tile, lease, worker) else {
+            return false;
+        };
+        let reason = format!(
+            "the lease of worker {worker} expired: it died, hung or lost its link while rendering the tile (leases of {} expired on this pass; a scene that crashes or hangs its renderer does this)",
+            self.lending.expired_on(tile).join(", ")
+        );
+        self.fail_after(tile, attempts, &reason)
+    }
+
     /// An attempt at `tile` failed: the tile goes back to the front of the queue, or, after
     /// [`MAX_TILE_ATTEMPTS`], fails the job. Returns whether the job failed now.
     pub fn attempt_failed(&mut self, tile: usize, reason: &str) -> bool {
         let attempts = self.lending.attempt_failed(tile);
+        self.fail_after(tile, attempts, reason)
+    }
+
+    /// Fails the job if `tile` has failed [`MAX_TILE_ATTEMPTS`] times, the last for
+    /// `reason`. Returns whether it failed now.
+    fn fail_after(&mut self, tile: usize, attempts: u32, reason: &str) -> bool {
         if attempts >= MAX_TILE_ATTEMPTS && self.state == JobState::Running {
             self.state = JobState::Failed;
             let t = self.tiles[tile];

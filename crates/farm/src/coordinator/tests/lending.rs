@@ -151,11 +151,12 @@ async fn an_upload_under_an_expired_lease_is_kept_only_if_it_is_the_tile_kept() 
         error_of(&body),
         format!("lease {} has expired or is unknown", late.lease)
     );
-    // None of it counted as a failure or a second acceptance.
+    // The expiry counted as one failed attempt; none of the late uploads counted as
+    // another, or as a second acceptance.
     let s = job_status(&f.app, job).await;
     assert_eq!(
         (s.tiles_done, s.failures, s.state),
-        (1, 0, JobState::Running)
+        (1, 1, JobState::Running)
     );
     assert!(
         metrics(&f.app)
@@ -347,4 +348,38 @@ async fn workers_silent_for_an_hour_are_forgotten_unless_set_aside_or_busy() {
         lease(&f.app, "gone").await.is_some(),
         "it comes back as new"
     );
+}
+
+/// A scene that kills every worker that renders it: each expired lease on its tile counts
+/// as a failed attempt, so the job fails with the reason after three (whoever the workers
+/// were, the same one restarting included), instead of killing workers for ever. No worker
+/// is blamed, and another job goes on.
+#[tokio::test(start_paused = true)]
+async fn a_tile_whose_renderers_die_fails_its_job_and_blames_no_worker() {
+    let f = farm(None);
+    let poison = submit_with(&f, 8, 8, 8, |s| s.priority = 1).await;
+    let other = submit(&f, 16, 8, 8).await;
+    for worker in ["a", "b", "a"] {
+        let l = lease(&f.app, worker).await.unwrap();
+        assert_eq!(l.job, poison, "the higher priority goes first");
+        tokio::time::advance(TTL + Duration::from_millis(1)).await;
+        f.c.expire_leases();
+    }
+    let s = job_status(&f.app, poison).await;
+    assert_eq!((s.state, s.failures), (JobState::Failed, 3));
+    let error = s.error.unwrap();
+    assert!(
+        error
+            .starts_with("tile 0 (8x8 at 0,0) failed 3 times; last: the lease of worker a expired")
+            && error.contains("leases of a, b expired on this pass"),
+        "{error}"
+    );
+    // No worker is set aside, and the other job's tiles are lent.
+    let (_, body) = call(&f.app, "GET", "/v1/workers", None, Body::empty()).await;
+    for w in json::<Vec<crate::api::WorkerStatus>>(&body) {
+        assert!(w.set_aside.is_none(), "{w:?}");
+    }
+    let l = lease(&f.app, "a").await.unwrap();
+    assert_eq!(l.job, other);
+    assert_eq!(job_status(&f.app, other).await.state, JobState::Running);
 }
