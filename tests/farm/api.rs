@@ -52,15 +52,35 @@ fn corrupt_uploads_are_rejected_and_the_tile_is_issued_again() {
 /// Shared pre-passes (photon maps, SPPM passes): the first worker to claim a missing one
 /// computes it and the others are told to wait; an upload must carry its bytes' SHA-256;
 /// once stored, a claim says it is ready and a download gives the bytes back with their
-/// digest. Bad names and unknown scenes are refused; no pre-pass is stored for them.
+/// digest. Bad names, names no job of the scene shares, uploads past the size limit and
+/// unknown scenes are refused; no pre-pass is stored for them.
 #[test]
 fn shared_prepasses_are_claimed_once_verified_and_served() {
     use kiln_farm::api::PrepassClaim;
-    let farm = Farm::in_process(None);
+    let farm = Farm::configured(None, |c| c.max_prepass_bytes = 1 << 20);
     let (rt, client, url) = (&farm.rt, &farm.client, &farm.url);
-    let bundle = kiln_farm::bundle::pack(&scene("furnace/scene.pbrt")).unwrap();
-    let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
-    let name = "0123456789abcdef-sppm-pass-0";
+    let digest = farm.upload(&scene("furnace/scene.pbrt"));
+    // Before any job of the scene, no name is wanted.
+    let spec = JobSpec {
+        spp: Some(4),
+        ..Farm::spec(&digest)
+    };
+    let prefix = kiln_farm::api::prepass_prefix(&spec.overrides());
+    let name = format!("{prefix}-sppm-pass-0");
+    let name = name.as_str();
+    let err = rt
+        .block_on(client.claim_prepass(&digest, name))
+        .unwrap_err();
+    assert_eq!(
+        err.status(),
+        Some(reqwest::StatusCode::BAD_REQUEST),
+        "{err}"
+    );
+    assert!(
+        err.to_string().contains("no job of this scene shares"),
+        "{err}"
+    );
+    farm.create(&spec);
     assert_eq!(rt.block_on(client.prepass(&digest, name)).unwrap(), None);
     assert_eq!(
         rt.block_on(client.claim_prepass(&digest, name)).unwrap(),
@@ -110,6 +130,43 @@ fn shared_prepasses_are_claimed_once_verified_and_served() {
             "{bad}: {err}"
         );
     }
+    // Names no job of this scene shares: another job's inputs, another kind of pass.
+    for unwanted in [
+        "0123456789abcdef-sppm-pass-0".to_string(),
+        format!("{prefix}-sppm-pass-01"),
+        format!("{prefix}-secrets"),
+        prefix.clone(),
+    ] {
+        let err = rt
+            .block_on(client.upload_prepass(&digest, &unwanted, bytes.clone()))
+            .unwrap_err();
+        assert_eq!(
+            err.status(),
+            Some(reqwest::StatusCode::BAD_REQUEST),
+            "{unwanted}"
+        );
+        assert_eq!(
+            rt.block_on(client.prepass(&digest, &unwanted)).unwrap(),
+            None
+        );
+    }
+    assert!(
+        rt.block_on(client.claim_prepass(&digest, &format!("{prefix}-photon-maps")))
+            .is_ok()
+    );
+    // Past the limit (1 MiB here) an upload is refused while it streams, and nothing is
+    // kept.
+    let big = vec![7u8; (1 << 20) + 1];
+    let pass1 = format!("{prefix}-sppm-pass-1");
+    let err = rt
+        .block_on(client.upload_prepass(&digest, &pass1, big))
+        .unwrap_err();
+    assert_eq!(
+        err.status(),
+        Some(reqwest::StatusCode::PAYLOAD_TOO_LARGE),
+        "{err}"
+    );
+    assert_eq!(rt.block_on(client.prepass(&digest, &pass1)).unwrap(), None);
     let err = rt
         .block_on(client.upload_prepass(&"ab".repeat(32), name, bytes))
         .unwrap_err();

@@ -295,6 +295,33 @@ pub const TILE_DIGEST_HEADER: &str = "x-kiln-tile-sha256";
 /// download.
 pub const PREPASS_DIGEST_HEADER: &str = "x-kiln-prepass-sha256";
 
+/// The part of a shared pre-pass's name that its job's inputs decide beyond the scene
+/// bundle (resolution, samples, seed), and the layout's version: a digest's first 16 hex
+/// digits. Workers name what they share `PREFIX-photon-maps` and `PREFIX-sppm-pass-N`.
+pub fn prepass_prefix(o: &kiln_scene::Overrides) -> String {
+    let inputs = format!("photons-v1 {:?} {:?} {:?}", o.resolution, o.spp, o.seed);
+    crate::bundle::digest_of(inputs.as_bytes())[..16].to_string()
+}
+
+/// The most SPPM passes a job shares (its iterations; pbrt-v4's default is 64).
+pub const MAX_SHARED_PASSES: u32 = 1 << 20;
+
+/// Whether `name` is one a job whose pre-pass names start with `prefix` can have: its
+/// photon maps, or one of its SPPM passes.
+pub fn is_prepass_of(name: &str, prefix: &str) -> bool {
+    let Some(rest) = name.strip_prefix(prefix).and_then(|r| r.strip_prefix('-')) else {
+        return false;
+    };
+    rest == "photon-maps"
+        || rest.strip_prefix("sppm-pass-").is_some_and(|n| {
+            !n.is_empty()
+                && n.len() <= 7
+                && n.bytes().all(|b| b.is_ascii_digit())
+                && (n == "0" || !n.starts_with('0'))
+                && n.parse::<u32>().is_ok_and(|i| i < MAX_SHARED_PASSES)
+        })
+}
+
 /// Who computes a job's shared pre-pass (photon maps, an SPPM pass) that is not stored yet.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

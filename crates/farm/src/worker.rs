@@ -1,6 +1,6 @@
 //! A worker: leases tiles, renders them with `kiln_render::render_tile`, returns EXRs.
 
-use crate::api::{JobSpec, Lease, PrepassClaim};
+use crate::api::{JobSpec, Lease, PrepassClaim, prepass_prefix};
 use crate::bundle;
 use crate::client::{Client, ClientError};
 use kiln_render::shared::{Shared, SharedPrepass};
@@ -308,14 +308,6 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
     })
     .await
     .map_err(LoadError::Task)?
-}
-
-/// The part of a shared pre-pass's name that its job's inputs decide beyond the scene
-/// bundle (resolution, samples, seed), and the layout's version: a digest's first 16 hex
-/// digits.
-fn prepass_prefix(o: &kiln_scene::Overrides) -> String {
-    let inputs = format!("photons-v1 {:?} {:?} {:?}", o.resolution, o.spp, o.seed);
-    bundle::digest_of(inputs.as_bytes())[..16].to_string()
 }
 
 /// A job's shared pre-passes (photon maps, SPPM's passes) through the coordinator. The

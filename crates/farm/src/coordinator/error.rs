@@ -81,6 +81,10 @@ pub enum Error {
     #[error("no pre-pass '{0}' is stored for this scene")]
     UnknownPrepass(String),
     #[error(
+        "no job of this scene shares a pre-pass named '{0}' (a job's are PREFIX-photon-maps and PREFIX-sppm-pass-N, PREFIX from its inputs)"
+    )]
+    UnwantedPrepass(String),
+    #[error(
         "a pre-pass upload must give the SHA-256 of its bytes in the X-Kiln-Prepass-SHA256 header, and its bytes must have it"
     )]
     PrepassDigest,

@@ -22,16 +22,14 @@ use tokio::sync::broadcast;
 /// The coordinator's HTTP routes.
 pub fn app(c: Coordinator) -> Router {
     let max_tile = c.config().max_tile_bytes;
-    let max_prepass = c.config().max_scene_bytes;
     let api = Router::new()
         // Streamed to disk, and limited as it streams (save_scene_stream).
         .route("/v1/scenes", post(upload_scene))
         .route("/v1/scenes/{digest}", get(download_scene))
+        // Streamed to disk, and limited as it streams (save_prepass).
         .route(
             "/v1/scenes/{digest}/prepass/{name}",
-            get(download_prepass)
-                .put(upload_prepass)
-                .layer(DefaultBodyLimit::max(max_prepass)),
+            get(download_prepass).put(upload_prepass),
         )
         .route(
             "/v1/scenes/{digest}/prepass/{name}/claim",
@@ -123,6 +121,7 @@ impl Error {
             | Error::BadExposure
             | Error::NoTileDigest
             | Error::BadPrepassName
+            | Error::UnwantedPrepass(_)
             | Error::BadWorkerName(_)
             | Error::PrepassDigest
             | Error::BrokenUpload(_)
@@ -249,7 +248,7 @@ async fn upload_prepass(
     State(c): State<Coordinator>,
     UrlPath((digest, name)): UrlPath<(String, String)>,
     headers: HeaderMap,
-    body: Bytes,
+    body: axum::body::Body,
 ) -> Result<StatusCode, Error> {
     let sha = headers
         .get(PREPASS_DIGEST_HEADER)

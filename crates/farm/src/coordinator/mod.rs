@@ -58,6 +58,9 @@ pub struct Config {
     pub token: Option<String>,
     pub lease_ttl: Duration,
     pub max_scene_bytes: usize,
+    /// The largest shared pre-pass (photon maps, an SPPM pass) a worker may upload; 512 MiB
+    /// by default (a map of ten million photons is some 400 MB).
+    pub max_prepass_bytes: usize,
     pub max_tile_bytes: usize,
     /// The most pixels a job's frame (its crop window) may hold: the frame is allocated
     /// when the job is created. 16384 x 16384 by default (3 GiB of float RGB).
@@ -74,6 +77,7 @@ impl Config {
             token: None,
             lease_ttl: Duration::from_secs(20),
             max_scene_bytes: 2 << 30,
+            max_prepass_bytes: 512 << 20,
             max_tile_bytes: 256 << 20,
             max_frame_pixels: kiln_image::MAX_PIXELS,
             webhook_backoff: Duration::from_secs(1),

@@ -4,6 +4,11 @@
 //! `scenes/<digest>.prepass/<name>`, under a name the workers derive from the job's inputs,
 //! and served with the SHA-256 of their bytes, which the upload had to give and match.
 //!
+//! Only the names a job of the scene can share are taken (its photon maps, its SPPM
+//! passes, named after the job's inputs: `api::is_prepass_of`), and an upload streams to
+//! disk, hashed on the way, refused past `Config::max_prepass_bytes`: nothing a client
+//! sends is held in memory whole.
+//!
 //! A claim says who is computing what is not stored yet, so the others wait for it (or
 //! compute the passes nobody has claimed) instead of computing it too. Claims live in
 //! memory only: after a restart, or [`CLAIM_TTL`] after a claim whose worker went quiet,
@@ -11,13 +16,15 @@
 //! its claim up.
 
 use super::{Coordinator, Error};
-use crate::api::PrepassClaim;
+use crate::api::{PrepassClaim, is_prepass_of, prepass_prefix};
 use crate::bundle;
-use axum::body::Bytes;
+use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Duration;
+use tokio::io::AsyncWriteExt;
 use tokio::time::Instant;
+use tokio_stream::StreamExt;
 
 /// How long a claim holds without the pre-pass arriving.
 pub const CLAIM_TTL: Duration = Duration::from_secs(600);
@@ -51,6 +58,20 @@ impl Coordinator {
         Ok(scenes.join(format!("{scene}.prepass")).join(name))
     }
 
+    /// Refuses a name no job of the scene can share: pre-passes are a job's, and a client
+    /// must not store files under names of its choosing.
+    fn check_wanted(&self, scene: &str, name: &str) -> Result<(), Error> {
+        let state = self.lock();
+        let wanted = state.jobs.values().any(|j| {
+            j.spec.scene == scene && is_prepass_of(name, &prepass_prefix(&j.spec.overrides()))
+        });
+        if wanted {
+            Ok(())
+        } else {
+            Err(Error::UnwantedPrepass(name.to_string()))
+        }
+    }
+
     /// A stored pre-pass's bytes.
     pub async fn prepass(&self, scene: &str, name: &str) -> Result<Vec<u8>, Error> {
         let path = self.prepass_path(scene, name)?;
@@ -59,36 +80,64 @@ impl Coordinator {
             .map_err(|_| Error::UnknownPrepass(name.to_string()))
     }
 
-    /// Keeps an uploaded pre-pass whose bytes have the SHA-256 `sha` (hex): to a temporary
-    /// file, then renamed into place, so a reader sees all of it or none. A second upload
-    /// of the same name replaces it with the same bytes.
+    /// Keeps an uploaded pre-pass whose bytes have the SHA-256 `sha` (hex): streamed to a
+    /// temporary file and hashed on the way (at most `max_prepass_bytes`), then renamed
+    /// into place, so a reader sees all of it or none. A second upload of the same name
+    /// replaces it with the same bytes.
     pub async fn save_prepass(
         &self,
         scene: &str,
         name: &str,
-        bytes: Bytes,
+        body: axum::body::Body,
         sha: &str,
     ) -> Result<(), Error> {
         let path = self.prepass_path(scene, name)?;
-        let this = self.clone();
-        let key = (scene.to_string(), name.to_string());
-        let sha = sha.to_ascii_lowercase();
-        tokio::task::spawn_blocking(move || {
-            if bundle::digest_of(&bytes) != sha {
+        self.check_wanted(scene, name)?;
+        let limit = self.config().max_prepass_bytes;
+        let tmp = self.files().upload_path();
+        let received = async {
+            let mut file = tokio::fs::File::create(&tmp)
+                .await
+                .map_err(|e| Error::io(&tmp, e))?;
+            let (mut hasher, mut total) = (Sha256::new(), 0usize);
+            let mut chunks = body.into_data_stream();
+            while let Some(chunk) = chunks.next().await {
+                let chunk = chunk.map_err(|e| Error::BrokenUpload(e.to_string()))?;
+                total += chunk.len();
+                if total > limit {
+                    return Err(Error::TooLarge { limit });
+                }
+                hasher.update(&chunk);
+                file.write_all(&chunk)
+                    .await
+                    .map_err(|e| Error::io(&tmp, e))?;
+            }
+            file.flush().await.map_err(|e| Error::io(&tmp, e))?;
+            let digest: String = hasher
+                .finalize()
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect();
+            if digest != sha.to_ascii_lowercase() {
                 return Err(Error::PrepassDigest);
             }
             let dir = path.parent().expect("a pre-pass has a folder");
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-            let tmp = this.files().upload_path();
-            std::fs::write(&tmp, &bytes).map_err(|e| Error::io(&tmp, e))?;
-            std::fs::rename(&tmp, &path).map_err(|e| {
-                let _ = std::fs::remove_file(&tmp);
-                Error::io(&path, e)
-            })?;
-            this.claims().0.remove(&key);
-            Ok(())
-        })
-        .await?
+            tokio::fs::create_dir_all(dir)
+                .await
+                .map_err(|e| Error::io(dir, e))?;
+            tokio::fs::rename(&tmp, &path)
+                .await
+                .map_err(|e| Error::io(&path, e))
+        }
+        .await;
+        if received.is_err() {
+            let _ = tokio::fs::remove_file(&tmp).await;
+        }
+        received?;
+        self.claims()
+            .0
+            .remove(&(scene.to_string(), name.to_string()));
+        Ok(())
     }
 
     /// Who computes a pre-pass: ready if stored; else the asker, unless another worker
@@ -98,6 +147,7 @@ impl Coordinator {
         if path.exists() {
             return Ok(PrepassClaim::Ready);
         }
+        self.check_wanted(scene, name)?;
         let mut claims = self.claims();
         let now = self.now();
         // Lapsed claims go, so that names asked for and never uploaded do not pile up.
