@@ -11,6 +11,7 @@
 
 mod alpha;
 pub mod bilinear;
+pub mod bvh_build;
 pub mod curve;
 pub mod cylinder;
 pub mod disk;
@@ -240,8 +241,7 @@ impl Geometry {
                     pre_split: true,
                     ..BvhBuildParams::medium_build()
                 };
-                let bvh =
-                    obvhs::cwbvh::builder::build_cwbvh_from_tris(&plain, params, &mut build_time);
+                let bvh = bvh_build::build_triangle_cwbvh(&plain, params, &mut build_time);
                 bvh_triangles = bvh
                     .primitive_indices
                     .iter()
@@ -254,7 +254,7 @@ impl Geometry {
         let mut sphere_bvh = None;
         if !spheres.is_empty() {
             build(&mut || {
-                sphere_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                sphere_bvh = Some(bvh_build::build_cwbvh(
                     spheres,
                     BvhBuildParams::medium_build(),
                     &mut build_time,
@@ -264,7 +264,7 @@ impl Geometry {
         let mut quadric_bvh = None;
         if !quadrics.is_empty() {
             build(&mut || {
-                quadric_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                quadric_bvh = Some(bvh_build::build_cwbvh(
                     quadrics,
                     BvhBuildParams::medium_build(),
                     &mut build_time,
@@ -274,7 +274,7 @@ impl Geometry {
         let mut curve_bvh = None;
         if !curve_pieces.is_empty() {
             build(&mut || {
-                curve_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                curve_bvh = Some(bvh_build::build_cwbvh(
                     curve_pieces,
                     BvhBuildParams::medium_build(),
                     &mut build_time,
@@ -284,7 +284,7 @@ impl Geometry {
         let mut mover_bvh = None;
         if !movers.is_empty() {
             build(&mut || {
-                mover_bvh = Some(obvhs::cwbvh::builder::build_cwbvh(
+                mover_bvh = Some(bvh_build::build_cwbvh(
                     movers,
                     BvhBuildParams::medium_build(),
                     &mut build_time,

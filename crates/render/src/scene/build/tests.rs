@@ -150,3 +150,48 @@ fn a_volume_light_needs_a_closed_shape_and_a_smooth_dielectric() {
         .to_string();
     assert!(diffuse.contains("smooth \"dielectric\""), "{diffuse}");
 }
+
+/// 30,000 copies of one triangle, or of one sphere, once overflowed the BVH builder's
+/// stack (obvhs's PLOC merges primitives it cannot tell apart into a chain). They are now
+/// built by a median split, in the stack a production render thread has and in well
+/// under the time: a camera ray sees them as one.
+#[test]
+fn coincident_primitives_build_in_bounded_stack_and_time() {
+    let n = 30_000;
+    let points = "-1 -1 0 1 -1 0 0 1 0 ".repeat(n);
+    let indices: String = (0..n)
+        .map(|i| format!("{} {} {} ", 3 * i, 3 * i + 1, 3 * i + 2))
+        .collect();
+    for world in [
+        format!("Shape \"trianglemesh\" \"point3 P\" [ {points}] \"integer indices\" [ {indices}]"),
+        format!(
+            "Translate 0 0 3\n{}",
+            "Shape \"sphere\" \"float radius\" [ 0.5 ]\n".repeat(n)
+        ),
+    ] {
+        let start = std::time::Instant::now();
+        // On a thread with a production render thread's stack (rayon's default, 2 MiB),
+        // where the BVH is built.
+        let scene = std::thread::Builder::new()
+            .stack_size(2 << 20)
+            .spawn(move || build(&world).unwrap())
+            .unwrap()
+            .join()
+            .expect("the build did not overflow its stack");
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(10),
+            "{:?}",
+            start.elapsed()
+        );
+        let ray = crate::math::Ray::new(Vec3A::new(0.0, 0.0, -5.0), Vec3A::Z);
+        let hit = scene
+            .geometry
+            .intersect(&ray, f32::INFINITY)
+            .expect("a hit");
+        assert!(
+            (hit.t - 5.0).abs() < 1e-3 || (hit.t - 7.5).abs() < 1e-3,
+            "{}",
+            hit.t
+        );
+    }
+}
