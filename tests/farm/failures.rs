@@ -321,3 +321,88 @@ fn a_scene_that_kills_its_workers_fails_its_job_and_blames_no_worker() {
         .unwrap();
     assert!(listed.iter().all(|w| w.set_aside.is_none()), "{listed:?}");
 }
+
+/// A tmpfs mounted for a test, unmounted (lazily, whatever still uses it) when dropped.
+struct Mounted(std::path::PathBuf);
+
+impl Drop for Mounted {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount")
+            .arg("-l")
+            .arg(&self.0)
+            .status();
+    }
+}
+
+/// A full disk under the coordinator (its data directory on a 16 MiB tmpfs, filled up
+/// once the job is created): the workers' tiles cannot be kept, so they are answered with
+/// an error, keep their renders and try again, while the job's status and /healthz say
+/// why; the job stays running. Once space returns the job finishes, with kiln render's
+/// bytes. Needs root to mount (CI runs as root); SKIPPED otherwise.
+#[test]
+fn a_full_disk_holds_the_job_until_space_returns_and_loses_nothing() {
+    let mut mounted = None;
+    let farm = Farm::process_with(|data| {
+        std::fs::create_dir_all(data).unwrap();
+        let ok = std::process::Command::new("mount")
+            .args(["-t", "tmpfs", "-o", "size=16m", "tmpfs"])
+            .arg(data)
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            mounted = Some(Mounted(data.to_path_buf()));
+        }
+    });
+    let Some(_mounted) = mounted else {
+        println!(
+            "SKIPPED a_full_disk_holds_the_job_until_space_returns_and_loses_nothing: cannot mount a tmpfs (not root?)"
+        );
+        return;
+    };
+    let path = scene("materials/scene.pbrt");
+    let args = ["--spp", "4", "--resolution", "48x32", "--tile", "16"];
+    let direct = render(&path, farm.dir.path(), "direct", &args);
+    let id = farm.submit(&path, &args);
+    // Fill the disk to the last byte.
+    let filler = farm.data().join("filler");
+    {
+        use std::io::Write;
+        let mut f = std::fs::File::create(&filler).unwrap();
+        let chunk = vec![0u8; 64 << 10];
+        while f.write_all(&chunk).is_ok() {}
+        while f.write_all(&[0u8]).is_ok() {}
+    }
+    let _w = farm.worker("w");
+    let mut notice = String::new();
+    wait_for(
+        "the job saying its tiles cannot be kept",
+        Duration::from_secs(60),
+        || {
+            notice = farm.status(id).notice.unwrap_or_default();
+            notice.contains("cannot keep its tiles")
+        },
+    );
+    assert!(
+        !notice.contains(&farm.data().display().to_string()),
+        "{notice}"
+    );
+    let health = farm
+        .rt
+        .block_on(async {
+            reqwest::get(format!("{}/healthz", farm.url))
+                .await?
+                .text()
+                .await
+        })
+        .unwrap();
+    assert!(
+        health.contains("the job store cannot keep tiles"),
+        "{health}"
+    );
+    assert_eq!(farm.status(id).state, JobState::Running);
+    // Space returns: the worker's next try is kept, and the job ends with every tile.
+    std::fs::remove_file(&filler).unwrap();
+    let s = farm.wait_done(id, Duration::from_secs(120));
+    assert_eq!((s.state, s.notice), (JobState::Done, None), "{:?}", s.error);
+    assert_eq!(farm.result(id), direct.bytes);
+}

@@ -172,7 +172,14 @@ pub(crate) struct Farm {
 impl Farm {
     /// A farm whose coordinator is a `kiln coordinator` process (leases of 1 s).
     pub fn process() -> Farm {
+        Farm::process_with(|_| {})
+    }
+
+    /// As [`Farm::process`], with `prepare` given the data directory's path first (to
+    /// mount something there, say).
+    pub fn process_with(prepare: impl FnOnce(&Path)) -> Farm {
         let dir = tempfile::tempdir().unwrap();
+        prepare(&dir.path().join("data"));
         let port = free_port();
         let child = start_coordinator_process(&dir.path().join("data"), port);
         Farm::new(

@@ -148,9 +148,12 @@ impl DataDir {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
         let mut file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
-        file.write_all(bytes)
-            .and_then(|()| file.sync_all())
-            .map_err(|e| Error::io(&path, e))?;
+        if let Err(e) = file.write_all(bytes).and_then(|()| file.sync_all()) {
+            // A half-written frame (a full disk) is no use to anyone.
+            drop(file);
+            let _ = std::fs::remove_file(&path);
+            return Err(Error::io(&path, e));
+        }
         Ok(path)
     }
 

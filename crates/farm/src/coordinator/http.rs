@@ -57,7 +57,10 @@ pub fn app(c: Coordinator) -> Router {
         .route("/metrics", get(metrics))
         .route_layer(middleware::from_fn_with_state(c.clone(), require_token));
     Router::new()
-        .route("/healthz", get(|| async { "ok\n" }))
+        .route(
+            "/healthz",
+            get(|State(c): State<Coordinator>| async move { c.health() }),
+        )
         // The dashboard's page and code hold no secrets: served without the token, which
         // the page asks for and sends with every API call.
         .route("/", get(dashboard_page))

@@ -7,10 +7,10 @@
 //! `Coordinator::now`.
 
 use super::error::TileRejected;
-use super::job::Landed;
-use super::store::WebhookOutcome;
+use super::job::{Hold, Landed};
+use super::store::{StoreError, WebhookOutcome};
 use super::verify::{Candidate, MAX_CANDIDATES, Verdict};
-use super::{Coordinator, Error, State};
+use super::{Coordinator, Error, Health, State};
 use crate::api::{JobState, Lease};
 use crate::bundle;
 use axum::body::Bytes;
@@ -197,7 +197,8 @@ impl State {
         if !job.is_checked(idx, pass.index) {
             // Kept at once: the bytes as they came, no copy.
             let chain = job.unchecked_after(idx, &worker);
-            self.store.insert_tile(job_id, idx, pass.to, exr, &chain)?;
+            let kept = self.store.insert_tile(job_id, idx, pass.to, exr, &chain);
+            self.kept(job_id, kept)?;
             self.leases.remove(lease);
             self.metrics.tiles_accepted += 1;
             self.workers.succeeded(&worker, now);
@@ -231,9 +232,11 @@ impl State {
                 wrong,
             } => (render, agreeing, wrong),
         };
-        self.store
-            .insert_tile(job_id, idx, pass.to, &render.exr, &chain)?;
-        self.store.add_verified(job_id)?;
+        let kept = self
+            .store
+            .insert_tile(job_id, idx, pass.to, &render.exr, &chain)
+            .and_then(|()| self.store.add_verified(job_id));
+        self.kept(job_id, kept)?;
         self.leases.remove(lease);
         self.metrics.tiles_accepted += 1;
         self.workers.succeeded(&worker, now);
@@ -348,6 +351,40 @@ impl State {
             }
         }
         Err(Error::StaleTile(lease))
+    }
+
+    /// Notes how keeping a tile of `job` in the store went. A failure (a full disk) holds
+    /// the job back, said in its status and the coordinator's health and logged once; the
+    /// worker is answered with an error and keeps its render to upload again. A success
+    /// after failures lets the job go.
+    fn kept(&mut self, job: u64, result: Result<(), StoreError>) -> Result<(), Error> {
+        let trouble = result.as_ref().err().map(ToString::to_string);
+        let was_in_trouble = self.health.store.is_some();
+        Health::note(
+            &mut self.health.store,
+            "keeping tiles in the job store",
+            trouble.clone(),
+        );
+        if let Some(j) = self.jobs.get_mut(&job) {
+            match &trouble {
+                Some(why) => {
+                    j.held_back.insert(
+                        Hold::Store,
+                        format!("the job store cannot keep its tiles ({why}): workers keep their renders and upload them again"),
+                    );
+                }
+                None => {
+                    j.held_back.remove(&Hold::Store);
+                }
+            }
+        }
+        if trouble.is_none() && was_in_trouble {
+            // Every job waiting on the store may go on.
+            for j in self.jobs.values_mut() {
+                j.held_back.remove(&Hold::Store);
+            }
+        }
+        Ok(result?)
     }
 
     /// Ends a lease whose attempt failed: the tile goes back to the queue, or fails its job.

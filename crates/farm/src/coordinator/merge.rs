@@ -9,7 +9,7 @@
 //! A crash before the commit loses nothing: every tile pass is in the store, and resuming
 //! merges the frame again.
 
-use super::{Coordinator, Error};
+use super::{Coordinator, Error, Health};
 use crate::api::JobState;
 use kiln_image::RgbBuffer;
 use std::sync::Arc;
@@ -41,6 +41,25 @@ impl Coordinator {
             .map_err(Error::Image)
             .and_then(|bytes| self.files().stage_result(id, pass, &bytes));
         self.commit_merge(id, pass, staged, start.elapsed());
+    }
+
+    /// Writes again the frames that could not be written (a full disk) once their wait
+    /// is over. Called by the serving loop's tick.
+    pub(super) fn retry_merges(&self) {
+        let now = self.now();
+        let due: Vec<(u64, u32, Arc<RgbBuffer>)> = {
+            let mut state = self.lock();
+            state
+                .jobs
+                .values_mut()
+                .filter(|j| j.merge_due(now))
+                .filter_map(|j| j.take_merge_retry().map(|(p, f)| (j.id, p, f)))
+                .collect()
+        };
+        for (id, pass, frame) in due {
+            let c = self.clone();
+            tokio::spawn(async move { c.merge(id, pass, frame).await });
+        }
     }
 
     fn commit_merge(
@@ -79,11 +98,28 @@ impl Coordinator {
                         tracing::warn!("job {id}: cannot forget its earlier passes: {e}");
                     }
                 }
+                Err(Error::Io { message, .. }) => {
+                    // A full disk, a read-only remount: the tiles are kept, so the frame is
+                    // written again later (and at a restart), not given up on. The path
+                    // is the server's: logged, never shown.
+                    let now = self.now();
+                    let retry = self.config().merge_retry;
+                    let wait = job.merge_failed(pass, &message, now, retry);
+                    tracing::warn!("job {id}: pass {pass}'s frame is written again in {wait:?}");
+                    Health::note(
+                        &mut state.health.files,
+                        "writing merged frames",
+                        Some(message),
+                    );
+                }
                 Err(e) => {
                     tracing::error!("job {id}: cannot write the result: {e}");
                     job.state = JobState::Failed;
                     job.error = Some(format!("cannot write the result: {e}"));
                 }
+            }
+            if state.jobs.get(&id).is_some_and(|j| j.is_written(pass)) {
+                Health::note(&mut state.health.files, "writing merged frames", None);
             }
             state.persist(id);
         }

@@ -61,6 +61,9 @@ pub struct Config {
     /// The largest shared pre-pass (photon maps, an SPPM pass) a worker may upload; 512 MiB
     /// by default (a map of ten million photons is some 400 MB).
     pub max_prepass_bytes: usize,
+    /// The first wait before a merged frame that could not be written (a full disk) is
+    /// written again; it doubles, to at most a minute.
+    pub merge_retry: Duration,
     pub max_tile_bytes: usize,
     /// The most pixels a job's frame (its crop window) may hold: the frame is allocated
     /// when the job is created. 16384 x 16384 by default (3 GiB of float RGB).
@@ -78,6 +81,7 @@ impl Config {
             lease_ttl: Duration::from_secs(20),
             max_scene_bytes: 2 << 30,
             max_prepass_bytes: 512 << 20,
+            merge_retry: Duration::from_secs(1),
             max_tile_bytes: 256 << 20,
             max_frame_pixels: kiln_image::MAX_PIXELS,
             webhook_backoff: Duration::from_secs(1),
@@ -119,6 +123,45 @@ struct State {
     leases: Leases,
     workers: Workers,
     metrics: Metrics,
+    health: Health,
+}
+
+/// What keeps the coordinator from keeping work right now (a full disk, a store that
+/// refuses writes), as `/healthz` and the jobs' statuses say it. Each is logged once when
+/// it starts and once when it ends, however many requests meet it meanwhile.
+#[derive(Debug, Default)]
+struct Health {
+    /// Why the job store cannot write.
+    store: Option<String>,
+    /// Why a merged frame cannot be written to the data directory.
+    files: Option<String>,
+}
+
+impl Health {
+    /// Records `now` as what is wrong with `doing` (None: nothing), logging a change.
+    fn note(slot: &mut Option<String>, doing: &str, now: Option<String>) {
+        if *slot == now {
+            return;
+        }
+        match &now {
+            Some(why) => tracing::error!("{doing} fails: {why}; work waits until it can be kept"),
+            None => tracing::info!("{doing} works again"),
+        }
+        *slot = now;
+    }
+
+    /// What `/healthz` says beyond being up.
+    fn detail(&self) -> Vec<String> {
+        let store = self
+            .store
+            .iter()
+            .map(|w| format!("the job store cannot keep tiles: {w}"));
+        let files = self
+            .files
+            .iter()
+            .map(|w| format!("merged frames cannot be written: {w}"));
+        store.chain(files).collect()
+    }
 }
 
 impl Coordinator {
@@ -155,6 +198,7 @@ impl Coordinator {
                     leases: Leases::new(config.lease_ttl, epoch),
                     workers,
                     metrics: Metrics::default(),
+                    health: Health::default(),
                 }),
                 files,
                 config,
@@ -255,6 +299,16 @@ impl Coordinator {
         self.lock().jobs.values().map(|j| j.status(now)).collect()
     }
 
+    /// What `/healthz` says: "ok", and what keeps work from being kept, if anything.
+    pub fn health(&self) -> String {
+        let detail = self.lock().health.detail();
+        if detail.is_empty() {
+            "ok\n".into()
+        } else {
+            format!("ok, but {}\n", detail.join("; "))
+        }
+    }
+
     /// Returns expired leases' tiles to their jobs' queues (failing a job whose tile has
     /// now failed too often), and forgets workers long silent.
     pub fn expire_leases(&self) {
@@ -326,5 +380,6 @@ async fn expire_leases_every_tick(c: Coordinator) {
     loop {
         tokio::time::sleep(tick).await;
         c.expire_leases();
+        c.retry_merges();
     }
 }

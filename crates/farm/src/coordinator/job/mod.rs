@@ -33,9 +33,10 @@ use kiln_image::{RgbBuffer, Windows};
 use kiln_render::{SumsLayout, TileRect, TileSums, split_into_tiles};
 use lending::Lending;
 use schedule::{Schedule, check_passes};
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::sync::Arc;
+use std::time::Duration;
 use tokio::time::Instant;
 
 /// The most tiles a job may have. A tile's bookkeeping is some 100 bytes, so this bounds
@@ -50,6 +51,13 @@ pub(super) struct Job {
     /// Why a job renders tiles again (a worker whose unchecked renders its sums held was
     /// set aside), for the status.
     pub notice: Option<String>,
+    /// What holds the job's work back now (a store that cannot keep its tiles, a frame
+    /// that cannot be written): its notice while it lasts.
+    pub held_back: BTreeMap<Hold, String>,
+    /// When a merged frame that could not be written is written again.
+    merge_retry: Option<Instant>,
+    /// Writes of a merged frame that failed in a row.
+    merge_failures: u32,
     pub merge_seconds: Option<f64>,
     pub tiles: Vec<TileRect>,
     schedule: Schedule,
@@ -61,6 +69,15 @@ pub(super) struct Job {
     /// take turns by it.
     pub last_lent: u64,
     rate: Rate,
+}
+
+/// What can hold a job's work back for a while.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub(super) enum Hold {
+    /// The job store cannot keep its tiles.
+    Store,
+    /// A complete pass's frame cannot be written.
+    Merge,
 }
 
 /// When the rate is counted from: the first lease after the job was created, resumed or
@@ -184,6 +201,9 @@ impl Job {
             state,
             error: None,
             notice: None,
+            held_back: BTreeMap::new(),
+            merge_retry: None,
+            merge_failures: 0,
             merge_seconds: None,
             tiles,
             schedule,
@@ -248,7 +268,17 @@ impl Job {
             samples_per_pixel_done: self.schedule.samples_after(self.frames.written),
             tile_passes_verified: self.verification.verified,
             tile_passes_held: self.verification.held() as u32,
-            notice: self.notice.clone(),
+            notice: if self.held_back.is_empty() {
+                self.notice.clone()
+            } else {
+                Some(
+                    self.held_back
+                        .values()
+                        .cloned()
+                        .collect::<Vec<_>>()
+                        .join("; "),
+                )
+            },
             priority: self.spec.priority,
             webhook: self.webhook.delivery.describe(),
         }
@@ -433,9 +463,44 @@ impl Job {
         Ok(Landed::Pass { pass, frame })
     }
 
+    /// The merged frame of pass `pass` could not be written (`why`, without server paths):
+    /// the job waits and writes it again after `base`, doubling with each failure in a row
+    /// to at most a minute. Returns the wait.
+    pub fn merge_failed(&mut self, pass: u32, why: &str, now: Instant, base: Duration) -> Duration {
+        self.merge_failures += 1;
+        let doubling = 2u32.saturating_pow((self.merge_failures - 1).min(16));
+        let wait = (base * doubling).min(Duration::from_secs(60));
+        self.merge_retry = Some(now + wait);
+        self.held_back.insert(
+            Hold::Merge,
+            format!(
+                "pass {} is complete, but its merged frame could not be written ({why}): written again in {} s",
+                pass + 1,
+                wait.as_secs_f64()
+            ),
+        );
+        wait
+    }
+
+    /// Whether a merged frame that could not be written is due to be written again.
+    pub fn merge_due(&self, now: Instant) -> bool {
+        self.state == JobState::Running && self.merge_retry.is_some_and(|at| at <= now)
+    }
+
+    /// Takes the retry: the complete pass to write again.
+    pub fn take_merge_retry(&mut self) -> Option<(u32, Arc<RgbBuffer>)> {
+        self.merge_retry = None;
+        self.to_merge()
+    }
+
     /// Records that pass `pass` is merged into the result file; returns whether it was the
     /// last pass (the job is done).
     pub fn merged(&mut self, pass: u32) -> bool {
+        if self.merge_failures > 0 {
+            self.merge_failures = 0;
+            self.merge_retry = None;
+            self.held_back.remove(&Hold::Merge);
+        }
         self.frames.merged(pass);
         self.frames.written as usize >= self.schedule.len()
     }

@@ -329,3 +329,87 @@ async fn leftovers_of_a_killed_coordinator_are_removed_at_the_next_start() {
     assert_eq!(s.state, JobState::Running);
     drop(dir);
 }
+
+/// A merged frame that cannot be written (here its folder's name is taken by a file; a
+/// full disk does the same) no longer fails the job for good: the job keeps running, its
+/// status and /healthz say why (without the server's paths), the frame is written again
+/// after a growing wait, and once it can be the job is done with its frame.
+#[tokio::test(start_paused = true)]
+async fn a_frame_that_cannot_be_written_is_written_again_later() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    let job = submit(&f, 16, 8, 8).await;
+    let blocker = data.join("jobs").join(job.to_string());
+    std::fs::write(&blocker, b"in the way").unwrap();
+    for _ in 0..2 {
+        let l = lease(&f.app, "w").await.unwrap();
+        let tile = tile_of(&l, (16, 8), 0.5);
+        assert_eq!(upload(&f.app, l.lease, exr(&tile)).await.0, StatusCode::OK);
+    }
+    let s = job_status(&f.app, job).await;
+    assert_eq!(
+        (s.state, s.tiles_done, s.passes_done),
+        (JobState::Running, 2, 0)
+    );
+    let notice = s.notice.unwrap();
+    assert!(
+        notice.starts_with("pass 1 is complete, but its merged frame could not be written")
+            && notice.contains("written again in 1 s"),
+        "{notice}"
+    );
+    assert!(!notice.contains(&data.display().to_string()), "{notice}");
+    let (_, health) = call(&f.app, "GET", "/healthz", None, Body::empty()).await;
+    let health = String::from_utf8(health.to_vec()).unwrap();
+    assert!(
+        health.starts_with("ok, but merged frames cannot be written"),
+        "{health}"
+    );
+    assert!(!health.contains(&data.display().to_string()), "{health}");
+    // Still in the way a second later: the wait doubles.
+    tokio::time::advance(Duration::from_millis(1001)).await;
+    f.c.retry_merges();
+    wait_until(|| {
+        let c = f.c.clone();
+        async move {
+            c.status(job)
+                .unwrap()
+                .notice
+                .unwrap_or_default()
+                .contains("in 2 s")
+        }
+    })
+    .await;
+    // Out of the way: the next retry writes it, and the job is done.
+    std::fs::remove_file(&blocker).unwrap();
+    tokio::time::advance(Duration::from_millis(2001)).await;
+    f.c.retry_merges();
+    wait_until(|| {
+        let c = f.c.clone();
+        async move { c.status(job).unwrap().state == JobState::Done }
+    })
+    .await;
+    let s = job_status(&f.app, job).await;
+    assert_eq!((s.passes_done, s.notice), (1, None));
+    let (status, _) = call(
+        &f.app,
+        "GET",
+        &format!("/v1/jobs/{job}/result.exr"),
+        None,
+        Body::empty(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    let (_, health) = call(&f.app, "GET", "/healthz", None, Body::empty()).await;
+    assert_eq!(&health[..], b"ok\n");
+}
+
+/// Polls `ready` on the paused clock (yielding to the merge's tasks) until it holds.
+async fn wait_until<F: std::future::Future<Output = bool>>(ready: impl Fn() -> F) {
+    for _ in 0..1000 {
+        if ready().await {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    panic!("never became true");
+}
