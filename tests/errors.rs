@@ -641,3 +641,39 @@ fn subsurface_parameters_are_checked() {
         "{err}"
     );
 }
+
+/// A gzipped include that decompresses to more than the process may hold (here under a
+/// 400 MB address-space limit, standing in for a machine's memory) is said to be out of
+/// memory, with the file and line, not "not a valid gzip file: out of memory".
+#[cfg(target_os = "linux")]
+#[test]
+fn a_gzip_too_big_for_memory_is_said_to_be() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let file = std::fs::File::create(d.join("big.pbrt.gz")).unwrap();
+    let mut gz = flate2::write::GzEncoder::new(file, flate2::Compression::fast());
+    let lines = vec![b'\n'; 1 << 20];
+    for _ in 0..600 {
+        gz.write_all(&lines).unwrap();
+    }
+    gz.finish().unwrap();
+    let scene = write_scene(d, "scene.pbrt", "WorldBegin\nInclude \"big.pbrt.gz\"\n");
+    let out = std::process::Command::new("bash")
+        .args([
+            "-c",
+            "ulimit -v 400000 && exec \"$0\" render \"$1\" -q -o \"$2\"",
+        ])
+        .arg(env!("CARGO_BIN_EXE_kiln"))
+        .arg(&scene)
+        .arg(d.join("o.exr"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("scene.pbrt:2:")
+            && stderr.contains("does not fit in this process's memory once decompressed"),
+        "{stderr}"
+    );
+}

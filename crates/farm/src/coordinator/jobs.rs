@@ -112,7 +112,21 @@ impl Coordinator {
         let scenes = self.files().scenes();
         let max_pixels = self.config().max_frame_pixels;
         let spec2 = spec.clone();
+        // Planning reads the whole scene into memory: a few at a time, the rest queued, so
+        // that memory does not grow with the number of submissions in flight.
+        let _turn = self
+            .shared
+            .plannings
+            .acquire()
+            .await
+            .expect("the planning semaphore is never closed");
+        #[cfg(test)]
+        let hook = self.shared.plan_hook.lock().unwrap().clone();
         let mut job = tokio::task::spawn_blocking(move || {
+            #[cfg(test)]
+            if let Some(hook) = hook {
+                hook();
+            }
             Job::plan(&scenes, 0, spec2, JobState::Running, max_pixels)
         })
         .await?

@@ -64,6 +64,9 @@ pub struct Config {
     /// The first wait before a merged frame that could not be written (a full disk) is
     /// written again; it doubles, to at most a minute.
     pub merge_retry: Duration,
+    /// How many job submissions may load their scenes at once (each holds its scene in
+    /// memory while it plans); the others wait their turn. 2 by default.
+    pub max_plannings: usize,
     pub max_tile_bytes: usize,
     /// The most pixels a job's frame (its crop window) may hold: the frame is allocated
     /// when the job is created. 16384 x 16384 by default (3 GiB of float RGB).
@@ -82,6 +85,7 @@ impl Config {
             max_scene_bytes: 2 << 30,
             max_prepass_bytes: 512 << 20,
             merge_retry: Duration::from_secs(1),
+            max_plannings: 2,
             max_tile_bytes: 256 << 20,
             max_frame_pixels: kiln_image::MAX_PIXELS,
             webhook_backoff: Duration::from_secs(1),
@@ -110,9 +114,14 @@ struct Shared {
     /// Who is computing which shared pre-pass, and since when (`prepass.rs`). Apart from
     /// the state lock: claims touch nothing else.
     prepass_claims: Mutex<prepass::Claims>,
+    /// Turns to plan a job (load its scene): [`Config::max_plannings`] at once.
+    plannings: tokio::sync::Semaphore,
     /// Tests hold a merge here to watch what other requests do meanwhile.
     #[cfg(test)]
     merge_hook: Mutex<Option<Box<dyn FnOnce() + Send>>>,
+    /// Tests run this on the planning thread of every job planned.
+    #[cfg(test)]
+    plan_hook: Mutex<Option<Arc<dyn Fn() + Send + Sync>>>,
 }
 
 /// Everything the lock guards.
@@ -190,6 +199,7 @@ impl Coordinator {
             workers.set_aside(&name, reason);
         }
         let (events, _) = broadcast::channel(1024);
+        let plannings = tokio::sync::Semaphore::new(config.max_plannings.max(1));
         let coordinator = Coordinator {
             shared: Arc::new(Shared {
                 state: Mutex::new(State {
@@ -204,8 +214,11 @@ impl Coordinator {
                 config,
                 events,
                 prepass_claims: Mutex::new(prepass::Claims::default()),
+                plannings,
                 #[cfg(test)]
                 merge_hook: Mutex::new(None),
+                #[cfg(test)]
+                plan_hook: Mutex::new(None),
             }),
         };
         coordinator.resume()?;

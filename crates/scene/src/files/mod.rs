@@ -36,10 +36,16 @@ pub fn read_bytes(path: &Path, loc: &Loc) -> Result<Vec<u8>> {
         .take(MAX_DECOMPRESSED_BYTES + 1)
         .read_to_end(&mut out)
         .map_err(|e| {
-            SceneError::at(
-                loc,
-                format!("'{}' is not a valid gzip file: {e}", path.display()),
-            )
+            let why = if e.kind() == std::io::ErrorKind::OutOfMemory {
+                format!(
+                    "'{}' does not fit in this process's memory once decompressed ({} bytes were)",
+                    path.display(),
+                    out.len()
+                )
+            } else {
+                format!("'{}' is not a valid gzip file: {e}", path.display())
+            };
+            SceneError::at(loc, why)
         })?;
     if out.len() as u64 > MAX_DECOMPRESSED_BYTES {
         return Err(SceneError::at(
