@@ -1,6 +1,7 @@
 //! The render farm with real processes and real sockets, by feature: merged images
 //! bit-identical to `kiln render` (`bytes.rs`), surviving dead workers and a dead
-//! coordinator (`failures.rs`), the HTTP API's refusals and answers (`api.rs`), progressive
+//! coordinator (`failures.rs`), the HTTP API's refusals and answers (`api.rs`), its
+//! connections under a crowd and hostile clients (`connections.rs`), progressive
 //! passes (`passes.rs`), verified workers (`verify.rs`) and webhooks (`webhooks.rs`).
 //!
 //! Each test starts one [`Farm`]: a temporary folder, a coordinator (a process it can kill
@@ -10,6 +11,7 @@
 
 mod api;
 mod bytes;
+mod connections;
 mod failures;
 mod passes;
 mod verify;

@@ -90,6 +90,14 @@ pub struct CoordinatorArgs {
     /// The most pixels a job's frame may hold (it is kept in memory while the job runs).
     #[arg(long, default_value_t = kiln_image::MAX_PIXELS)]
     max_frame_pixels: u64,
+    /// Connections open at once; one more is answered 503 (fewer where the process may not
+    /// open that many files).
+    #[arg(long, default_value_t = 1024)]
+    max_connections: usize,
+    /// Seconds a connection may take to send a request's head, and may idle between
+    /// requests, before it is closed.
+    #[arg(long, default_value_t = 30.0)]
+    header_timeout: f64,
 }
 
 pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
@@ -99,6 +107,13 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
         config.token = args.token;
         config.lease_ttl = Duration::from_secs_f64(args.lease_ttl.max(0.05));
         config.max_frame_pixels = args.max_frame_pixels;
+        config.max_connections = args.max_connections.max(1);
+        anyhow::ensure!(
+            args.header_timeout.is_finite() && args.header_timeout > 0.0,
+            "--header-timeout must be a positive number of seconds, not {}",
+            args.header_timeout
+        );
+        config.header_timeout = Duration::from_secs_f64(args.header_timeout.clamp(0.1, 86_400.0));
         let c = Coordinator::open(config)?;
         let listener = tokio::net::TcpListener::bind(&args.listen)
             .await

@@ -33,9 +33,12 @@ impl Client {
     pub fn new(base: &str, token: Option<String>) -> Client {
         // A connection that cannot be made in 10 s fails (the caller backs off and asks
         // again) rather than waiting out the kernel's retries, about two minutes; requests
-        // themselves have no limit, as a tile or a bundle may take long to send.
+        // themselves have no limit, as a tile or a bundle may take long to send. A pooled
+        // connection is given up after 20 s idle, before the coordinator closes it (30 s
+        // by default), so a request is not sent down a connection being closed.
         let http = reqwest::Client::builder()
             .connect_timeout(std::time::Duration::from_secs(10))
+            .pool_idle_timeout(std::time::Duration::from_secs(20))
             .build()
             .unwrap_or_else(|_| reqwest::Client::new());
         Client {

@@ -5,6 +5,8 @@
 //!   methods are the operations, in `jobs.rs` (scenes, jobs, results: the client's side)
 //!   and `lending.rs` (leases, heartbeats, uploads, failures: the workers' side).
 //! - `http.rs` turns requests into those calls and errors into JSON responses.
+//! - `listen.rs` holds the connections: a limit on how many, a header-read timeout, the
+//!   open-file limit raised, and hyper's own error answers made JSON.
 //! - `merge.rs` writes a finished job's frame without holding the lock.
 //! - `prepass.rs` keeps what workers compute once per job and share (photon maps, SPPM
 //!   passes) beside the scene bundle, and who is computing what.
@@ -19,6 +21,7 @@ mod job;
 mod jobs;
 mod leases;
 mod lending;
+mod listen;
 mod merge;
 mod metrics;
 mod prepass;
@@ -32,6 +35,7 @@ mod webhooks;
 
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
+pub use listen::MAX_HEAD_BYTES;
 pub use store::StoreError;
 
 use crate::api::{JobState, JobStatus};
@@ -74,6 +78,12 @@ pub struct Config {
     /// The pause before a failed webhook call is retried; it doubles after each failure,
     /// up to a minute.
     pub webhook_backoff: Duration,
+    /// Connections open at once; one more is answered 503. 1,024 by default, fewer where
+    /// the process may not open that many files.
+    pub max_connections: usize,
+    /// How long a connection may take to send a request's head, and so also how long a
+    /// kept-alive connection may sit idle between requests: 30 s by default.
+    pub header_timeout: Duration,
 }
 
 impl Config {
@@ -89,6 +99,8 @@ impl Config {
             max_tile_bytes: 256 << 20,
             max_frame_pixels: kiln_image::MAX_PIXELS,
             webhook_backoff: Duration::from_secs(1),
+            max_connections: 1024,
+            header_timeout: Duration::from_secs(30),
         }
     }
 }
@@ -371,17 +383,30 @@ impl State {
 }
 
 /// Serves [`app`] on a bound listener until `shutdown` resolves, expiring leases and
-/// calling webhooks meanwhile.
+/// calling webhooks meanwhile. It first raises the process's open-file limit as far as
+/// it may, and holds no more connections than the files it then has allow.
 pub async fn serve(
     listener: tokio::net::TcpListener,
     c: Coordinator,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
+    let mut limits = listen::Limits {
+        max_connections: c.config().max_connections,
+        header_timeout: c.config().header_timeout,
+    };
+    if let Some(files) = listen::raise_fd_limit() {
+        let fit = listen::connections_for(files);
+        if fit < limits.max_connections {
+            tracing::warn!(
+                "{files} open files allowed: holding at most {fit} connections, not {}",
+                limits.max_connections
+            );
+            limits.max_connections = fit;
+        }
+    }
     let task = tokio::spawn(expire_leases_every_tick(c.clone()));
     let hooks = tokio::spawn(webhooks::deliver_webhooks_forever(c.clone()));
-    let result = axum::serve(listener, app(c))
-        .with_graceful_shutdown(shutdown)
-        .await;
+    let result = listen::serve_connections(listener, app(c), limits, shutdown).await;
     task.abort();
     hooks.abort();
     result
