@@ -53,6 +53,11 @@ use tokio::time::Instant;
 
 /// Tiles a job gives up on after this many failed attempts.
 pub const MAX_TILE_ATTEMPTS: u32 = 3;
+/// Tiles a job gives up on after their renderers died (their leases expired) this many
+/// times on one pass while the rest of the job went on. Workers die of their own too, and
+/// chance must not fail a job: with one attempt in five lost, a tile of a thousand-tile
+/// frame loses ten in a row about once in ten thousand frames.
+pub const MAX_TILE_EXPIRIES: u32 = 10;
 /// A worker whose attempts fail this many times in a row gets no more leases.
 pub const MAX_WORKER_FAILURES: u32 = 5;
 

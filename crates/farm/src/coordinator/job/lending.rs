@@ -19,7 +19,24 @@ pub(super) struct Lending {
     attempts: Vec<u32>,
     /// The workers whose leases on each tile's current pass expired, in order.
     expired: Vec<Vec<String>>,
+    /// Per tile: its leases on this pass that expired in a row with no pass of any of the
+    /// job's tiles done between them.
+    stalled: Vec<u32>,
+    /// Per tile: `finished` when its last lease expired.
+    finished_at_expiry: Vec<u64>,
+    /// Passes done by all the job's tiles together since it was planned or restored.
+    finished: u64,
     pub failures: u32,
+}
+
+/// What an expired lease on a tile's pass adds up to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Expiries {
+    /// Leases of the tile's pass that expired in a row while the rest of the job did
+    /// nothing: the scene, not bad luck, is what kills its renderers.
+    pub stalled: u32,
+    /// Leases of the tile's pass that expired, whatever the rest of the job did.
+    pub total: u32,
 }
 
 impl Lending {
@@ -32,6 +49,9 @@ impl Lending {
             parked: Vec::new(),
             attempts: vec![0; tiles],
             expired: vec![Vec::new(); tiles],
+            stalled: vec![0; tiles],
+            finished_at_expiry: vec![0; tiles],
+            finished: 0,
             failures: 0,
         }
     }
@@ -86,17 +106,26 @@ impl Lending {
     }
 
     /// `worker`'s `lease` on `tile` expired (the worker died, hung or lost its link): if it
-    /// still holds the tile, the tile is given back and the expiry counts as a failed
-    /// attempt. Returns the tile's failed attempts if it did.
-    pub fn lease_expired(&mut self, tile: usize, lease: u64, worker: &str) -> Option<u32> {
+    /// still holds the tile, the tile is given back and the expiry is counted. Returns the
+    /// tile's expiries on this pass if it did.
+    pub fn lease_expired(&mut self, tile: usize, lease: u64, worker: &str) -> Option<Expiries> {
         if self.lent[tile] != Some(lease) {
             return None;
         }
         self.give_back(tile);
         self.expired[tile].push(worker.to_string());
         self.failures += 1;
-        self.attempts[tile] += 1;
-        Some(self.attempts[tile])
+        let progressed = self.finished != self.finished_at_expiry[tile];
+        self.stalled[tile] = if progressed || self.stalled[tile] == 0 {
+            1
+        } else {
+            self.stalled[tile] + 1
+        };
+        self.finished_at_expiry[tile] = self.finished;
+        Some(Expiries {
+            stalled: self.stalled[tile],
+            total: self.expired[tile].len() as u32,
+        })
     }
 
     /// The workers whose leases on `tile`'s current pass expired, each named once.
@@ -123,8 +152,10 @@ impl Lending {
     /// the last of the job's `passes`.
     pub fn advance(&mut self, tile: usize, passes: usize) {
         self.done[tile] += 1;
+        self.finished += 1;
         self.attempts[tile] = 0;
         self.expired[tile].clear();
+        self.stalled[tile] = 0;
         self.lent[tile] = None;
         if (self.done[tile] as usize) < passes {
             self.queue.push_back(tile);

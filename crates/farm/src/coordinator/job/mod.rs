@@ -22,10 +22,10 @@ mod lending;
 mod restore;
 mod schedule;
 
-use super::MAX_TILE_ATTEMPTS;
 use super::error::{PlanError, TileRejected};
 use super::verify::{Candidate, Verdict, Verification};
 use super::webhooks::WebhookState;
+use super::{MAX_TILE_ATTEMPTS, MAX_TILE_EXPIRIES};
 use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
 use crate::bundle;
 use frames::Frames;
@@ -374,20 +374,34 @@ impl Job {
         self.lending.lease_lost(tile, lease);
     }
 
-    /// `worker`'s `lease` on `tile` expired: the tile goes back to the front of the queue,
-    /// and the expiry counts as a failed attempt, so that a scene that kills every renderer
-    /// that takes it fails its job with the reason after [`MAX_TILE_ATTEMPTS`] instead of
-    /// killing workers for ever. The worker is not blamed (a machine can die under any
-    /// scene). Returns whether the job failed.
+    /// `worker`'s `lease` on `tile` expired: the tile goes back to the front of the queue.
+    /// A scene that kills every renderer that takes it must fail its job with the reason
+    /// instead of killing workers for ever, while workers that die of their own (a machine
+    /// lost, an operator's kill) must cost no job: the two look alike one expiry at a time.
+    /// So the job fails after [`MAX_TILE_ATTEMPTS`] expiries of the tile in a row while the
+    /// rest of the job did nothing, or after [`MAX_TILE_EXPIRIES`] of them whatever it did
+    /// (a scene that kills only on this tile). The worker is not blamed (a machine can die
+    /// under any scene). Returns whether the job failed.
     pub fn lease_expired(&mut self, tile: usize, lease: u64, worker: &str) -> bool {
-        let Some(attempts) = self.lending.lease_expired(tile, lease, worker) else {
+        let Some(n) = self.lending.lease_expired(tile, lease, worker) else {
             return false;
         };
-        let reason = format!(
-            "the lease of worker {worker} expired: it died, hung or lost its link while rendering the tile (leases of {} expired on this pass; a scene that crashes or hangs its renderer does this)",
-            self.lending.expired_on(tile).join(", ")
-        );
-        self.fail_after(tile, attempts, &reason)
+        let died = self.lending.expired_on(tile).join(", ");
+        let t = self.tiles[tile];
+        let reason = if n.stalled >= MAX_TILE_ATTEMPTS {
+            format!(
+                "{} renderers in a row died, hung or lost their link rendering tile {tile} ({}x{} at {},{}) while no tile of the job was done; leases of {died} expired on this pass, the last {worker}'s: a scene that crashes or hangs its renderer does this",
+                n.stalled, t.width, t.height, t.x0, t.y0
+            )
+        } else if n.total >= MAX_TILE_EXPIRIES {
+            format!(
+                "{} renderers died, hung or lost their link rendering tile {tile} ({}x{} at {},{}) while the rest of the job went on; leases of {died} expired on this pass, the last {worker}'s: a scene that crashes or hangs its renderer on this tile does this",
+                n.total, t.width, t.height, t.x0, t.y0
+            )
+        } else {
+            return false;
+        };
+        self.fail(reason)
     }
 
     /// An attempt at `tile` failed: the tile goes back to the front of the queue, or, after
@@ -400,16 +414,24 @@ impl Job {
     /// Fails the job if `tile` has failed [`MAX_TILE_ATTEMPTS`] times, the last for
     /// `reason`. Returns whether it failed now.
     fn fail_after(&mut self, tile: usize, attempts: u32, reason: &str) -> bool {
-        if attempts >= MAX_TILE_ATTEMPTS && self.state == JobState::Running {
-            self.state = JobState::Failed;
-            let t = self.tiles[tile];
-            self.error = Some(format!(
-                "tile {tile} ({}x{} at {},{}) failed {MAX_TILE_ATTEMPTS} times; last: {reason}",
-                t.width, t.height, t.x0, t.y0
-            ));
-            return true;
+        if attempts < MAX_TILE_ATTEMPTS {
+            return false;
         }
-        false
+        let t = self.tiles[tile];
+        self.fail(format!(
+            "tile {tile} ({}x{} at {},{}) failed {MAX_TILE_ATTEMPTS} times; last: {reason}",
+            t.width, t.height, t.x0, t.y0
+        ))
+    }
+
+    /// Fails the job, if it is running, for `error`. Returns whether it failed now.
+    fn fail(&mut self, error: String) -> bool {
+        if self.state != JobState::Running {
+            return false;
+        }
+        self.state = JobState::Failed;
+        self.error = Some(error);
+        true
     }
 
     /// Where tile `idx` lies and what its pass `pass` must hold: what an upload must match.
