@@ -4,15 +4,13 @@
 //! than `EMFILE`, and HTTP's own errors (a head too large, a request that is not HTTP)
 //! answered in JSON like every other.
 
-use super::{Farm, Guard, free_port};
-use crate::util::kiln;
-use std::io::{BufRead, BufReader, Read, Write};
+use super::{Farm, free_port, start_coordinator_under};
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 /// Connects to `url`'s host and port, with reads that give up after `limit`.
-fn connect(url: &str, limit: Duration) -> TcpStream {
+pub(super) fn connect(url: &str, limit: Duration) -> TcpStream {
     let stream = TcpStream::connect(url.trim_start_matches("http://")).unwrap();
     stream.set_read_timeout(Some(limit)).unwrap();
     stream
@@ -21,11 +19,19 @@ fn connect(url: &str, limit: Duration) -> TcpStream {
 /// Sends `request` (written whole from another thread, as the server may answer before it
 /// has read it all) and reads the answer until the server closes: (status, headers, body).
 fn exchange(url: &str, request: Vec<u8>) -> (u16, String, String) {
+    exchange_with(url, move |writer| {
+        let _ = writer.write_all(&request);
+    })
+}
+
+/// As [`exchange`], the request written by `send` (which may stop at the first error).
+pub(super) fn exchange_with(
+    url: &str,
+    send: impl FnOnce(&mut TcpStream) + Send + 'static,
+) -> (u16, String, String) {
     let mut stream = connect(url, Duration::from_secs(10));
     let mut writer = stream.try_clone().unwrap();
-    let sending = std::thread::spawn(move || {
-        let _ = writer.write_all(&request);
-    });
+    let sending = std::thread::spawn(move || send(&mut writer));
     let mut answer = Vec::new();
     let _ = stream.read_to_end(&mut answer);
     sending.join().unwrap();
@@ -38,7 +44,7 @@ fn exchange(url: &str, request: Vec<u8>) -> (u16, String, String) {
 }
 
 /// The `error` of a JSON error body.
-fn error_of(headers: &str, body: &str) -> String {
+pub(super) fn error_of(headers: &str, body: &str) -> String {
     assert!(
         headers.contains("content-type: application/json"),
         "{headers}"
@@ -169,23 +175,7 @@ fn a_crowd_of_idle_connections_does_not_exhaust_the_coordinator_s_files() {
     }
     let dir = tempfile::tempdir().unwrap();
     let port = free_port();
-    let mut child = std::process::Command::new("bash")
-        .args(["-c", "ulimit -Sn 64 && exec \"$@\"", "bash"])
-        .arg(kiln().get_program())
-        .args(["coordinator", "--listen", &format!("127.0.0.1:{port}")])
-        .arg("--data-dir")
-        .arg(dir.path().join("data"))
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    assert!(line.contains("listening on"), "{line}");
-    let coordinator = Guard(child);
+    let coordinator = start_coordinator_under("ulimit -Sn 64", &dir.path().join("data"), port);
     // The limit is raised as the server starts, just after the line above.
     let files = || {
         let limits = std::fs::read_to_string(format!("/proc/{}/limits", coordinator.id())).ok()?;

@@ -13,6 +13,7 @@ mod api;
 mod bytes;
 mod connections;
 mod failures;
+mod limits;
 mod passes;
 mod verify;
 mod webhooks;
@@ -191,6 +192,29 @@ impl Farm {
             None,
             Running::Process { child, port },
         )
+    }
+
+    /// A farm whose coordinator is a `kiln coordinator` process started after the shell
+    /// limits `limits` (`ulimit -v 4000000`, say).
+    pub fn process_under(limits: &str) -> Farm {
+        let dir = tempfile::tempdir().unwrap();
+        let port = free_port();
+        let child = start_coordinator_under(limits, &dir.path().join("data"), port);
+        Farm::new(
+            dir,
+            tokio::runtime::Runtime::new().unwrap(),
+            format!("http://127.0.0.1:{port}"),
+            None,
+            Running::Process { child, port },
+        )
+    }
+
+    /// The coordinator process's id (a farm whose coordinator is a process).
+    pub fn coordinator_pid(&self) -> u32 {
+        match &self.running {
+            Running::Process { child, .. } => child.id(),
+            _ => panic!("the coordinator runs in this process"),
+        }
     }
 
     /// A farm whose coordinator runs in this process, with `token` if given.
@@ -396,7 +420,7 @@ impl Farm {
     }
 }
 
-fn free_port() -> u16 {
+pub(crate) fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
@@ -406,7 +430,15 @@ fn free_port() -> u16 {
 
 /// A `kiln coordinator` process on `port` with leases of 1 s, once it says it listens.
 fn start_coordinator_process(data: &Path, port: u16) -> Guard {
-    let mut child = kiln()
+    start_coordinator_under("", data, port)
+}
+
+/// As [`start_coordinator_process`], started by bash after `limits` (`ulimit -v 4000000`,
+/// say; nothing if empty).
+pub(crate) fn start_coordinator_under(limits: &str, data: &Path, port: u16) -> Guard {
+    let mut child = std::process::Command::new("bash")
+        .args(["-c", &format!("{limits}\nexec \"$@\""), "bash"])
+        .arg(kiln().get_program())
         .args([
             "coordinator",
             "--listen",

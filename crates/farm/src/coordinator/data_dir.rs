@@ -4,7 +4,7 @@
 //!
 //! It reads and writes files; it must never decide anything about jobs or leases.
 
-use super::Error;
+use super::{Error, Stored};
 use crate::bundle;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -127,12 +127,12 @@ impl DataDir {
     }
 
     /// A kept bundle's bytes, as uploaded.
-    pub async fn bundle(&self, digest: &str) -> Result<Vec<u8>, Error> {
+    pub async fn bundle(&self, digest: &str) -> Result<Stored, Error> {
         if !bundle::is_digest(digest) {
             return Err(Error::BadDigest);
         }
         let path = self.scenes().join(digest).join(bundle::BUNDLE_FILE);
-        tokio::fs::read(path)
+        Stored::open(&path)
             .await
             .map_err(|_| Error::UnknownScene(digest.to_string()))
     }

@@ -215,8 +215,10 @@ fn parse_json<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, Error> {
 
 async fn upload_scene(
     State(c): State<Coordinator>,
+    headers: HeaderMap,
     body: axum::body::Body,
 ) -> Result<Json<SceneUploaded>, Error> {
+    let body = refuse_declared_over(&headers, body, c.config().max_scene_bytes)?;
     let digest = c.save_scene_stream(body).await?;
     Ok(Json(SceneUploaded { digest }))
 }
@@ -225,8 +227,42 @@ async fn download_scene(
     State(c): State<Coordinator>,
     UrlPath(digest): UrlPath<String>,
 ) -> Result<Response, Error> {
-    let bytes = c.scene_bundle(&digest).await?;
-    Ok(([(header::CONTENT_TYPE, "application/octet-stream")], bytes).into_response())
+    let bundle = c.scene_bundle(&digest).await?;
+    Ok(send_file(bundle, "application/octet-stream", None))
+}
+
+/// Refuses an upload whose declared length is over `limit` before a byte of it is stored
+/// (one that declares none, or lies, is still stopped at the limit as it streams). The
+/// refused body is read and dropped for a while meanwhile, as web servers do before they
+/// close: a client that sends its whole body before it reads the answer (as most HTTP
+/// libraries do) would otherwise see its connection reset instead of the 413.
+fn refuse_declared_over(
+    headers: &HeaderMap,
+    body: axum::body::Body,
+    limit: usize,
+) -> Result<axum::body::Body, Error> {
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    match declared {
+        Some(n) if n > limit as u64 => {
+            tokio::spawn(linger(body));
+            Err(Error::TooLarge { limit })
+        }
+        _ => Ok(body),
+    }
+}
+
+/// How long a refused upload's body is read and dropped before its connection is closed.
+const LINGER: std::time::Duration = std::time::Duration::from_secs(10);
+
+/// Reads `body` and drops what it reads, until it ends or [`LINGER`] has passed.
+async fn linger(body: axum::body::Body) {
+    use tokio_stream::StreamExt;
+    let mut stream = body.into_data_stream();
+    let drain = async { while let Some(Ok(_)) = stream.next().await {} };
+    let _ = tokio::time::timeout(LINGER, drain).await;
 }
 
 /// A job's shared pre-pass (photon maps, an SPPM pass), as a worker uploaded it, with the
@@ -235,16 +271,9 @@ async fn download_prepass(
     State(c): State<Coordinator>,
     UrlPath((digest, name)): UrlPath<(String, String)>,
 ) -> Result<Response, Error> {
-    let bytes = c.prepass(&digest, &name).await?;
-    let sha = crate::bundle::digest_of(&bytes);
-    Ok((
-        [
-            (header::CONTENT_TYPE, "application/octet-stream".to_string()),
-            (header::HeaderName::from_static(PREPASS_DIGEST_HEADER), sha),
-        ],
-        bytes,
-    )
-        .into_response())
+    let (prepass, sha) = c.prepass(&digest, &name).await?;
+    let sha = (header::HeaderName::from_static(PREPASS_DIGEST_HEADER), sha);
+    Ok(send_file(prepass, "application/octet-stream", Some(sha)))
 }
 
 async fn upload_prepass(
@@ -253,6 +282,7 @@ async fn upload_prepass(
     headers: HeaderMap,
     body: axum::body::Body,
 ) -> Result<StatusCode, Error> {
+    let body = refuse_declared_over(&headers, body, c.config().max_prepass_bytes)?;
     let sha = headers
         .get(PREPASS_DIGEST_HEADER)
         .and_then(|v| v.to_str().ok())
@@ -376,8 +406,51 @@ async fn job_result(
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, Error> {
     let id = parse_id(&id)?;
-    let bytes = c.result(id).await?;
-    Ok(([(header::CONTENT_TYPE, "image/x-exr")], bytes).into_response())
+    let result = c.result(id).await?;
+    Ok(send_file(result, "image/x-exr", None))
+}
+
+/// Answers with a kept file, read from disk a quarter of a megabyte at a time as the
+/// client takes it: a bundle, a pre-pass or a frame may be gigabytes, and as many clients
+/// may download them at once.
+fn send_file(
+    stored: super::Stored,
+    content_type: &'static str,
+    extra: Option<(header::HeaderName, String)>,
+) -> Response {
+    use tokio::io::AsyncReadExt;
+    let super::Stored { mut file, len } = stored;
+    let (chunks, body) = tokio::sync::mpsc::channel::<std::io::Result<Bytes>>(4);
+    tokio::spawn(async move {
+        let mut left = len;
+        while left > 0 {
+            let mut buf = vec![0u8; (256 << 10).min(left) as usize];
+            let chunk = match file.read(&mut buf).await {
+                Ok(0) => Err(std::io::ErrorKind::UnexpectedEof.into()),
+                Ok(n) => {
+                    buf.truncate(n);
+                    left -= n as u64;
+                    Ok(Bytes::from(buf))
+                }
+                Err(e) => Err(e),
+            };
+            let failed = chunk.is_err();
+            // A client that went away drops the body, and the file is closed.
+            if chunks.send(chunk).await.is_err() || failed {
+                return;
+            }
+        }
+    });
+    let body = axum::body::Body::from_stream(tokio_stream::wrappers::ReceiverStream::new(body));
+    let mut response = ([(header::CONTENT_TYPE, content_type)], body).into_response();
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_LENGTH, header::HeaderValue::from(len));
+    if let Some((name, value)) = extra
+        && let Ok(value) = header::HeaderValue::from_str(&value)
+    {
+        headers.insert(name, value);
+    }
+    response
 }
 
 /// `?exposure=` for a preview: stops, -20 to 20 (0 by default).

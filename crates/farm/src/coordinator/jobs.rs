@@ -7,7 +7,7 @@
 use super::job::Job;
 use super::metrics::Snapshot;
 use super::store::WebhookOutcome;
-use super::{Coordinator, Error, PlanError};
+use super::{Coordinator, Error, PlanError, Stored};
 use crate::api::{JobSpec, JobState, JobStatus, WorkerLease, WorkerStatus};
 
 impl Coordinator {
@@ -74,7 +74,7 @@ impl Coordinator {
     }
 
     /// A kept scene bundle's bytes.
-    pub async fn scene_bundle(&self, digest: &str) -> Result<Vec<u8>, Error> {
+    pub async fn scene_bundle(&self, digest: &str) -> Result<Stored, Error> {
         self.files().bundle(digest).await
     }
 
@@ -204,7 +204,7 @@ impl Coordinator {
     }
 
     /// The merged EXR of a job's last merged pass (a done job's whole render).
-    pub async fn result(&self, id: u64) -> Result<Vec<u8>, Error> {
+    pub async fn result(&self, id: u64) -> Result<Stored, Error> {
         let (has, state) = self
             .lock()
             .jobs
@@ -217,8 +217,8 @@ impl Coordinator {
             return Err(Error::NotDone { id, state });
         }
         let path = self.files().result_path(id);
-        match tokio::fs::read(&path).await {
-            Ok(bytes) => Ok(bytes),
+        match Stored::open(&path).await {
+            Ok(stored) => Ok(stored),
             // An ended job that never merged a pass has none (one that did and lost the
             // file is the operator's problem, below).
             Err(e) if !has && e.kind() == std::io::ErrorKind::NotFound => {

@@ -28,6 +28,7 @@ mod prepass;
 #[cfg(test)]
 mod proptests;
 mod store;
+mod stored;
 #[cfg(test)]
 mod tests;
 mod verify;
@@ -37,6 +38,7 @@ pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
 pub use listen::MAX_HEAD_BYTES;
 pub use store::StoreError;
+pub use stored::Stored;
 
 use crate::api::{JobState, JobStatus};
 use data_dir::DataDir;

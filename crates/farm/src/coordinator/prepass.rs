@@ -15,14 +15,14 @@
 //! the next worker to ask computes it; a worker that cannot upload what it computed gives
 //! its claim up.
 
-use super::{Coordinator, Error};
+use super::{Coordinator, Error, Stored};
 use crate::api::{PrepassClaim, is_prepass_of, prepass_prefix};
 use crate::bundle;
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Duration;
-use tokio::io::AsyncWriteExt;
+use tokio::io::{AsyncReadExt, AsyncSeekExt, AsyncWriteExt};
 use tokio::time::Instant;
 use tokio_stream::StreamExt;
 
@@ -72,12 +72,28 @@ impl Coordinator {
         }
     }
 
-    /// A stored pre-pass's bytes.
-    pub async fn prepass(&self, scene: &str, name: &str) -> Result<Vec<u8>, Error> {
+    /// A stored pre-pass, opened, with the SHA-256 of its bytes (hex), read through once
+    /// to hash them: a pre-pass may be hundreds of megabytes, and is never held whole.
+    pub async fn prepass(&self, scene: &str, name: &str) -> Result<(Stored, String), Error> {
         let path = self.prepass_path(scene, name)?;
-        tokio::fs::read(&path)
+        let mut stored = Stored::open(&path)
             .await
-            .map_err(|_| Error::UnknownPrepass(name.to_string()))
+            .map_err(|_| Error::UnknownPrepass(name.to_string()))?;
+        let hashed = async {
+            let mut hasher = Sha256::new();
+            let mut buf = vec![0u8; 256 << 10];
+            loop {
+                let n = stored.file.read(&mut buf).await?;
+                if n == 0 {
+                    break;
+                }
+                hasher.update(&buf[..n]);
+            }
+            stored.file.seek(std::io::SeekFrom::Start(0)).await?;
+            Ok::<_, std::io::Error>(hasher.finalize())
+        };
+        let digest = hashed.await.map_err(|e| Error::io(&path, e))?;
+        Ok((stored, hex(&digest)))
     }
 
     /// Keeps an uploaded pre-pass whose bytes have the SHA-256 `sha` (hex): streamed to a
@@ -113,11 +129,7 @@ impl Coordinator {
                     .map_err(|e| Error::io(&tmp, e))?;
             }
             file.flush().await.map_err(|e| Error::io(&tmp, e))?;
-            let digest: String = hasher
-                .finalize()
-                .iter()
-                .map(|b| format!("{b:02x}"))
-                .collect();
+            let digest = hex(&hasher.finalize());
             if digest != sha.to_ascii_lowercase() {
                 return Err(Error::PrepassDigest);
             }
@@ -181,4 +193,9 @@ impl Coordinator {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
     }
+}
+
+/// Bytes as lower-case hex.
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
