@@ -7,7 +7,7 @@
 //! two splits and thread counts, twice in two processes, and those pixels are the ones the
 //! in-process renders give.
 
-use crate::util::{reference_scene, render, scene};
+use crate::util::{reference_scene, render, render_with_env, scene};
 use kiln_render::{Renderer, render_tile, split_into_tiles};
 use kiln_scene::Overrides;
 use rayon::prelude::*;
@@ -224,6 +224,49 @@ fn kiln_render_writes_the_same_bytes_as_render_tile_for_any_split() {
         written == in_process,
         "kiln render's pixels differ from render_tile's"
     );
+}
+
+/// Every BVH kernel this CPU runs (SSE, AVX2) gives `kiln render` the same bytes: on the
+/// snail's glass (camera rays, bounces, VolumeLight chords and shadow rays through 124k
+/// triangles), the MIS scene, the materials and the textures (alpha cutouts), so a farm may
+/// mix machines of either kind.
+#[test]
+fn every_bvh_kernel_renders_the_same_bytes() {
+    use kiln_render::shapes::wide::Kernel;
+    let kernels = Kernel::available();
+    if kernels.len() < 2 {
+        println!("SKIPPED the comparison: this CPU runs only {kernels:?}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for (name, spp) in [
+        ("molten-glass/scene.pbrt", "4"),
+        ("mis/scene.pbrt", "8"),
+        ("materials/scene.pbrt", "4"),
+        ("textures/scene.pbrt", "4"),
+    ] {
+        let args = ["--spp", spp, "--resolution", "96x64", "--threads", "2"];
+        let images: Vec<Vec<u8>> = [("sse", "Sse"), ("avx2", "Avx2")]
+            .iter()
+            .map(|(kernel, said)| {
+                let out = format!("{}-{kernel}", name.replace('/', "-"));
+                let r = render_with_env(
+                    &scene(name),
+                    dir.path(),
+                    &out,
+                    &args,
+                    &[("KILN_BVH_KERNEL", kernel)],
+                );
+                let log = String::from_utf8_lossy(&r.output.stderr).to_string();
+                assert!(log.contains(&format!("BVH kernel {said}")), "{log}");
+                r.bytes
+            })
+            .collect();
+        assert!(
+            images[0] == images[1],
+            "{name}: SSE and AVX2 give other bytes"
+        );
+    }
 }
 
 /// A farm's store of shared pre-passes, in memory: the first to ask for a name that is not

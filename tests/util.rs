@@ -49,8 +49,20 @@ pub struct Rendered {
 
 /// Runs `kiln render SCENE ARGS -o DIR/NAME.exr` and reads the EXR back; panics with kiln's stderr on failure.
 pub fn render(scene: &Path, dir: &Path, name: &str, args: &[&str]) -> Rendered {
+    render_with_env(scene, dir, name, args, &[])
+}
+
+/// [`render`] with environment variables set for `kiln`.
+pub fn render_with_env(
+    scene: &Path,
+    dir: &Path,
+    name: &str,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> Rendered {
     let out = dir.join(format!("{name}.exr"));
     let output = kiln()
+        .envs(env.iter().copied())
         .arg("render")
         .arg(scene)
         .arg("-o")

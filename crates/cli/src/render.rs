@@ -195,7 +195,7 @@ fn announce(
     let film = &desc.film;
     let [x0, x1, y0, y1] = film.pixel_bounds;
     eprintln!(
-        "kiln: {} ({} triangles, {} spheres, {} other quadrics, {} lights), {}x{} ({}x{} rendered), {} spp, {} tiles, {} threads",
+        "kiln: {} ({} triangles, {} spheres, {} other quadrics, {} lights), {}x{} ({}x{} rendered), {} spp, {} tiles, {} threads{}",
         args.scene.display(),
         scene.geometry.triangle_count(),
         scene.geometry.prims.spheres.len(),
@@ -208,6 +208,10 @@ fn announce(
         renderer.settings().samples_per_pixel,
         tiles,
         threads,
+        scene
+            .geometry
+            .bvh_kernel()
+            .map_or(String::new(), |k| format!(", BVH kernel {k:?}")),
     );
 }
 

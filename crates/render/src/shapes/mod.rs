@@ -1,8 +1,8 @@
 //! Shapes and the aggregate that holds them: scene geometry in world space, triangle meshes
 //! ([`triangle`]), whole spheres ([`sphere`]) and pbrt-v4's other quadrics, partial or
-//! transformed spheres, disks and cylinders ([`quadric`]) and curves ([`curve`]), each kind in an obvhs compressed wide BVH
-//! (CWBVH), with the primitives laid out in BVH order as obvhs recommends, so a leaf's
-//! triangles are contiguous in memory.
+//! transformed spheres, disks and cylinders ([`quadric`]) and curves ([`curve`]). Triangles
+//! are in Kiln's own wide BVH ([`wide`]: four boxes and four triangles tested at once, the
+//! same hit on every CPU); each other kind is in an obvhs compressed wide BVH (CWBVH).
 //!
 //! A shape kind's file holds its intersection, its hit record, and its area sampling (the
 //! solid-angle density of a point on it seen from another point), which area lights and
@@ -20,9 +20,10 @@ pub mod local;
 pub mod mover;
 pub mod quadric;
 pub mod revolution;
+pub mod wide;
 pub use alpha::hash_float;
 pub mod sphere;
-mod traverse;
+pub mod traverse;
 pub mod triangle;
 
 pub use quadric::{Quadric, QuadricShape};
@@ -140,17 +141,13 @@ pub struct Primitives {
 pub struct Geometry {
     /// The primitives, in the order the scene declared them.
     pub prims: Primitives,
-    triangle_bvh: Option<CwBvh>,
-    /// Triangles in BVH order, for traversal.
-    bvh_triangles: Vec<RtTriangle>,
-    /// For each BVH slot, the triangle's index in declaration order.
-    bvh_triangle_ids: Vec<u32>,
+    triangle_bvh: Option<wide::WideBvh>,
     sphere_bvh: Option<CwBvh>,
     quadric_bvh: Option<CwBvh>,
     curve_bvh: Option<CwBvh>,
     mover_bvh: Option<CwBvh>,
-    /// Whether each BVH (triangles, spheres, quadrics, curves, movers) can be walked nearest
-    /// child first ([`traverse`]); obvhs's own walk where not.
+    /// Whether each CWBVH (spheres, quadrics, curves, movers; index 0, triangles, is not one)
+    /// can be walked nearest child first ([`traverse`]); obvhs's own walk where not.
     walks: [bool; 5],
     /// Some surface has an alpha texture: candidate hits must be tested against it.
     any_alpha: bool,
@@ -223,12 +220,8 @@ impl Geometry {
             None => f(),
         };
         let mut triangle_bvh = None;
-        let mut bvh_triangles = Vec::new();
-        let mut bvh_triangle_ids = Vec::new();
         if !tris.is_empty() {
             build(&mut || {
-                // Spatial pre-splits of long triangles (obvhs's triangle builder) measured 7%
-                // faster traversal on a 120k-face sphere mesh for the same build time.
                 let plain: Vec<obvhs::triangle::Triangle> = triangle_vertices
                     .iter()
                     .map(|v| obvhs::triangle::Triangle {
@@ -237,18 +230,11 @@ impl Geometry {
                         v2: positions[v[2] as usize],
                     })
                     .collect();
-                let params = BvhBuildParams {
-                    pre_split: true,
-                    ..BvhBuildParams::medium_build()
-                };
-                let bvh = bvh_build::build_triangle_cwbvh(&plain, params, &mut build_time);
-                bvh_triangles = bvh
-                    .primitive_indices
-                    .iter()
-                    .map(|&i| tris[i as usize])
-                    .collect();
-                bvh_triangle_ids = bvh.primitive_indices.clone();
-                triangle_bvh = Some(bvh);
+                triangle_bvh = Some(bvh_build::build_triangle_wide_bvh(
+                    &plain,
+                    &tris,
+                    &mut build_time,
+                ));
             });
         }
         let mut sphere_bvh = None;
@@ -293,7 +279,7 @@ impl Geometry {
         }
         let walk = |b: &Option<CwBvh>| b.as_ref().is_some_and(traverse::fits);
         let walks = [
-            walk(&triangle_bvh),
+            false,
             walk(&sphere_bvh),
             walk(&quadric_bvh),
             walk(&curve_bvh),
@@ -304,8 +290,6 @@ impl Geometry {
             any_alpha: !primitives.alphas.is_empty(),
             prims: primitives,
             triangle_bvh,
-            bvh_triangles,
-            bvh_triangle_ids,
             sphere_bvh,
             quadric_bvh,
             curve_bvh,
@@ -319,6 +303,23 @@ impl Geometry {
     pub fn with_obvhs_walk(mut self) -> Geometry {
         self.walks = [false; 5];
         self
+    }
+
+    /// The kernel that walks the triangles' BVH, if there are triangles.
+    pub fn bvh_kernel(&self) -> Option<wide::Kernel> {
+        self.triangle_bvh.as_ref().map(wide::WideBvh::kernel)
+    }
+
+    /// The triangles' BVH's nodes, packs of four triangles, and lanes holding one.
+    pub fn triangle_bvh_counts(&self) -> (usize, usize, usize) {
+        self.triangle_bvh
+            .as_ref()
+            .map_or((0, 0, 0), wide::WideBvh::counts)
+    }
+
+    /// The bytes the triangles' BVH holds (its nodes and its packed triangles).
+    pub fn triangle_bvh_bytes(&self) -> usize {
+        self.triangle_bvh.as_ref().map_or(0, wide::WideBvh::bytes)
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -355,12 +356,13 @@ impl Geometry {
         // Each BVH in turn, within the closest distance the ones before it found.
         let bray = |best_t: f32| bvh_ray(ray.origin, ray.dir, 0.0, best_t);
         if let Some(bvh) = &self.triangle_bvh
-            && let Some((t, slot)) =
-                self.nearest_in(0, bvh, bray(best_t), |r, slot| self.triangle_t(r, slot))
+            && let Some((t, id)) = bvh.closest(ray.origin, ray.dir, best_t, |id, t| {
+                self.triangle_is_opaque(id, ray.origin, ray.dir, t)
+            })
             && t < best_t
         {
             best_t = t;
-            best = Some((HitKind::Triangle, self.bvh_triangle_ids[slot as usize]));
+            best = Some((HitKind::Triangle, id));
         }
         if let Some(bvh) = &self.sphere_bvh
             && let Some((t, slot)) = self.nearest_in(1, bvh, bray(best_t), |r, slot| {
@@ -439,18 +441,11 @@ impl Geometry {
         t
     }
 
-    /// The distance to triangle BVH slot `slot` along `r`, infinite on a miss or where its
-    /// alpha lets the ray through.
+    /// Whether a candidate hit at distance `t` on triangle `id` stops the ray (always, unless
+    /// its alpha lets the ray through).
     #[inline(always)]
-    fn triangle_t(&self, r: &BvhRay, slot: usize) -> f32 {
-        let t = self.bvh_triangles[slot].intersect(r);
-        if self.any_alpha
-            && t < f32::INFINITY
-            && !self.triangle_is_opaque_at(self.bvh_triangle_ids[slot], r.origin, r.direction, t)
-        {
-            return f32::INFINITY;
-        }
-        t
+    fn triangle_is_opaque(&self, id: u32, origin: Vec3A, dir: Vec3A, t: f32) -> bool {
+        !self.any_alpha || self.triangle_is_opaque_at(id, origin, dir, t)
     }
 
     /// The distance to sphere `id` along `r` beyond `tmin`, as [`Self::triangle_t`].
@@ -468,15 +463,18 @@ impl Geometry {
     }
 
     /// True when nothing blocks the segment from `origin` along `dir` up to `tmax`. Shadow
-    /// rays keep obvhs's own walk: sorting children by distance, which pays for itself when
-    /// the nearest hit is wanted ([`traverse`]), made them 1.9x slower on the headline snail.
+    /// rays walk in no order and stop at the first opaque hit: sorting children by distance,
+    /// which pays for itself when the nearest hit is wanted, made them 1.9x slower on the
+    /// headline snail.
     pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, tmax: f32, time: f32) -> bool {
-        let bray = bvh_ray(origin, dir, 0.0, tmax);
         if let Some(bvh) = &self.triangle_bvh
-            && !bvh.ray_traverse_miss(bray, |r, id| self.triangle_t(r, id))
+            && bvh.any(origin, dir, tmax, |id, t| {
+                self.triangle_is_opaque(id, origin, dir, t)
+            })
         {
             return false;
         }
+        let bray = bvh_ray(origin, dir, 0.0, tmax);
         if let Some(bvh) = &self.sphere_bvh
             && !bvh.ray_traverse_miss(bray, |r, id| {
                 self.sphere_t(r, bvh.primitive_indices[id], 1e-7)

@@ -1,0 +1,252 @@
+//! Four f32 lanes and the few operations the wide BVH's kernels use, as SSE2 on x86-64 and
+//! as plain arrays elsewhere, with the same result to the bit either way: each operation is
+//! one IEEE-754 operation per lane (no fused multiply-add, no reciprocal estimate), and
+//! `min`/`max` are SSE's (`a < b ? a : b`, so a NaN picks the second operand).
+
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
+
+/// Four lanes of f32.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+#[repr(transparent)]
+pub struct F4(__m128);
+
+/// Four lanes of f32.
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Clone, Copy)]
+#[repr(transparent)]
+pub struct F4([f32; 4]);
+
+/// A lane mask: bit i set where lane i holds.
+pub type Mask = u32;
+
+#[cfg(target_arch = "x86_64")]
+impl F4 {
+    #[inline(always)]
+    pub fn load(v: &[f32; 4]) -> F4 {
+        // SAFETY: SSE2 is part of every x86-64 CPU; `v` is 16 bytes.
+        F4(unsafe { _mm_loadu_ps(v.as_ptr()) })
+    }
+    #[inline(always)]
+    pub fn splat(x: f32) -> F4 {
+        // SAFETY: SSE2 is part of every x86-64 CPU.
+        F4(unsafe { _mm_set1_ps(x) })
+    }
+    #[inline(always)]
+    pub fn store(self) -> [f32; 4] {
+        let mut out = [0f32; 4];
+        // SAFETY: SSE2 is part of every x86-64 CPU; `out` is 16 bytes.
+        unsafe { _mm_storeu_ps(out.as_mut_ptr(), self.0) };
+        out
+    }
+    #[inline(always)]
+    pub fn add(self, o: F4) -> F4 {
+        // SAFETY: SSE2 is part of every x86-64 CPU.
+        F4(unsafe { _mm_add_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn sub(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_sub_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn mul(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_mul_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn div(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_div_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn min(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_min_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn max(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_max_ps(self.0, o.0) })
+    }
+    /// Lanes where `self <= o` (false where either is NaN).
+    #[inline(always)]
+    pub fn le(self, o: F4) -> Mask {
+        // SAFETY: as above.
+        unsafe { _mm_movemask_ps(_mm_cmple_ps(self.0, o.0)) as Mask }
+    }
+    /// Lanes where `self != 0` (true where NaN).
+    #[inline(always)]
+    pub fn nonzero(self) -> Mask {
+        // SAFETY: as above.
+        unsafe { _mm_movemask_ps(_mm_cmpneq_ps(self.0, _mm_setzero_ps())) as Mask }
+    }
+    /// Lanes whose sign bit is set.
+    #[inline(always)]
+    pub fn signs(self) -> Mask {
+        // SAFETY: as above.
+        unsafe { _mm_movemask_ps(self.0) as Mask }
+    }
+    /// The bitwise or of the lanes of `self` and `o`.
+    #[inline(always)]
+    pub fn or(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_or_ps(self.0, o.0) })
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+impl F4 {
+    #[inline(always)]
+    pub fn load(v: &[f32; 4]) -> F4 {
+        F4(*v)
+    }
+    #[inline(always)]
+    pub fn splat(x: f32) -> F4 {
+        F4([x; 4])
+    }
+    #[inline(always)]
+    pub fn store(self) -> [f32; 4] {
+        self.0
+    }
+    #[inline(always)]
+    fn zip(self, o: F4, f: impl Fn(f32, f32) -> f32) -> F4 {
+        F4(std::array::from_fn(|i| f(self.0[i], o.0[i])))
+    }
+    #[inline(always)]
+    fn bits(self, f: impl Fn(f32) -> bool) -> Mask {
+        (0..4).fold(0, |m, i| m | ((f(self.0[i]) as Mask) << i))
+    }
+    #[inline(always)]
+    pub fn add(self, o: F4) -> F4 {
+        self.zip(o, |a, b| a + b)
+    }
+    #[inline(always)]
+    pub fn sub(self, o: F4) -> F4 {
+        self.zip(o, |a, b| a - b)
+    }
+    #[inline(always)]
+    pub fn mul(self, o: F4) -> F4 {
+        self.zip(o, |a, b| a * b)
+    }
+    #[inline(always)]
+    pub fn div(self, o: F4) -> F4 {
+        self.zip(o, |a, b| a / b)
+    }
+    #[inline(always)]
+    pub fn min(self, o: F4) -> F4 {
+        self.zip(o, |a, b| if a < b { a } else { b })
+    }
+    #[inline(always)]
+    pub fn max(self, o: F4) -> F4 {
+        self.zip(o, |a, b| if a > b { a } else { b })
+    }
+    #[inline(always)]
+    pub fn le(self, o: F4) -> Mask {
+        (0..4).fold(0, |m, i| m | (((self.0[i] <= o.0[i]) as Mask) << i))
+    }
+    #[inline(always)]
+    pub fn nonzero(self) -> Mask {
+        self.bits(|x| x != 0.0)
+    }
+    #[inline(always)]
+    pub fn signs(self) -> Mask {
+        self.bits(|x| x.is_sign_negative())
+    }
+    #[inline(always)]
+    pub fn or(self, o: F4) -> F4 {
+        self.zip(o, |a, b| f32::from_bits(a.to_bits() | b.to_bits()))
+    }
+}
+
+/// Eight lanes of f32, as AVX. Its operations may run only in code compiled for AVX2 (the
+/// walks' `_avx2` functions, chosen where the CPU has it); each is the same IEEE operation
+/// per lane as [`F4`]'s.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+#[repr(transparent)]
+pub struct F8(__m256);
+
+#[cfg(target_arch = "x86_64")]
+impl F8 {
+    #[inline(always)]
+    pub fn load(v: &[f32; 8]) -> F8 {
+        // SAFETY: only run where the CPU has AVX2 (above); `v` is 32 bytes.
+        F8(unsafe { _mm256_loadu_ps(v.as_ptr()) })
+    }
+    #[inline(always)]
+    pub fn splat(x: f32) -> F8 {
+        // SAFETY: only run where the CPU has AVX2.
+        F8(unsafe { _mm256_set1_ps(x) })
+    }
+    #[inline(always)]
+    pub fn store(self) -> [f32; 8] {
+        let mut out = [0f32; 8];
+        // SAFETY: only run where the CPU has AVX2; `out` is 32 bytes.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
+        out
+    }
+    #[inline(always)]
+    pub fn sub(self, o: F8) -> F8 {
+        // SAFETY: only run where the CPU has AVX2.
+        F8(unsafe { _mm256_sub_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn mul(self, o: F8) -> F8 {
+        // SAFETY: as above.
+        F8(unsafe { _mm256_mul_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn min(self, o: F8) -> F8 {
+        // SAFETY: as above.
+        F8(unsafe { _mm256_min_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn max(self, o: F8) -> F8 {
+        // SAFETY: as above.
+        F8(unsafe { _mm256_max_ps(self.0, o.0) })
+    }
+    /// Lanes where `self <= o` (false where either is NaN, as SSE's `cmpleps`).
+    #[inline(always)]
+    pub fn le(self, o: F8) -> Mask {
+        // SAFETY: as above.
+        unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0)) as Mask }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lanes do what one f32 operation per lane does, NaNs and signed zeros included.
+    #[test]
+    fn each_lane_is_one_ieee_operation() {
+        let a = [1.5f32, -0.0, f32::NAN, 3.0e-39];
+        let b = [f32::NAN, 0.0, 2.0, -7.25];
+        let (x, y) = (F4::load(&a), F4::load(&b));
+        let bits = |v: [f32; 4]| v.map(f32::to_bits);
+        for (got, want) in [
+            (x.add(y).store(), std::array::from_fn(|i| a[i] + b[i])),
+            (x.sub(y).store(), std::array::from_fn(|i| a[i] - b[i])),
+            (x.mul(y).store(), std::array::from_fn(|i| a[i] * b[i])),
+            (x.div(y).store(), std::array::from_fn(|i| a[i] / b[i])),
+        ] {
+            let want: [f32; 4] = want;
+            for i in 0..4 {
+                assert!(
+                    got[i].to_bits() == want[i].to_bits() || (got[i].is_nan() && want[i].is_nan())
+                );
+            }
+        }
+        assert_eq!(
+            bits(x.min(y).store()),
+            bits([b[0], 0.0, 2.0, -7.25]),
+            "a NaN picks the second operand"
+        );
+        assert_eq!(bits(x.max(y).store())[1], 0.0f32.to_bits());
+        assert_eq!(x.le(y), 0b0010);
+        assert_eq!(x.signs(), 0b0010);
+        assert_eq!(x.nonzero(), 0b1101);
+    }
+}

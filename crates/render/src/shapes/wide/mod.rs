@@ -1,0 +1,241 @@
+//! Kiln's own wide BVH over triangles: eight children per node with their boxes stored axis
+//! by axis (one AVX2 operation, or two SSE ones, tests eight boxes), and leaves of packs of
+//! four triangles tested at once ([`tri4`]).
+//!
+//! It is collapsed from obvhs's binary build (PLOC with spatial pre-splits and reinsertion,
+//! or the median split of [`super::bvh_build`] for inputs that defeat it): each node takes
+//! its binary node's two children, then opens the largest internal one among them until it
+//! holds eight. Eight measured 1.17x the closest hits per second of four on the snail's
+//! rays, and one tree serves every kernel.
+//!
+//! Bit for bit: every kernel is one IEEE operation per lane in a fixed order ([`lanes`]), a
+//! triangle's distance is obvhs's scalar test's to the bit, and where two triangles lie at
+//! exactly the closest distance the one the scene declared first wins, so the hit found is
+//! a function of the ray and the triangles alone, not of the tree or the order of the walk.
+
+mod lanes;
+#[cfg(test)]
+mod tests;
+mod tri4;
+mod walk;
+
+use obvhs::bvh2::Bvh2;
+use obvhs::rt_triangle::RtTriangle;
+use tri4::Tri4;
+
+/// A child that is a leaf: the pack count less one in bits 27-30, the first pack below.
+const LEAF: u32 = 1 << 31;
+const LEAF_FIRST: u32 = (1 << 27) - 1;
+const LEAF_PACKS: u32 = 16;
+/// A slot with no child (its box is empty, so no ray enters it).
+const EMPTY: u32 = u32::MAX;
+
+/// The stack the walks keep: a node pushes at most its WIDTH children and pops itself, so a
+/// tree of depth d needs at most (WIDTH - 1)d + 1 entries. A deeper tree is built again by median
+/// split ([`WideBvh::new`]).
+pub(super) const STACK: usize = 256;
+
+/// Children per node: a multiple of four (the lanes of one box test).
+pub(super) const WIDTH: usize = 8;
+
+/// A node: its children's boxes (`lo[axis][child]`, `hi[axis][child]`) and what each child
+/// is (a node's index, a leaf, or [`EMPTY`]).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Node {
+    lo: [[f32; WIDTH]; 3],
+    hi: [[f32; WIDTH]; 3],
+    child: [u32; WIDTH],
+}
+
+/// Which instructions walk the BVH. Every kernel finds the same hit to the bit (the same
+/// operation on every lane, in the same order); they differ only in speed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kernel {
+    /// Four lanes at a time: SSE2 on x86-64 (every such CPU has it), plain arrays elsewhere.
+    Sse,
+    /// A node's eight boxes at once.
+    Avx2,
+}
+
+impl Kernel {
+    /// The fastest kernel this CPU runs, unless `KILN_BVH_KERNEL` (`sse` or `avx2`) names
+    /// one (for tests that compare them, and to rule a kernel out).
+    pub fn choose() -> Kernel {
+        let best = Kernel::detect();
+        match std::env::var("KILN_BVH_KERNEL").as_deref() {
+            Ok("sse") => Kernel::Sse,
+            Ok("avx2") if best == Kernel::Avx2 => Kernel::Avx2,
+            _ => best,
+        }
+    }
+
+    /// The fastest kernel this CPU runs.
+    pub fn detect() -> Kernel {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Kernel::Avx2;
+        }
+        Kernel::Sse
+    }
+
+    /// Every kernel this CPU runs.
+    pub fn available() -> Vec<Kernel> {
+        let mut all = vec![Kernel::Sse];
+        if Kernel::detect() == Kernel::Avx2 {
+            all.push(Kernel::Avx2);
+        }
+        all
+    }
+}
+
+/// The wide BVH over a mesh's triangles.
+#[derive(Clone)]
+pub struct WideBvh {
+    nodes: Vec<Node>,
+    packs: Vec<Tri4>,
+    /// Node levels from the root to the deepest leaf.
+    depth: usize,
+    kernel: Kernel,
+}
+
+impl WideBvh {
+    /// The BVH over `tris` (`tris[i]` is the triangle the scene declared `i`th), collapsed
+    /// from `bvh2`, whose primitive indices are into `tris`. `None` where the tree is too
+    /// deep for the walks' stack.
+    pub fn collapse(bvh2: &Bvh2, tris: &[RtTriangle]) -> Option<WideBvh> {
+        let mut b = WideBvh {
+            nodes: Vec::new(),
+            packs: Vec::new(),
+            depth: 0,
+            kernel: Kernel::choose(),
+        };
+        if bvh2.nodes.is_empty() || tris.is_empty() {
+            return None;
+        }
+        let root = &bvh2.nodes[0];
+        if root.prim_count > 0 {
+            // One leaf: a root holding it alone.
+            b.nodes.push(Node::empty());
+            let leaf = b.leaf(bvh2, 0, tris)?;
+            b.nodes[0].set(0, root.aabb.min, root.aabb.max, leaf);
+            b.depth = 1;
+            return Some(b);
+        }
+        b.nodes.push(Node::empty());
+        // (bvh2 node, its Node, the Node's depth)
+        let mut todo = vec![(0usize, 0usize, 1usize)];
+        while let Some((n2, n4, depth)) = todo.pop() {
+            b.depth = b.depth.max(depth);
+            if (WIDTH - 1) * b.depth + 1 > STACK {
+                return None;
+            }
+            for (slot, &c) in open(bvh2, n2).iter().enumerate() {
+                let node = &bvh2.nodes[c];
+                let code = if node.prim_count > 0 {
+                    b.leaf(bvh2, c, tris)?
+                } else {
+                    b.nodes.push(Node::empty());
+                    let i = b.nodes.len() - 1;
+                    todo.push((c, i, depth + 1));
+                    i as u32
+                };
+                b.nodes[n4].set(slot, node.aabb.min, node.aabb.max, code);
+            }
+        }
+        Some(b)
+    }
+
+    /// The packs of binary leaf `n2`'s triangles, as a child code.
+    fn leaf(&mut self, bvh2: &Bvh2, n2: usize, tris: &[RtTriangle]) -> Option<u32> {
+        let node = &bvh2.nodes[n2];
+        let first = node.first_index as usize;
+        let ids = &bvh2.primitive_indices[first..first + node.prim_count as usize];
+        let start = self.packs.len();
+        for chunk in ids.chunks(4) {
+            let lanes: Vec<(RtTriangle, u32)> =
+                chunk.iter().map(|&i| (tris[i as usize], i)).collect();
+            self.packs.push(Tri4::pack(&lanes));
+        }
+        let count = (self.packs.len() - start) as u32;
+        (start < LEAF_FIRST as usize && count <= LEAF_PACKS)
+            .then(|| LEAF | ((count - 1) << 27) | start as u32)
+    }
+
+    /// Bytes held, for the memory a triangle costs.
+    pub fn bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Node>()
+            + self.packs.len() * std::mem::size_of::<Tri4>()
+    }
+
+    /// Nodes, packs, and the lanes of the packs that hold a triangle.
+    pub fn counts(&self) -> (usize, usize, usize) {
+        let lanes = self
+            .packs
+            .iter()
+            .map(|p| p.id.iter().filter(|&&i| i != u32::MAX).count())
+            .sum();
+        (self.nodes.len(), self.packs.len(), lanes)
+    }
+
+    /// The same BVH walked by `kernel`, which must be one of [`Kernel::available`].
+    pub fn with_kernel(mut self, kernel: Kernel) -> WideBvh {
+        assert!(
+            Kernel::available().contains(&kernel),
+            "{kernel:?} is not available here"
+        );
+        self.kernel = kernel;
+        self
+    }
+
+    pub fn kernel(&self) -> Kernel {
+        self.kernel
+    }
+
+    /// Node levels from the root to the deepest leaf.
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+}
+
+/// Binary node `n2`'s descendants a wide node takes: its two children, then, while fewer
+/// than four, the internal one of largest surface opened into its two (the first of equals,
+/// so the tree is the same everywhere).
+fn open(bvh2: &Bvh2, n2: usize) -> Vec<usize> {
+    let first = bvh2.nodes[n2].first_index as usize;
+    let mut kids = vec![first, first + 1];
+    while kids.len() < WIDTH {
+        let mut widest: Option<(usize, f32)> = None;
+        for (i, &k) in kids.iter().enumerate() {
+            let node = &bvh2.nodes[k];
+            let area = node.aabb.half_area();
+            if node.prim_count == 0 && widest.is_none_or(|(_, a)| area > a) {
+                widest = Some((i, area));
+            }
+        }
+        let Some((i, _)) = widest else {
+            break;
+        };
+        let f = bvh2.nodes[kids[i]].first_index as usize;
+        kids.splice(i..=i, [f, f + 1]);
+    }
+    kids
+}
+
+impl Node {
+    fn empty() -> Node {
+        Node {
+            lo: [[f32::INFINITY; WIDTH]; 3],
+            hi: [[f32::NEG_INFINITY; WIDTH]; 3],
+            child: [EMPTY; WIDTH],
+        }
+    }
+
+    fn set(&mut self, slot: usize, lo: glam::Vec3A, hi: glam::Vec3A, code: u32) {
+        for a in 0..3 {
+            self.lo[a][slot] = lo[a];
+            self.hi[a][slot] = hi[a];
+        }
+        self.child[slot] = code;
+    }
+}

@@ -1,0 +1,346 @@
+//! Walking the wide BVH: the closest hit (children nearest first, a child whose entry is
+//! beyond the closest hit so far left unopened) and any hit (shadow rays and transmittance:
+//! no order, out at the first opaque hit).
+//!
+//! The box test is the slab test with the far distances widened by 1 + 2γ₃ (as pbrt does,
+//! so rounding never loses a box a ray grazes), and a NaN (a ray in a slab's plane, parallel
+//! to it) leaves that axis out rather than the box.
+
+#[cfg(target_arch = "x86_64")]
+use super::lanes::F8;
+use super::lanes::{F4, Mask};
+use super::tri4::Ray4;
+use super::{EMPTY, Kernel, LEAF, LEAF_FIRST, Node, STACK, WIDTH, WideBvh};
+use glam::Vec3A;
+
+/// How far past the closest hit so far a box is still opened: a triangle's distance and
+/// its box's entry are rounded differently (by a few ulps, more at grazing angles), so a
+/// triangle a hair nearer than the hit may lie in a box whose computed entry is a hair
+/// beyond it. Opening boxes up to 1/4096 beyond costs next to nothing and finds it.
+const REACH: f32 = 1.0 + 1.0 / 4096.0;
+
+/// pbrt's 1 + 2γ₃: how far a box's far distance is pushed out against rounding.
+const WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// A ray as the box test takes it.
+pub(super) struct BoxRay {
+    ray: Ray4,
+    o: [f32; 3],
+    inv: [f32; 3],
+    /// Per axis, whether the direction is negative (the near plane is the box's high one).
+    neg: [bool; 3],
+}
+
+impl BoxRay {
+    #[inline(always)]
+    fn new(origin: Vec3A, dir: Vec3A) -> BoxRay {
+        // -0.0 becomes +0.0, so that a zero component's inverse is +inf, not -inf.
+        let dir = dir + Vec3A::ZERO;
+        BoxRay {
+            ray: Ray4::new(origin, dir),
+            o: origin.to_array(),
+            inv: [0, 1, 2].map(|a| 1.0 / dir[a]),
+            neg: [0, 1, 2].map(|a| dir[a] < 0.0),
+        }
+    }
+
+    /// A node's row of near planes and of far planes on `axis`.
+    #[inline(always)]
+    fn planes<'n>(&self, node: &'n Node, a: usize) -> (&'n [f32; WIDTH], &'n [f32; WIDTH]) {
+        if self.neg[a] {
+            (&node.hi[a], &node.lo[a])
+        } else {
+            (&node.lo[a], &node.hi[a])
+        }
+    }
+}
+
+/// A box test of a node's children: the same operations on every lane, four or eight at a
+/// time.
+pub(super) trait Boxes {
+    type Ray;
+    fn prepare(r: &BoxRay) -> Self::Ray;
+    /// The entry distances of `node`'s children and the mask of those entered within
+    /// `tmax`.
+    fn enter(r: &BoxRay, p: &Self::Ray, node: &Node, tmax: f32) -> ([f32; WIDTH], Mask);
+}
+
+/// Four lanes at a time: SSE2, or plain arrays off x86-64.
+pub(super) struct Quads;
+
+impl Boxes for Quads {
+    type Ray = ([F4; 3], [F4; 3]);
+
+    #[inline(always)]
+    fn prepare(r: &BoxRay) -> Self::Ray {
+        (r.o.map(F4::splat), r.inv.map(F4::splat))
+    }
+
+    #[inline(always)]
+    fn enter(r: &BoxRay, p: &Self::Ray, node: &Node, tmax: f32) -> ([f32; WIDTH], Mask) {
+        let mut entries = [0f32; WIDTH];
+        let mut mask = 0;
+        let tmax = F4::splat(tmax);
+        for q in 0..WIDTH / 4 {
+            let slab = |a: usize| {
+                let (near, far) = r.planes(node, a);
+                (
+                    F4::load(quad(near, q)).sub(p.0[a]).mul(p.1[a]),
+                    F4::load(quad(far, q)).sub(p.0[a]).mul(p.1[a]),
+                )
+            };
+            let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
+            // max(a, b) is b where a is NaN: each axis in turn onto what is known.
+            let t_in = nx.max(ny.max(nz.max(F4::splat(0.0))));
+            let t_out = fx
+                .min(fy.min(fz.min(F4::splat(f32::INFINITY))))
+                .mul(F4::splat(WIDEN))
+                .min(tmax);
+            entries[q * 4..q * 4 + 4].copy_from_slice(&t_in.store());
+            mask |= t_in.le(t_out) << (q * 4);
+        }
+        (entries, mask)
+    }
+}
+
+/// Eight lanes at once: AVX2. Only for walks compiled for AVX2 ([`Kernel::Avx2`]).
+#[cfg(target_arch = "x86_64")]
+pub(super) struct Octs;
+
+#[cfg(target_arch = "x86_64")]
+impl Boxes for Octs {
+    type Ray = ([F8; 3], [F8; 3]);
+
+    #[inline(always)]
+    fn prepare(r: &BoxRay) -> Self::Ray {
+        (r.o.map(F8::splat), r.inv.map(F8::splat))
+    }
+
+    #[inline(always)]
+    fn enter(r: &BoxRay, p: &Self::Ray, node: &Node, tmax: f32) -> ([f32; WIDTH], Mask) {
+        const { assert!(WIDTH == 8) };
+        let slab = |a: usize| {
+            let (near, far) = r.planes(node, a);
+            (
+                F8::load(oct(near)).sub(p.0[a]).mul(p.1[a]),
+                F8::load(oct(far)).sub(p.0[a]).mul(p.1[a]),
+            )
+        };
+        let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
+        let t_in = nx.max(ny.max(nz.max(F8::splat(0.0))));
+        let t_out = fx
+            .min(fy.min(fz.min(F8::splat(f32::INFINITY))))
+            .mul(F8::splat(WIDEN))
+            .min(F8::splat(tmax));
+        let mut entries = [0f32; WIDTH];
+        entries[..8].copy_from_slice(&t_in.store());
+        (entries, t_in.le(t_out))
+    }
+}
+
+/// A node's row as eight lanes.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn oct(row: &[f32; WIDTH]) -> &[f32; 8] {
+    row[..8].try_into().expect("eight lanes")
+}
+
+/// Lanes `4q..4q + 4` of a node's row.
+#[inline(always)]
+fn quad(row: &[f32; WIDTH], q: usize) -> &[f32; 4] {
+    row[q * 4..q * 4 + 4].try_into().expect("four lanes")
+}
+
+impl WideBvh {
+    /// The closest triangle along `dir` from `origin` within `[0, tmax]` that `opaque(id,
+    /// t)` lets stop the ray: its distance and id (the id the scene declared; of equally
+    /// distant ones, the smallest).
+    #[inline(always)]
+    pub fn closest(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+    ) -> Option<(f32, u32)> {
+        match self.kernel {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the kernel is AVX2 only where the CPU has it (Kernel::choose).
+            Kernel::Avx2 => unsafe { self.closest_avx2(origin, dir, tmax, opaque) },
+            _ => self.closest_in::<Quads>(origin, dir, tmax, opaque),
+        }
+    }
+
+    /// [`Self::closest`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn closest_avx2(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+    ) -> Option<(f32, u32)> {
+        self.closest_in::<Octs>(origin, dir, tmax, opaque)
+    }
+
+    #[inline(always)]
+    fn closest_in<K: Boxes>(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        mut opaque: impl FnMut(u32, f32) -> bool,
+    ) -> Option<(f32, u32)> {
+        let r = BoxRay::new(origin, dir);
+        let p = K::prepare(&r);
+        let zero = F4::splat(0.0);
+        let (mut best_t, mut best) = (tmax, None::<u32>);
+        // Left uninitialised: a ray touches a few entries, and zeroing them all costs more.
+        let mut stack = [std::mem::MaybeUninit::<(u32, f32)>::uninit(); STACK];
+        let mut sp = 0;
+        // The node or leaf in hand: the nearest child entered goes on at once, the others
+        // on the stack.
+        let mut code = 0u32;
+        loop {
+            if code & LEAF != 0 {
+                let first = (code & LEAF_FIRST) as usize;
+                let count = ((code >> 27) & 0xf) as usize + 1;
+                for pack in &self.packs[first..first + count] {
+                    let (t, mut hits) = pack.intersect(&r.ray, zero, F4::splat(best_t));
+                    while hits != 0 {
+                        let lane = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        let (t, id) = (t[lane], pack.id[lane]);
+                        let nearer = t < best_t || (t == best_t && best.is_none_or(|b| id < b));
+                        if nearer && opaque(id, t) {
+                            best_t = t;
+                            best = Some(id);
+                        }
+                    }
+                }
+            } else {
+                let node = &self.nodes[code as usize];
+                let (entries, mut mask) = K::enter(&r, &p, node, best_t * REACH);
+                if mask != 0 && mask & (mask - 1) == 0 {
+                    code = node.child[mask.trailing_zeros() as usize];
+                    continue;
+                }
+                // The children entered, farthest first onto the stack, so that the nearest
+                // is on top; of equal entries, the later slot below.
+                let mut order = [(0f32, 0u32); WIDTH];
+                let mut n = 0;
+                while mask != 0 {
+                    let slot = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let e = entries[slot];
+                    let mut k = n;
+                    while k > 0 && order[k - 1].0 < e {
+                        order[k] = order[k - 1];
+                        k -= 1;
+                    }
+                    order[k] = (e, node.child[slot]);
+                    n += 1;
+                }
+                if n > 0 {
+                    for &(e, c) in &order[..n - 1] {
+                        debug_assert_ne!(c, EMPTY);
+                        stack[sp].write((c, e));
+                        sp += 1;
+                    }
+                    code = order[n - 1].1;
+                    continue;
+                }
+            }
+            // The next entry on the stack not beyond the closest hit, if any.
+            loop {
+                if sp == 0 {
+                    return best.map(|id| (best_t, id));
+                }
+                sp -= 1;
+                // SAFETY: entries below `sp` were written before `sp` passed them.
+                let (c, entry) = unsafe { stack[sp].assume_init() };
+                if entry <= best_t * REACH {
+                    code = c;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Whether some triangle that `opaque(id, t)` lets stop the ray lies along `dir` from
+    /// `origin` within `[0, tmax]`.
+    #[inline(always)]
+    pub fn any(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+    ) -> bool {
+        match self.kernel {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the kernel is AVX2 only where the CPU has it (Kernel::choose).
+            Kernel::Avx2 => unsafe { self.any_avx2(origin, dir, tmax, opaque) },
+            _ => self.any_in::<Quads>(origin, dir, tmax, opaque),
+        }
+    }
+
+    /// [`Self::any`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn any_avx2(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+    ) -> bool {
+        self.any_in::<Octs>(origin, dir, tmax, opaque)
+    }
+
+    #[inline(always)]
+    fn any_in<K: Boxes>(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        mut opaque: impl FnMut(u32, f32) -> bool,
+    ) -> bool {
+        let r = BoxRay::new(origin, dir);
+        let p = K::prepare(&r);
+        let (zero, far) = (F4::splat(0.0), F4::splat(tmax));
+        let mut stack = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
+        stack[0].write(0);
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            // SAFETY: entries below `sp` were written before `sp` passed them.
+            let code = unsafe { stack[sp].assume_init() };
+            if code & LEAF != 0 {
+                let first = (code & LEAF_FIRST) as usize;
+                let count = ((code >> 27) & 0xf) as usize + 1;
+                for pack in &self.packs[first..first + count] {
+                    let (t, mut hits) = pack.intersect(&r.ray, zero, far);
+                    while hits != 0 {
+                        let lane = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        if opaque(pack.id[lane], t[lane]) {
+                            return true;
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &self.nodes[code as usize];
+            let (_, mut mask) = K::enter(&r, &p, node, tmax);
+            while mask != 0 {
+                let slot = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                stack[sp].write(node.child[slot]);
+                sp += 1;
+            }
+        }
+        false
+    }
+}
