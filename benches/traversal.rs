@@ -160,11 +160,13 @@ fn bench_scene(name: &str, path: &Path, width: u32, repeats: usize, out_dir: &Pa
         pre_split: true,
         ..obvhs::BvhBuildParams::medium_build()
     };
+    let cw_start = Instant::now();
     let cw = obvhs::cwbvh::builder::build_cwbvh_from_tris(
         &tris,
         params,
         &mut std::time::Duration::default(),
     );
+    let cw_build_s = cw_start.elapsed().as_secs_f64();
     let rt: Vec<obvhs::rt_triangle::RtTriangle> = cw
         .primitive_indices
         .iter()
@@ -221,7 +223,7 @@ fn bench_scene(name: &str, path: &Path, width: u32, repeats: usize, out_dir: &Pa
     let cw_bytes = cw.nodes.len() * std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
         + rt.len() * (std::mem::size_of::<obvhs::rt_triangle::RtTriangle>() + 4);
     println!(
-        "traversal scene={name} triangles={} rays={} primary={primary} build_s={build_s:.3} \
+        "traversal scene={name} triangles={} rays={} primary={primary} build_s={build_s:.3} cwbvh_build_s={cw_build_s:.3} \
          closest_hits={hits} closest_t_sum={t_sum:.6} cwbvh_closest_hits={cw_hits} \
          hits_only_within_1e-4={only_ours} nearer_at_shared_edges={nearer} \
          cwbvh_closest_t_sum={cw_t_sum:.6} blocked={blocked} cwbvh_blocked={cw_blocked} closest_rays_per_s={:.0} any_rays_per_s={:.0} \

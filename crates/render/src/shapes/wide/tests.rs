@@ -67,7 +67,11 @@ fn ray(k: usize, s: &mut u64, tris: &[Triangle]) -> Ray {
         d.x = 0.0; // parallel to a slab
         d = d.normalize();
     }
-    let tmax = if k.is_multiple_of(3) { 2.0 } else { f32::INFINITY };
+    let tmax = if k.is_multiple_of(3) {
+        2.0
+    } else {
+        f32::INFINITY
+    };
     Ray::new(o, d, 0.0, tmax)
 }
 

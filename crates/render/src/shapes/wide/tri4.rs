@@ -89,7 +89,8 @@ impl Tri4 {
         let w = F4::splat(1.0).sub(u).sub(v);
         let inside = !u.or(v).or(w).signs() & inv_det.nonzero() & 0xf;
         let t = dot(ng, c).mul(inv_det);
-        let within = tmin.le(t) & t.le(tmax);
+        // RtTriangle's infinite distance is its miss (a ray in the triangle's plane).
+        let within = tmin.le(t) & t.le(tmax.min(F4::splat(f32::MAX)));
         (t.store(), inside & within)
     }
 }
@@ -124,7 +125,11 @@ mod tests {
                 v(&mut s) * 3.0
             };
             let dir = (v(&mut s) + Vec3A::ZERO).normalize();
-            let tmax = if k.is_multiple_of(3) { 1.0 } else { f32::INFINITY };
+            let tmax = if k.is_multiple_of(3) {
+                1.0
+            } else {
+                f32::INFINITY
+            };
             let ray = Ray::new(origin, dir, 0.0, tmax);
             let (t, mask) =
                 pack.intersect(&Ray4::new(origin, dir), F4::splat(0.0), F4::splat(tmax));

@@ -333,10 +333,12 @@ impl WideBvh {
                 continue;
             }
             let node = &self.nodes[code as usize];
+            // The last slot pushed first, so that slot 0, the largest box (see `open`), is
+            // taken first.
             let (_, mut mask) = K::enter(&r, &p, node, tmax);
             while mask != 0 {
-                let slot = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
+                let slot = 31 - mask.leading_zeros() as usize;
+                mask &= !(1 << slot);
                 stack[sp].write(node.child[slot]);
                 sp += 1;
             }

@@ -1,0 +1,224 @@
+//! A binary BVH by the surface area heuristic, binned, top down, for the wide BVH to
+//! collapse: each node splits where the expected cost of a ray through it is least (boxes
+//! entered, packs of four triangles tested), or stays a leaf of at most [`MAX_LEAF`] where
+//! that costs less. Sequential and with a total order on every choice, so the tree is the
+//! same on every machine.
+
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::node::Bvh2Node;
+
+/// Bins per axis.
+const BINS: usize = 16;
+/// The most primitives a leaf holds (two packs).
+pub const MAX_LEAF: usize = 8;
+/// The cost of entering a node, against testing a pack of four triangles.
+const NODE_COST: f32 = 1.0;
+const PACK_COST: f32 = 1.0;
+
+/// The cost of testing `n` primitives: their packs.
+fn packs(n: usize) -> f32 {
+    n.div_ceil(4) as f32 * PACK_COST
+}
+
+/// A binary BVH over `aabbs`, whose leaves index `ids` (`ids[i]` is the primitive `aabbs[i]`
+/// bounds: a triangle may have several boxes, cut by spatial splits). Returns the nodes and
+/// the leaves' primitives.
+pub fn build(aabbs: &[Aabb], ids: &[u32]) -> (Vec<Bvh2Node>, Vec<u32>) {
+    let n = aabbs.len();
+    let centres: Vec<glam::Vec3A> = aabbs.iter().map(Aabb::center).collect();
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let mut nodes = vec![Bvh2Node::new(Aabb::empty(), 0, 0)];
+    // (node, the range of `order` it holds)
+    let mut todo = vec![(0usize, 0usize, n)];
+    while let Some((node, lo, hi)) = todo.pop() {
+        let mut bounds = Aabb::empty();
+        let mut cb = Aabb::empty();
+        for &i in &order[lo..hi] {
+            bounds = bounds.union(&aabbs[i as usize]);
+            cb.extend(centres[i as usize]);
+        }
+        let count = hi - lo;
+        let split = if count > 1 {
+            best_split(
+                &order[lo..hi],
+                aabbs,
+                &centres,
+                &cb,
+                bounds.half_area(),
+                count,
+            )
+        } else {
+            None
+        };
+        let mid = match split {
+            Some(s) => partition(&mut order[lo..hi], &centres, &cb, s) + lo,
+            None if count <= MAX_LEAF => {
+                nodes[node] = Bvh2Node::new(bounds, count as u32, lo as u32);
+                continue;
+            }
+            // Too many to be a leaf and nothing to split by (their centres in one bin):
+            // halve them in the order they are in.
+            None => lo + count / 2,
+        };
+        let first = nodes.len();
+        nodes.push(Bvh2Node::new(Aabb::empty(), 0, 0));
+        nodes.push(Bvh2Node::new(Aabb::empty(), 0, 0));
+        nodes[node] = Bvh2Node::new(bounds, 0, first as u32);
+        todo.push((first + 1, mid, hi));
+        todo.push((first, lo, mid));
+    }
+    let prims = order.iter().map(|&i| ids[i as usize]).collect();
+    (nodes, prims)
+}
+
+/// A split: the axis and the number of bins on its left.
+#[derive(Clone, Copy)]
+struct Split {
+    axis: usize,
+    bins_left: usize,
+}
+
+/// The bin of centre `c` on `axis` of the centres' bounds `cb`.
+#[inline]
+fn bin(c: f32, cb: &Aabb, axis: usize) -> usize {
+    let extent = cb.max[axis] - cb.min[axis];
+    let b = ((c - cb.min[axis]) / extent * BINS as f32) as usize;
+    b.min(BINS - 1)
+}
+
+/// The cheapest split of `items` if it is cheaper than a leaf of them (a leaf is not an
+/// option past [`MAX_LEAF`]).
+fn best_split(
+    items: &[u32],
+    aabbs: &[Aabb],
+    centres: &[glam::Vec3A],
+    cb: &Aabb,
+    area: f32,
+    count: usize,
+) -> Option<Split> {
+    let mut best: Option<(f32, Split)> = None;
+    // Every axis binned in one pass over the items.
+    let mut boxes = [[Aabb::empty(); BINS]; 3];
+    let mut counts = [[0usize; BINS]; 3];
+    let live: [bool; 3] = std::array::from_fn(|a| cb.max[a] - cb.min[a] > 0.0);
+    for &i in items {
+        let (c, b) = (centres[i as usize], &aabbs[i as usize]);
+        for axis in 0..3 {
+            if live[axis] {
+                let k = bin(c[axis], cb, axis);
+                boxes[axis][k] = boxes[axis][k].union(b);
+                counts[axis][k] += 1;
+            }
+        }
+    }
+    for axis in (0..3).filter(|&a| live[a]) {
+        let (boxes, counts) = (&boxes[axis], &counts[axis]);
+        // Right to left: the area and count of bins k.. for each k.
+        let mut right = [(0f32, 0usize); BINS];
+        let (mut acc, mut n) = (Aabb::empty(), 0);
+        for k in (1..BINS).rev() {
+            acc = acc.union(&boxes[k]);
+            n += counts[k];
+            right[k] = (acc.half_area(), n);
+        }
+        let (mut acc, mut n) = (Aabb::empty(), 0);
+        for k in 1..BINS {
+            acc = acc.union(&boxes[k - 1]);
+            n += counts[k - 1];
+            let (ra, rn) = right[k];
+            if n == 0 || rn == 0 {
+                continue;
+            }
+            let cost = acc.half_area() * packs(n) + ra * packs(rn);
+            if best.is_none_or(|(c, _)| cost < c) {
+                best = Some((cost, Split { axis, bins_left: k }));
+            }
+        }
+    }
+    let (cost, split) = best?;
+    let split_cost = NODE_COST + cost / area.max(f32::MIN_POSITIVE);
+    (count > MAX_LEAF || split_cost < packs(count)).then_some(split)
+}
+
+/// Puts the items left of `split` first; returns how many they are.
+fn partition(items: &mut [u32], centres: &[glam::Vec3A], cb: &Aabb, split: Split) -> usize {
+    let left = |i: u32| bin(centres[i as usize][split.axis], cb, split.axis) < split.bins_left;
+    let (mut a, mut b) = (0, items.len());
+    while a < b {
+        if left(items[a]) {
+            a += 1;
+        } else {
+            b -= 1;
+            items.swap(a, b);
+        }
+    }
+    a
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3A;
+
+    /// Every primitive is in exactly one leaf, every node's box holds its children's and its
+    /// primitives', and leaves hold at most MAX_LEAF unless their centres coincide.
+    fn check(aabbs: &[Aabb]) -> usize {
+        let ids: Vec<u32> = (0..aabbs.len() as u32).collect();
+        let (nodes, prims) = build(aabbs, &ids);
+        let mut seen = vec![0u32; aabbs.len()];
+        let mut todo = vec![0usize];
+        let mut leaves = 0;
+        let contains = |outer: &Aabb, inner: &Aabb| {
+            outer.min.cmple(inner.min).all() && inner.max.cmple(outer.max).all()
+        };
+        while let Some(n) = todo.pop() {
+            let node = &nodes[n];
+            if node.prim_count > 0 {
+                leaves += 1;
+                let range =
+                    node.first_index as usize..(node.first_index + node.prim_count) as usize;
+                let mut centres = Aabb::empty();
+                for &p in &prims[range] {
+                    seen[p as usize] += 1;
+                    assert!(contains(&node.aabb, &aabbs[p as usize]));
+                    centres.extend(aabbs[p as usize].center());
+                }
+                assert!(
+                    node.prim_count as usize <= MAX_LEAF || centres.min == centres.max,
+                    "a leaf of {}",
+                    node.prim_count
+                );
+            } else {
+                for c in [node.first_index as usize, node.first_index as usize + 1] {
+                    assert!(contains(&node.aabb, &nodes[c].aabb));
+                    todo.push(c);
+                }
+            }
+        }
+        assert!(seen.iter().all(|&s| s == 1), "each primitive in one leaf");
+        leaves
+    }
+
+    #[test]
+    fn every_primitive_in_one_leaf_under_boxes_that_hold_it() {
+        let mut s = 1u64;
+        let mut r = || {
+            s = s.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let boxes: Vec<Aabb> = (0..10_000)
+            .map(|_| {
+                let c = Vec3A::new(r(), r(), r()) * 100.0;
+                let e = Vec3A::new(r(), r(), r()) * (if r() < 0.01 { 50.0 } else { 0.5 });
+                Aabb::new(c - e, c + e)
+            })
+            .collect();
+        let leaves = check(&boxes);
+        assert!(leaves >= 10_000 / MAX_LEAF, "{leaves} leaves");
+        // Coincident boxes: halved until leaves, not one leaf of all.
+        let same = vec![Aabb::new(Vec3A::ZERO, Vec3A::ONE); 1_000];
+        assert!(check(&same) >= 1_000 / MAX_LEAF);
+        // One box.
+        assert_eq!(check(&boxes[..1]), 1);
+    }
+}
