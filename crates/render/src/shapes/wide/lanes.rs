@@ -21,6 +21,71 @@ pub struct F4([f32; 4]);
 /// A lane mask: bit i set where lane i holds.
 pub type Mask = u32;
 
+/// What the triangle test needs of a row of lanes: four ([`F4`]) or eight ([`F8`]).
+pub trait Lanes: Copy {
+    fn splat(x: f32) -> Self;
+    fn add(self, o: Self) -> Self;
+    fn sub(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+    fn div(self, o: Self) -> Self;
+    fn min(self, o: Self) -> Self;
+    fn le(self, o: Self) -> Mask;
+    fn nonzero(self) -> Mask;
+    fn signs(self) -> Mask;
+    fn or(self, o: Self) -> Self;
+}
+
+/// Forwards a lane type's own operations to [`Lanes`].
+macro_rules! lanes {
+    ($t:ty) => {
+        impl Lanes for $t {
+            #[inline(always)]
+            fn splat(x: f32) -> Self {
+                <$t>::splat(x)
+            }
+            #[inline(always)]
+            fn add(self, o: Self) -> Self {
+                <$t>::add(self, o)
+            }
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                <$t>::sub(self, o)
+            }
+            #[inline(always)]
+            fn mul(self, o: Self) -> Self {
+                <$t>::mul(self, o)
+            }
+            #[inline(always)]
+            fn div(self, o: Self) -> Self {
+                <$t>::div(self, o)
+            }
+            #[inline(always)]
+            fn min(self, o: Self) -> Self {
+                <$t>::min(self, o)
+            }
+            #[inline(always)]
+            fn le(self, o: Self) -> Mask {
+                <$t>::le(self, o)
+            }
+            #[inline(always)]
+            fn nonzero(self) -> Mask {
+                <$t>::nonzero(self)
+            }
+            #[inline(always)]
+            fn signs(self) -> Mask {
+                <$t>::signs(self)
+            }
+            #[inline(always)]
+            fn or(self, o: Self) -> Self {
+                <$t>::or(self, o)
+            }
+        }
+    };
+}
+lanes!(F4);
+#[cfg(target_arch = "x86_64")]
+lanes!(F8);
+
 #[cfg(target_arch = "x86_64")]
 impl F4 {
     #[inline(always)]
@@ -170,10 +235,13 @@ pub struct F8(__m256);
 
 #[cfg(target_arch = "x86_64")]
 impl F8 {
+    /// `v`, which must be 32-byte aligned (a node's rows are).
     #[inline(always)]
-    pub fn load(v: &[f32; 8]) -> F8 {
-        // SAFETY: only run where the CPU has AVX2 (above); `v` is 32 bytes.
-        F8(unsafe { _mm256_loadu_ps(v.as_ptr()) })
+    pub fn load_aligned(v: &[f32; 8]) -> F8 {
+        debug_assert_eq!(v.as_ptr() as usize % 32, 0, "an aligned row");
+        // SAFETY: only run where the CPU has AVX2; `v` is 32 bytes, 32-byte aligned (every
+        // caller's row is: Node is 64-byte aligned and its rows are 32 bytes each).
+        F8(unsafe { _mm256_load_ps(v.as_ptr()) })
     }
     #[inline(always)]
     pub fn splat(x: f32) -> F8 {
@@ -187,10 +255,45 @@ impl F8 {
         unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
         out
     }
+    /// Four lanes from `lo` and four from `hi`.
+    #[inline(always)]
+    pub fn halves(lo: &[f32; 4], hi: &[f32; 4]) -> F8 {
+        // SAFETY: only run where the CPU has AVX2; each half is 16 bytes.
+        F8(unsafe { _mm256_loadu2_m128(hi.as_ptr(), lo.as_ptr()) })
+    }
+    #[inline(always)]
+    pub fn add(self, o: F8) -> F8 {
+        // SAFETY: only run where the CPU has AVX2.
+        F8(unsafe { _mm256_add_ps(self.0, o.0) })
+    }
     #[inline(always)]
     pub fn sub(self, o: F8) -> F8 {
         // SAFETY: only run where the CPU has AVX2.
         F8(unsafe { _mm256_sub_ps(self.0, o.0) })
+    }
+    #[inline(always)]
+    pub fn div(self, o: F8) -> F8 {
+        // SAFETY: as above.
+        F8(unsafe { _mm256_div_ps(self.0, o.0) })
+    }
+    /// Lanes where `self != 0` (true where NaN, as SSE's `cmpneqps`).
+    #[inline(always)]
+    pub fn nonzero(self) -> Mask {
+        // SAFETY: as above.
+        unsafe {
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0, _mm256_setzero_ps())) as Mask
+        }
+    }
+    /// Lanes whose sign bit is set.
+    #[inline(always)]
+    pub fn signs(self) -> Mask {
+        // SAFETY: as above.
+        unsafe { _mm256_movemask_ps(self.0) as Mask }
+    }
+    #[inline(always)]
+    pub fn or(self, o: F8) -> F8 {
+        // SAFETY: as above.
+        F8(unsafe { _mm256_or_ps(self.0, o.0) })
     }
     #[inline(always)]
     pub fn mul(self, o: F8) -> F8 {

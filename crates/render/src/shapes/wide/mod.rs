@@ -39,13 +39,13 @@ pub(super) const STACK: usize = 256;
 /// Children per node: a multiple of four (the lanes of one box test).
 pub(super) const WIDTH: usize = 8;
 
-/// A node: its children's boxes (`lo[axis][child]`, `hi[axis][child]`) and what each child
+/// A node: its children's boxes, plane by plane (`planes[axis][child]` the low planes,
+/// `planes[3 + axis][child]` the high ones, each row 32-byte aligned), and what each child
 /// is (a node's index, a leaf, or [`EMPTY`]).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node {
-    lo: [[f32; WIDTH]; 3],
-    hi: [[f32; WIDTH]; 3],
+    planes: [[f32; WIDTH]; 6],
     child: [u32; WIDTH],
 }
 
@@ -247,16 +247,21 @@ fn open(bvh2: &Binary, n2: usize) -> Vec<usize> {
 impl Node {
     fn empty() -> Node {
         Node {
-            lo: [[f32::INFINITY; WIDTH]; 3],
-            hi: [[f32::NEG_INFINITY; WIDTH]; 3],
+            planes: std::array::from_fn(|row| {
+                [if row < 3 {
+                    f32::INFINITY
+                } else {
+                    f32::NEG_INFINITY
+                }; WIDTH]
+            }),
             child: [EMPTY; WIDTH],
         }
     }
 
     fn set(&mut self, slot: usize, lo: glam::Vec3A, hi: glam::Vec3A, code: u32) {
         for a in 0..3 {
-            self.lo[a][slot] = lo[a];
-            self.hi[a][slot] = hi[a];
+            self.planes[a][slot] = lo[a];
+            self.planes[3 + a][slot] = hi[a];
         }
         self.child[slot] = code;
     }

@@ -2,7 +2,7 @@
 //! (obvhs's Möller-Trumbore, the test Kiln's images were made with) does for one triangle,
 //! operation for operation, so a lane's distance is that test's distance to the bit.
 
-use super::lanes::{F4, Mask};
+use super::lanes::{F4, Lanes, Mask};
 use glam::Vec3A;
 use obvhs::rt_triangle::RtTriangle;
 
@@ -63,36 +63,80 @@ impl Tri4 {
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray4, tmin: F4, tmax: F4) -> ([f32; 4], Mask) {
         let l = |v: &[[f32; 4]; 3]| [F4::load(&v[0]), F4::load(&v[1]), F4::load(&v[2])];
-        let dot = |a: [F4; 3], b: [F4; 3]| a[0].mul(b[0]).add(a[1].mul(b[1])).add(a[2].mul(b[2]));
-        let (v0, e1, e2) = (l(&self.v0), l(&self.e1), l(&self.e2));
-        // ng = e1 x e2, as RtTriangle::new makes it: the same bits, not stored.
-        let ng = [
-            e1[1].mul(e2[2]).sub(e1[2].mul(e2[1])),
-            e1[2].mul(e2[0]).sub(e1[0].mul(e2[2])),
-            e1[0].mul(e2[1]).sub(e1[1].mul(e2[0])),
-        ];
-        let d = ray.d;
-        let c = [
-            v0[0].sub(ray.o[0]),
-            v0[1].sub(ray.o[1]),
-            v0[2].sub(ray.o[2]),
-        ];
-        // r = d x c
-        let r = [
-            d[1].mul(c[2]).sub(d[2].mul(c[1])),
-            d[2].mul(c[0]).sub(d[0].mul(c[2])),
-            d[0].mul(c[1]).sub(d[1].mul(c[0])),
-        ];
-        let inv_det = F4::splat(1.0).div(dot(ng, d));
-        let u = dot(r, e2).mul(inv_det);
-        let v = dot(r, e1).mul(inv_det);
-        let w = F4::splat(1.0).sub(u).sub(v);
-        let inside = !u.or(v).or(w).signs() & inv_det.nonzero() & 0xf;
-        let t = dot(ng, c).mul(inv_det);
-        // RtTriangle's infinite distance is its miss (a ray in the triangle's plane).
-        let within = tmin.le(t) & t.le(tmax.min(F4::splat(f32::MAX)));
-        (t.store(), inside & within)
+        let (t, mask) = hit(
+            l(&self.v0),
+            l(&self.e1),
+            l(&self.e2),
+            ray.o,
+            ray.d,
+            tmin,
+            tmax,
+        );
+        (t.store(), mask)
     }
+
+    /// [`Tri4::intersect`] of `self` (lanes 0-3) and `other` (lanes 4-7) at once, with AVX2:
+    /// only for code compiled for it.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn intersect_pair(
+        &self,
+        other: &Tri4,
+        origin: [f32; 3],
+        dir: [f32; 3],
+        tmin: f32,
+        tmax: f32,
+    ) -> ([f32; 8], Mask) {
+        use super::lanes::F8;
+        let l = |a: &[[f32; 4]; 3], b: &[[f32; 4]; 3]| [0, 1, 2].map(|k| F8::halves(&a[k], &b[k]));
+        let (t, mask) = hit(
+            l(&self.v0, &other.v0),
+            l(&self.e1, &other.e1),
+            l(&self.e2, &other.e2),
+            origin.map(F8::splat),
+            dir.map(F8::splat),
+            F8::splat(tmin),
+            F8::splat(tmax),
+        );
+        (t.store(), mask)
+    }
+}
+
+/// obvhs's Möller-Trumbore on every lane: the distances, and the lanes that hit within
+/// `[tmin, tmax]`.
+#[inline(always)]
+fn hit<L: Lanes>(
+    v0: [L; 3],
+    e1: [L; 3],
+    e2: [L; 3],
+    o: [L; 3],
+    d: [L; 3],
+    tmin: L,
+    tmax: L,
+) -> (L, Mask) {
+    let dot = |a: [L; 3], b: [L; 3]| a[0].mul(b[0]).add(a[1].mul(b[1])).add(a[2].mul(b[2]));
+    // ng = e1 x e2, as RtTriangle::new makes it: the same bits, not stored.
+    let ng = [
+        e1[1].mul(e2[2]).sub(e1[2].mul(e2[1])),
+        e1[2].mul(e2[0]).sub(e1[0].mul(e2[2])),
+        e1[0].mul(e2[1]).sub(e1[1].mul(e2[0])),
+    ];
+    let c = [v0[0].sub(o[0]), v0[1].sub(o[1]), v0[2].sub(o[2])];
+    // r = d x c
+    let r = [
+        d[1].mul(c[2]).sub(d[2].mul(c[1])),
+        d[2].mul(c[0]).sub(d[0].mul(c[2])),
+        d[0].mul(c[1]).sub(d[1].mul(c[0])),
+    ];
+    let inv_det = L::splat(1.0).div(dot(ng, d));
+    let u = dot(r, e2).mul(inv_det);
+    let v = dot(r, e1).mul(inv_det);
+    let w = L::splat(1.0).sub(u).sub(v);
+    let inside = !u.or(v).or(w).signs() & inv_det.nonzero();
+    let t = dot(ng, c).mul(inv_det);
+    // RtTriangle's infinite distance is its miss (a ray in the triangle's plane).
+    let within = tmin.le(t) & t.le(tmax.min(L::splat(f32::MAX)));
+    (t, inside & within)
 }
 
 #[cfg(test)]

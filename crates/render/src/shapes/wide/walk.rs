@@ -9,7 +9,7 @@
 #[cfg(target_arch = "x86_64")]
 use super::lanes::F8;
 use super::lanes::{F4, Mask};
-use super::tri4::Ray4;
+use super::tri4::{Ray4, Tri4};
 use super::{EMPTY, Kernel, LEAF, LEAF_FIRST, Node, STACK, WIDTH, WideBvh};
 use glam::Vec3A;
 
@@ -26,9 +26,12 @@ const WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EP
 pub(super) struct BoxRay {
     ray: Ray4,
     o: [f32; 3],
+    dir: [f32; 3],
     inv: [f32; 3],
-    /// Per axis, whether the direction is negative (the near plane is the box's high one).
-    neg: [bool; 3],
+    /// Per axis, the rows of a node's near and far planes (the high plane is the near one
+    /// where the direction is negative).
+    near: [usize; 3],
+    far: [usize; 3],
 }
 
 impl BoxRay {
@@ -39,19 +42,20 @@ impl BoxRay {
         BoxRay {
             ray: Ray4::new(origin, dir),
             o: origin.to_array(),
+            dir: dir.to_array(),
             inv: [0, 1, 2].map(|a| 1.0 / dir[a]),
-            neg: [0, 1, 2].map(|a| dir[a] < 0.0),
+            near: [0, 1, 2].map(|a| if dir[a] < 0.0 { 3 + a } else { a }),
+            far: [0, 1, 2].map(|a| if dir[a] < 0.0 { a } else { 3 + a }),
         }
     }
 
     /// A node's row of near planes and of far planes on `axis`.
     #[inline(always)]
     fn planes<'n>(&self, node: &'n Node, a: usize) -> (&'n [f32; WIDTH], &'n [f32; WIDTH]) {
-        if self.neg[a] {
-            (&node.hi[a], &node.lo[a])
-        } else {
-            (&node.lo[a], &node.hi[a])
-        }
+        (
+            &node.planes[self.near[a] % 6],
+            &node.planes[self.far[a] % 6],
+        )
     }
 }
 
@@ -63,6 +67,19 @@ pub(super) trait Boxes {
     /// The entry distances of `node`'s children and the mask of those entered within
     /// `tmax`.
     fn enter(r: &BoxRay, p: &Self::Ray, node: &Node, tmax: f32) -> ([f32; WIDTH], Mask);
+
+    /// Two packs' lanes (`a`'s as 0-3, `b`'s as 4-7): each lane's distance, and the lanes
+    /// that hit within `[0, tmax]`.
+    #[inline(always)]
+    fn pair(r: &BoxRay, a: &Tri4, b: &Tri4, tmax: f32) -> ([f32; 8], Mask) {
+        let (zero, far) = (F4::splat(0.0), F4::splat(tmax));
+        let (ta, ma) = a.intersect(&r.ray, zero, far);
+        let (tb, mb) = b.intersect(&r.ray, zero, far);
+        let mut t = [0f32; 8];
+        t[..4].copy_from_slice(&ta);
+        t[4..].copy_from_slice(&tb);
+        (t, ma | mb << 4)
+    }
 }
 
 /// Four lanes at a time: SSE2, or plain arrays off x86-64.
@@ -122,8 +139,8 @@ impl Boxes for Octs {
         let slab = |a: usize| {
             let (near, far) = r.planes(node, a);
             (
-                F8::load(oct(near)).sub(p.0[a]).mul(p.1[a]),
-                F8::load(oct(far)).sub(p.0[a]).mul(p.1[a]),
+                F8::load_aligned(oct(near)).sub(p.0[a]).mul(p.1[a]),
+                F8::load_aligned(oct(far)).sub(p.0[a]).mul(p.1[a]),
             )
         };
         let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
@@ -135,6 +152,11 @@ impl Boxes for Octs {
         let mut entries = [0f32; WIDTH];
         entries[..8].copy_from_slice(&t_in.store());
         (entries, t_in.le(t_out))
+    }
+
+    #[inline(always)]
+    fn pair(r: &BoxRay, a: &Tri4, b: &Tri4, tmax: f32) -> ([f32; 8], Mask) {
+        a.intersect_pair(b, r.o, r.dir, 0.0, tmax)
     }
 }
 
@@ -206,12 +228,26 @@ impl WideBvh {
             if code & LEAF != 0 {
                 let first = (code & LEAF_FIRST) as usize;
                 let count = ((code >> 27) & 0xf) as usize + 1;
-                for pack in &self.packs[first..first + count] {
-                    let (t, mut hits) = pack.intersect(&r.ray, zero, F4::splat(best_t));
+                let packs = &self.packs[first..first + count];
+                let mut k = 0;
+                while k < count {
+                    // Two packs at once where there are two.
+                    let (t, mut hits, b) = if k + 1 < count {
+                        let (t, m) = K::pair(&r, &packs[k], &packs[k + 1], best_t);
+                        (t, m, &packs[k + 1])
+                    } else {
+                        let (t4, m) = packs[k].intersect(&r.ray, zero, F4::splat(best_t));
+                        let mut t = [0f32; 8];
+                        t[..4].copy_from_slice(&t4);
+                        (t, m, &packs[k])
+                    };
+                    let a = &packs[k];
+                    k += 2;
                     while hits != 0 {
                         let lane = hits.trailing_zeros() as usize;
                         hits &= hits - 1;
-                        let (t, id) = (t[lane], pack.id[lane]);
+                        let id = if lane < 4 { a.id[lane] } else { b.id[lane - 4] };
+                        let t = t[lane];
                         let nearer = t < best_t || (t == best_t && best.is_none_or(|b| id < b));
                         if nearer && opaque(id, t) {
                             best_t = t;
@@ -320,12 +356,25 @@ impl WideBvh {
             if code & LEAF != 0 {
                 let first = (code & LEAF_FIRST) as usize;
                 let count = ((code >> 27) & 0xf) as usize + 1;
-                for pack in &self.packs[first..first + count] {
-                    let (t, mut hits) = pack.intersect(&r.ray, zero, far);
+                let packs = &self.packs[first..first + count];
+                let mut k = 0;
+                while k < count {
+                    let (t, mut hits, b) = if k + 1 < count {
+                        let (t, m) = K::pair(&r, &packs[k], &packs[k + 1], tmax);
+                        (t, m, &packs[k + 1])
+                    } else {
+                        let (t4, m) = packs[k].intersect(&r.ray, zero, far);
+                        let mut t = [0f32; 8];
+                        t[..4].copy_from_slice(&t4);
+                        (t, m, &packs[k])
+                    };
+                    let a = &packs[k];
+                    k += 2;
                     while hits != 0 {
                         let lane = hits.trailing_zeros() as usize;
                         hits &= hits - 1;
-                        if opaque(pack.id[lane], t[lane]) {
+                        let id = if lane < 4 { a.id[lane] } else { b.id[lane - 4] };
+                        if opaque(id, t[lane]) {
                             return true;
                         }
                     }
