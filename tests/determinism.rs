@@ -226,7 +226,7 @@ fn kiln_render_writes_the_same_bytes_as_render_tile_for_any_split() {
     );
 }
 
-/// Every BVH kernel this CPU runs (SSE, AVX2) gives `kiln render` the same bytes: on the
+/// Every BVH kernel this CPU runs (SSE, AVX2, AVX-512) gives `kiln render` the same bytes: on the
 /// snail's glass (camera rays, bounces, VolumeLight chords and shadow rays through 124k
 /// triangles), the MIS scene, the materials and the textures (alpha cutouts), so a farm may
 /// mix machines of either kind.
@@ -246,9 +246,10 @@ fn every_bvh_kernel_renders_the_same_bytes() {
         ("textures/scene.pbrt", "4"),
     ] {
         let args = ["--spp", spp, "--resolution", "96x64", "--threads", "2"];
-        let images: Vec<Vec<u8>> = [("sse", "Sse"), ("avx2", "Avx2")]
+        let images: Vec<Vec<u8>> = kernels
             .iter()
-            .map(|(kernel, said)| {
+            .map(|k| {
+                let (kernel, said) = (k.name(), format!("{k:?}"));
                 let out = format!("{}-{kernel}", name.replace('/', "-"));
                 let r = render_with_env(
                     &scene(name),

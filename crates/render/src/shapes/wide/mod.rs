@@ -51,42 +51,61 @@ struct Node {
 
 /// Which instructions walk the BVH. Every kernel finds the same hit to the bit (the same
 /// operation on every lane, in the same order); they differ only in speed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Kernel {
     /// Four lanes at a time: SSE2 on x86-64 (every such CPU has it), plain arrays elsewhere.
     Sse,
-    /// A node's eight boxes at once.
+    /// A node's eight boxes at once, and a leaf's two packs.
     Avx2,
+    /// The AVX2 kernel compiled for AVX-512 (F and VL): the same eight-lane operations, with
+    /// twice the vector registers to keep the ray in.
+    Avx512,
 }
 
 impl Kernel {
-    /// The fastest kernel this CPU runs, unless `KILN_BVH_KERNEL` (`sse` or `avx2`) names
-    /// one (for tests that compare them, and to rule a kernel out).
+    /// The fastest kernel this CPU runs, unless `KILN_BVH_KERNEL` (`sse`, `avx2` or
+    /// `avx512`) names a slower one (for tests that compare them, and to rule one out).
     pub fn choose() -> Kernel {
         let best = Kernel::detect();
-        match std::env::var("KILN_BVH_KERNEL").as_deref() {
+        let asked = match std::env::var("KILN_BVH_KERNEL").as_deref() {
             Ok("sse") => Kernel::Sse,
-            Ok("avx2") if best == Kernel::Avx2 => Kernel::Avx2,
+            Ok("avx2") => Kernel::Avx2,
+            Ok("avx512") => Kernel::Avx512,
             _ => best,
+        };
+        asked.min(best)
+    }
+
+    /// The name `KILN_BVH_KERNEL` takes for this kernel.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::Sse => "sse",
+            Kernel::Avx2 => "avx2",
+            Kernel::Avx512 => "avx512",
         }
     }
 
     /// The fastest kernel this CPU runs.
     pub fn detect() -> Kernel {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Kernel::Avx2;
+        {
+            use std::arch::is_x86_feature_detected as has;
+            if has!("avx2") && has!("avx512f") && has!("avx512vl") {
+                return Kernel::Avx512;
+            }
+            if has!("avx2") {
+                return Kernel::Avx2;
+            }
         }
         Kernel::Sse
     }
 
     /// Every kernel this CPU runs.
     pub fn available() -> Vec<Kernel> {
-        let mut all = vec![Kernel::Sse];
-        if Kernel::detect() == Kernel::Avx2 {
-            all.push(Kernel::Avx2);
-        }
-        all
+        [Kernel::Sse, Kernel::Avx2, Kernel::Avx512]
+            .into_iter()
+            .filter(|&k| k <= Kernel::detect())
+            .collect()
     }
 }
 

@@ -120,7 +120,8 @@ impl Boxes for Quads {
     }
 }
 
-/// Eight lanes at once: AVX2. Only for walks compiled for AVX2 ([`Kernel::Avx2`]).
+/// Eight lanes at once: AVX2. Only for walks compiled for AVX2 or AVX-512
+/// ([`Kernel::Avx2`], [`Kernel::Avx512`]).
 #[cfg(target_arch = "x86_64")]
 pub(super) struct Octs;
 
@@ -189,6 +190,9 @@ impl WideBvh {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernel is AVX2 only where the CPU has it (Kernel::choose).
             Kernel::Avx2 => unsafe { self.closest_avx2(origin, dir, tmax, opaque) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the kernel is AVX-512 only where the CPU has it (Kernel::choose).
+            Kernel::Avx512 => unsafe { self.closest_avx512(origin, dir, tmax, opaque) },
             _ => self.closest_in::<Quads>(origin, dir, tmax, opaque),
         }
     }
@@ -197,6 +201,19 @@ impl WideBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn closest_avx2(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+    ) -> Option<(f32, u32)> {
+        self.closest_in::<Octs>(origin, dir, tmax, opaque)
+    }
+
+    /// [`Self::closest`] compiled for AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    unsafe fn closest_avx512(
         &self,
         origin: Vec3A,
         dir: Vec3A,
@@ -318,6 +335,9 @@ impl WideBvh {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernel is AVX2 only where the CPU has it (Kernel::choose).
             Kernel::Avx2 => unsafe { self.any_avx2(origin, dir, tmax, opaque) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the kernel is AVX-512 only where the CPU has it (Kernel::choose).
+            Kernel::Avx512 => unsafe { self.any_avx512(origin, dir, tmax, opaque) },
             _ => self.any_in::<Quads>(origin, dir, tmax, opaque),
         }
     }
@@ -326,6 +346,19 @@ impl WideBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn any_avx2(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+    ) -> bool {
+        self.any_in::<Octs>(origin, dir, tmax, opaque)
+    }
+
+    /// [`Self::any`] compiled for AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    unsafe fn any_avx512(
         &self,
         origin: Vec3A,
         dir: Vec3A,
