@@ -8,10 +8,13 @@
 //! of them into the surface (for the snail's glass, the interior chords paths trace). The
 //! secondary rays start 1e-4 of the scene's size off the surface, on the side they leave.
 //!
-//! `cargo bench --bench traversal [-- --width N --repeats N]`
+//! A third scene is made here: a UV sphere of about a million triangles (`--sphere-rings
+//! 500`; 0 leaves it out), for the build time and memory a large mesh costs.
+//!
+//! `cargo bench --bench traversal [-- --width N --repeats N --sphere-rings N]`
 
 mod common;
-use common::arg;
+use common::{arg, write_sphere_ply};
 use glam::{Vec2, Vec3A};
 use kiln_render::shapes::{Geometry, Primitives};
 use std::io::Write;
@@ -50,6 +53,20 @@ fn main() {
     ];
     let out_dir = root.join("target/traversal");
     std::fs::create_dir_all(&out_dir).expect("target/traversal can be made");
+    let rings = arg("--sphere-rings", 500usize);
+    let mut scenes = scenes.to_vec();
+    if rings > 0 {
+        write_sphere_ply(&out_dir.join("sphere.ply"), rings, 2 * rings);
+        let scene = out_dir.join("sphere.pbrt");
+        std::fs::write(
+            &scene,
+            "LookAt 0 0.5 4  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 40 ]\n\
+             Film \"rgb\" \"integer xresolution\" [ 512 ] \"integer yresolution\" [ 512 ]\n\
+             WorldBegin\nShape \"plymesh\" \"string filename\" \"sphere.ply\"\n",
+        )
+        .expect("the sphere's scene is written");
+        scenes.push(("sphere", scene));
+    }
     for (name, path) in scenes {
         if !path.exists() {
             println!(

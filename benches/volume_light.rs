@@ -6,61 +6,11 @@
 //! `cargo bench --bench volume_light [-- --rings N --spp N --resolution N]`
 
 mod common;
-use common::{arg, peak_rss_mib, render_tiles};
+use common::{arg, peak_rss_mib, render_tiles, write_sphere_ply};
 use kiln_render::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use kiln_render::{Renderer, TileStats};
 use std::io::Write;
 use std::time::Instant;
-
-/// Writes a binary PLY UV sphere with smooth normals; returns its face count.
-fn write_sphere_ply(path: &std::path::Path, rings: usize, segments: usize) -> usize {
-    let mut verts = Vec::new();
-    for i in 0..=rings {
-        let theta = std::f32::consts::PI * i as f32 / rings as f32;
-        for j in 0..segments {
-            let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
-            verts.push([
-                libm::sinf(theta) * libm::cosf(phi),
-                libm::cosf(theta),
-                libm::sinf(theta) * libm::sinf(phi),
-            ]);
-        }
-    }
-    let mut faces = Vec::new();
-    for i in 0..rings {
-        for j in 0..segments {
-            let a = (i * segments + j) as u32;
-            let b = (i * segments + (j + 1) % segments) as u32;
-            let (c, d) = (a + segments as u32, b + segments as u32);
-            if i != 0 {
-                faces.push([a, b, c]);
-            }
-            if i != rings - 1 {
-                faces.push([b, d, c]);
-            }
-        }
-    }
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    write!(
-        f,
-        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        verts.len(),
-        faces.len()
-    )
-    .unwrap();
-    for v in &verts {
-        for c in v.iter().chain(v.iter()) {
-            f.write_all(&c.to_le_bytes()).unwrap();
-        }
-    }
-    for t in &faces {
-        f.write_all(&[3u8]).unwrap();
-        for i in t {
-            f.write_all(&(*i as i32).to_le_bytes()).unwrap();
-        }
-    }
-    faces.len()
-}
 
 fn scene_text(light: &str, material: &str, res: u32, spp: u32) -> String {
     format!(
