@@ -9,7 +9,6 @@ mod common;
 use common::{arg, peak_rss_mib, render_tiles, write_sphere_ply};
 use kiln_render::lights::volume::{VOLUME_POWER_SEED, power_estimates};
 use kiln_render::{Renderer, TileStats};
-use std::io::Write;
 use std::time::Instant;
 
 fn scene_text(light: &str, material: &str, res: u32, spp: u32) -> String {

@@ -57,6 +57,7 @@ pub fn render_image(
 }
 
 /// Writes a binary PLY UV sphere with smooth normals; returns its face count.
+#[allow(dead_code)]
 pub fn write_sphere_ply(path: &std::path::Path, rings: usize, segments: usize) -> usize {
     let mut verts = Vec::new();
     for i in 0..=rings {
