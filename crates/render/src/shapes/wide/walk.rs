@@ -1,6 +1,7 @@
-//! Walking the wide BVH: the closest hit (children nearest first, a child whose entry is
-//! beyond the closest hit so far left unopened) and any hit (shadow rays and transmittance:
-//! no order, out at the first opaque hit).
+//! Walking the wide BVH: the closest hit (children nearest first, the nearest taken at once
+//! and the others stacked, a child whose entry is beyond the closest hit so far left
+//! unopened) and any hit (shadow rays and transmittance: children largest first, out at the
+//! first opaque hit).
 //!
 //! The box test is the slab test with the far distances widened by 1 + 2γ₃ (as pbrt does,
 //! so rounding never loses a box a ray grazes), and a NaN (a ray in a slab's plane, parallel
