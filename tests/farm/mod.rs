@@ -181,23 +181,20 @@ impl Farm {
     /// As [`Farm::process`], with `prepare` given the data directory's path first (to
     /// mount something there, say).
     pub fn process_with(prepare: impl FnOnce(&Path)) -> Farm {
-        let dir = tempfile::tempdir().unwrap();
-        prepare(&dir.path().join("data"));
-        let port = free_port();
-        let child = start_coordinator_process(&dir.path().join("data"), port);
-        Farm::new(
-            dir,
-            tokio::runtime::Runtime::new().unwrap(),
-            format!("http://127.0.0.1:{port}"),
-            None,
-            Running::Process { child, port },
-        )
+        Farm::process_in("", prepare)
     }
 
     /// A farm whose coordinator is a `kiln coordinator` process started after the shell
     /// limits `limits` (`ulimit -v 4000000`, say).
     pub fn process_under(limits: &str) -> Farm {
+        Farm::process_in(limits, |_| {})
+    }
+
+    /// A coordinator process under the shell limits `limits`, its data directory handed to
+    /// `prepare` first.
+    fn process_in(limits: &str, prepare: impl FnOnce(&Path)) -> Farm {
         let dir = tempfile::tempdir().unwrap();
+        prepare(&dir.path().join("data"));
         let port = free_port();
         let child = start_coordinator_under(limits, &dir.path().join("data"), port);
         Farm::new(

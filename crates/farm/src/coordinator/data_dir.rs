@@ -9,6 +9,42 @@ use crate::bundle;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// Writes an upload's `body` to `path` as it arrives, hashing it chunk by chunk and
+/// refusing it as soon as it passes `limit` bytes; returns its SHA-256 in hex. What it
+/// wrote is left for the caller to rename or remove.
+pub(super) async fn receive_upload(
+    body: axum::body::Body,
+    path: &Path,
+    limit: usize,
+) -> Result<String, Error> {
+    use sha2::{Digest, Sha256};
+    use tokio::io::AsyncWriteExt;
+    use tokio_stream::StreamExt;
+    let mut file = tokio::fs::File::create(path)
+        .await
+        .map_err(|e| Error::io(path, e))?;
+    let (mut hasher, mut total) = (Sha256::new(), 0usize);
+    let mut chunks = body.into_data_stream();
+    while let Some(chunk) = chunks.next().await {
+        let chunk = chunk.map_err(|e| Error::BrokenUpload(e.to_string()))?;
+        total += chunk.len();
+        if total > limit {
+            return Err(Error::TooLarge { limit });
+        }
+        hasher.update(&chunk);
+        file.write_all(&chunk)
+            .await
+            .map_err(|e| Error::io(path, e))?;
+    }
+    file.flush().await.map_err(|e| Error::io(path, e))?;
+    Ok(hex(&hasher.finalize()))
+}
+
+/// Bytes as lower-case hex.
+pub(super) fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
 /// The data directory's layout. Cheap to clone; needs no lock.
 #[derive(Debug, Clone)]
 pub(super) struct DataDir {

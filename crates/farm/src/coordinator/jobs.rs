@@ -22,39 +22,10 @@ impl Coordinator {
     /// the file, so no upload is ever held in memory whole. Nothing is left of a refused
     /// or broken upload.
     pub async fn save_scene_stream(&self, body: axum::body::Body) -> Result<String, Error> {
-        use sha2::{Digest, Sha256};
-        use tokio::io::AsyncWriteExt;
-        use tokio_stream::StreamExt;
         let files = self.files().clone();
         let limit = self.config().max_scene_bytes;
         let path = files.upload_path();
-        let received = async {
-            let mut file = tokio::fs::File::create(&path)
-                .await
-                .map_err(|e| Error::io(&path, e))?;
-            let (mut hasher, mut total) = (Sha256::new(), 0usize);
-            let mut chunks = body.into_data_stream();
-            while let Some(chunk) = chunks.next().await {
-                let chunk = chunk.map_err(|e| Error::BrokenUpload(e.to_string()))?;
-                total += chunk.len();
-                if total > limit {
-                    return Err(Error::TooLarge { limit });
-                }
-                hasher.update(&chunk);
-                file.write_all(&chunk)
-                    .await
-                    .map_err(|e| Error::io(&path, e))?;
-            }
-            file.flush().await.map_err(|e| Error::io(&path, e))?;
-            Ok::<_, Error>(
-                hasher
-                    .finalize()
-                    .iter()
-                    .map(|b| format!("{b:02x}"))
-                    .collect::<String>(),
-            )
-        }
-        .await;
+        let received = super::data_dir::receive_upload(body, &path, limit).await;
         let saved = match received {
             Ok(digest) => {
                 let (files, path2) = (files.clone(), path.clone());

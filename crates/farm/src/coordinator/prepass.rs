@@ -15,6 +15,7 @@
 //! the next worker to ask computes it; a worker that cannot upload what it computed gives
 //! its claim up.
 
+use super::data_dir::{hex, receive_upload};
 use super::{Coordinator, Error, Stored};
 use crate::api::{PrepassClaim, is_prepass_of, prepass_prefix};
 use crate::bundle;
@@ -22,9 +23,8 @@ use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Duration;
-use tokio::io::{AsyncReadExt, AsyncSeekExt, AsyncWriteExt};
+use tokio::io::{AsyncReadExt, AsyncSeekExt};
 use tokio::time::Instant;
-use tokio_stream::StreamExt;
 
 /// How long a claim holds without the pre-pass arriving.
 pub const CLAIM_TTL: Duration = Duration::from_secs(600);
@@ -112,24 +112,7 @@ impl Coordinator {
         let limit = self.config().max_prepass_bytes;
         let tmp = self.files().upload_path();
         let received = async {
-            let mut file = tokio::fs::File::create(&tmp)
-                .await
-                .map_err(|e| Error::io(&tmp, e))?;
-            let (mut hasher, mut total) = (Sha256::new(), 0usize);
-            let mut chunks = body.into_data_stream();
-            while let Some(chunk) = chunks.next().await {
-                let chunk = chunk.map_err(|e| Error::BrokenUpload(e.to_string()))?;
-                total += chunk.len();
-                if total > limit {
-                    return Err(Error::TooLarge { limit });
-                }
-                hasher.update(&chunk);
-                file.write_all(&chunk)
-                    .await
-                    .map_err(|e| Error::io(&tmp, e))?;
-            }
-            file.flush().await.map_err(|e| Error::io(&tmp, e))?;
-            let digest = hex(&hasher.finalize());
+            let digest = receive_upload(body, &tmp, limit).await?;
             if digest != sha.to_ascii_lowercase() {
                 return Err(Error::PrepassDigest);
             }
@@ -193,9 +176,4 @@ impl Coordinator {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
     }
-}
-
-/// Bytes as lower-case hex.
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
