@@ -146,9 +146,9 @@ pub struct Geometry {
     quadric_bvh: Option<CwBvh>,
     curve_bvh: Option<CwBvh>,
     mover_bvh: Option<CwBvh>,
-    /// Whether each CWBVH (spheres, quadrics, curves, movers; index 0, triangles, is not one)
-    /// can be walked nearest child first ([`traverse`]); obvhs's own walk where not.
-    walks: [bool; 5],
+    /// Whether each CWBVH (spheres, quadrics, curves, movers) can be walked nearest child
+    /// first ([`traverse`]); obvhs's own walk where not.
+    walks: [bool; 4],
     /// Some surface has an alpha texture: candidate hits must be tested against it.
     any_alpha: bool,
     /// Time spent building BVHs.
@@ -279,7 +279,6 @@ impl Geometry {
         }
         let walk = |b: &Option<CwBvh>| b.as_ref().is_some_and(traverse::fits);
         let walks = [
-            false,
             walk(&sphere_bvh),
             walk(&quadric_bvh),
             walk(&curve_bvh),
@@ -301,7 +300,7 @@ impl Geometry {
     /// The same geometry walked by obvhs's own closest-hit traversal (octant order), for
     /// benchmarks to compare with Kiln's nearest-child-first walk.
     pub fn with_obvhs_walk(mut self) -> Geometry {
-        self.walks = [false; 5];
+        self.walks = [false; 4];
         self
     }
 
@@ -365,7 +364,7 @@ impl Geometry {
             best = Some((HitKind::Triangle, id));
         }
         if let Some(bvh) = &self.sphere_bvh
-            && let Some((t, slot)) = self.nearest_in(1, bvh, bray(best_t), |r, slot| {
+            && let Some((t, slot)) = self.nearest_in(0, bvh, bray(best_t), |r, slot| {
                 self.sphere_t(r, bvh.primitive_indices[slot], r.tmin.max(1e-7))
             })
             && t < best_t
@@ -374,7 +373,7 @@ impl Geometry {
             best = Some((HitKind::Sphere, bvh.primitive_indices[slot as usize]));
         }
         if let Some(bvh) = &self.quadric_bvh
-            && let Some((t, slot)) = self.nearest_in(2, bvh, bray(best_t), |r, slot| {
+            && let Some((t, slot)) = self.nearest_in(1, bvh, bray(best_t), |r, slot| {
                 self.quadric_t(r, bvh.primitive_indices[slot], r.tmin.max(1e-7))
             })
             && t < best_t
@@ -383,7 +382,7 @@ impl Geometry {
             best = Some((HitKind::Quadric, bvh.primitive_indices[slot as usize]));
         }
         if let Some(bvh) = &self.curve_bvh
-            && let Some((t, slot)) = self.nearest_in(3, bvh, bray(best_t), |r, slot| {
+            && let Some((t, slot)) = self.nearest_in(2, bvh, bray(best_t), |r, slot| {
                 self.curve_t(r.origin, r.direction, bvh.primitive_indices[slot], r.tmax)
             })
             && t < best_t
@@ -392,7 +391,7 @@ impl Geometry {
             best = Some((HitKind::Curve, bvh.primitive_indices[slot as usize]));
         }
         if let Some(bvh) = &self.mover_bvh
-            && let Some((t, slot)) = self.nearest_in(4, bvh, bray(best_t), |r, slot| {
+            && let Some((t, slot)) = self.nearest_in(3, bvh, bray(best_t), |r, slot| {
                 self.prims.movers[bvh.primitive_indices[slot] as usize].hit_t(
                     r.origin,
                     r.direction,
@@ -409,7 +408,7 @@ impl Geometry {
         Some((best_t, kind, id))
     }
 
-    /// The closest hit in BVH `k` of [`Self::walks`]: distance and BVH slot.
+    /// The closest hit in CWBVH `k` of [`Self::walks`]: distance and BVH slot.
     #[inline(always)]
     fn nearest_in(
         &self,

@@ -169,6 +169,29 @@ fn oct(row: &[f32; WIDTH]) -> &[f32; 8] {
     row[..8].try_into().expect("eight lanes")
 }
 
+/// Packs `k` and `k + 1` of a leaf's `packs` (or `k` alone, the last), tested at once:
+/// each lane's distance, the lanes that hit within `[0, tmax]`, and each lane's triangle.
+#[inline(always)]
+fn test_packs<K: Boxes>(
+    r: &BoxRay,
+    packs: &[Tri4],
+    k: usize,
+    tmax: f32,
+) -> ([f32; 8], Mask, [u32; 8]) {
+    let a = &packs[k];
+    let mut ids = [u32::MAX; 8];
+    ids[..4].copy_from_slice(&a.id);
+    if let Some(b) = packs.get(k + 1) {
+        ids[4..].copy_from_slice(&b.id);
+        let (t, m) = K::pair(r, a, b, tmax);
+        return (t, m, ids);
+    }
+    let (t4, m) = a.intersect(&r.ray, F4::splat(0.0), F4::splat(tmax));
+    let mut t = [0f32; 8];
+    t[..4].copy_from_slice(&t4);
+    (t, m, ids)
+}
+
 /// Lanes `4q..4q + 4` of a node's row.
 #[inline(always)]
 fn quad(row: &[f32; WIDTH], q: usize) -> &[f32; 4] {
@@ -234,7 +257,6 @@ impl WideBvh {
     ) -> Option<(f32, u32)> {
         let r = BoxRay::new(origin, dir);
         let p = K::prepare(&r);
-        let zero = F4::splat(0.0);
         let (mut best_t, mut best) = (tmax, None::<u32>);
         // Left uninitialised: a ray touches a few entries, and zeroing them all costs more.
         let mut stack = [std::mem::MaybeUninit::<(u32, f32)>::uninit(); STACK];
@@ -247,25 +269,12 @@ impl WideBvh {
                 let first = (code & LEAF_FIRST) as usize;
                 let count = ((code >> 27) & 0xf) as usize + 1;
                 let packs = &self.packs[first..first + count];
-                let mut k = 0;
-                while k < count {
-                    // Two packs at once where there are two.
-                    let (t, mut hits, b) = if k + 1 < count {
-                        let (t, m) = K::pair(&r, &packs[k], &packs[k + 1], best_t);
-                        (t, m, &packs[k + 1])
-                    } else {
-                        let (t4, m) = packs[k].intersect(&r.ray, zero, F4::splat(best_t));
-                        let mut t = [0f32; 8];
-                        t[..4].copy_from_slice(&t4);
-                        (t, m, &packs[k])
-                    };
-                    let a = &packs[k];
-                    k += 2;
+                for k in (0..count).step_by(2) {
+                    let (t, mut hits, ids) = test_packs::<K>(&r, packs, k, best_t);
                     while hits != 0 {
                         let lane = hits.trailing_zeros() as usize;
                         hits &= hits - 1;
-                        let id = if lane < 4 { a.id[lane] } else { b.id[lane - 4] };
-                        let t = t[lane];
+                        let (t, id) = (t[lane], ids[lane]);
                         let nearer = t < best_t || (t == best_t && best.is_none_or(|b| id < b));
                         if nearer && opaque(id, t) {
                             best_t = t;
@@ -379,7 +388,6 @@ impl WideBvh {
     ) -> bool {
         let r = BoxRay::new(origin, dir);
         let p = K::prepare(&r);
-        let (zero, far) = (F4::splat(0.0), F4::splat(tmax));
         let mut stack = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
         stack[0].write(0);
         let mut sp = 1;
@@ -391,24 +399,12 @@ impl WideBvh {
                 let first = (code & LEAF_FIRST) as usize;
                 let count = ((code >> 27) & 0xf) as usize + 1;
                 let packs = &self.packs[first..first + count];
-                let mut k = 0;
-                while k < count {
-                    let (t, mut hits, b) = if k + 1 < count {
-                        let (t, m) = K::pair(&r, &packs[k], &packs[k + 1], tmax);
-                        (t, m, &packs[k + 1])
-                    } else {
-                        let (t4, m) = packs[k].intersect(&r.ray, zero, far);
-                        let mut t = [0f32; 8];
-                        t[..4].copy_from_slice(&t4);
-                        (t, m, &packs[k])
-                    };
-                    let a = &packs[k];
-                    k += 2;
+                for k in (0..count).step_by(2) {
+                    let (t, mut hits, ids) = test_packs::<K>(&r, packs, k, tmax);
                     while hits != 0 {
                         let lane = hits.trailing_zeros() as usize;
                         hits &= hits - 1;
-                        let id = if lane < 4 { a.id[lane] } else { b.id[lane - 4] };
-                        if opaque(id, t[lane]) {
+                        if opaque(ids[lane], t[lane]) {
                             return true;
                         }
                     }
