@@ -1,12 +1,13 @@
 //! Sampling: warps from the unit square to shapes and directions (here), discrete and
-//! piecewise-constant distributions, the per-pixel Sobol sampler, and the generator that
-//! tracking through media draws from.
+//! piecewise-constant distributions, the per-pixel Sobol sampler and its tables, and the
+//! generator that tracking through media draws from.
 //!
 //! Nothing here knows about scenes: these are pure functions of their arguments.
 
 mod alias;
 mod distribution;
 mod pixel_sampler;
+mod sobol;
 mod tracking_rng;
 mod warp2d;
 

@@ -7,6 +7,7 @@
 //! rendered in, which is what makes tiles independent and images bit-identical
 //! however a frame is split.
 
+use super::sobol::SobolPoint;
 use glam::Vec2;
 
 /// The most samples per pixel the Sobol sequence supports.
@@ -35,6 +36,8 @@ pub fn pixel_seed(x: u32, y: u32, seed: u32) -> u32 {
 pub struct PixelSampler {
     seed: u32,
     index: u32,
+    /// The index shuffled by `seed`, for the dimensions before the first fold.
+    point: SobolPoint,
     dimension: u32,
     /// The last four-dimension set computed (dimensions 4k..4k+3), since Sobol
     /// dimensions are cheapest four at a time (SIMD) and paths use them in order.
@@ -45,9 +48,11 @@ pub struct PixelSampler {
 impl PixelSampler {
     pub fn new(x: u32, y: u32, sample_index: u32, seed: u32) -> PixelSampler {
         debug_assert!(sample_index < MAX_SAMPLES_PER_PIXEL);
+        let seed = pixel_seed(x, y, seed);
         PixelSampler {
-            seed: pixel_seed(x, y, seed),
+            seed,
             index: sample_index,
+            point: SobolPoint::new(sample_index, seed),
             dimension: 0,
             cached_set: u32::MAX,
             cached: [0.0; 4],
@@ -86,9 +91,14 @@ impl PixelSampler {
         let d = self.dimension;
         let set = d / 4;
         if set != self.cached_set {
-            // sobol_burley::sample_4d equals four calls of sample(), bit for bit.
+            // sobol_burley::sample_4d (which SobolPoint equals) equals four calls of
+            // sample(), bit for bit.
             let table_set = (d % SOBOL_DIMENSIONS) / 4;
-            self.cached = sobol_burley::sample_4d(self.index, table_set, self.seed_for(d));
+            self.cached = if d < SOBOL_DIMENSIONS {
+                self.point.set(table_set)
+            } else {
+                SobolPoint::new(self.index, self.seed_for(d)).set(table_set)
+            };
             self.cached_set = set;
         }
         self.dimension += 1;
