@@ -7,7 +7,7 @@ use crate::math::{Color, luminance};
 use crate::sampling::{cosine_hemisphere, uniform_sphere, uniform_triangle};
 use crate::shapes::Geometry;
 use crate::shapes::quadric::QuadricPoint;
-use crate::shapes::sphere::{sample_sphere, sphere_pdf, sphere_uv};
+use crate::shapes::sphere::{Rotation, sample_sphere, sphere_pdf, sphere_uv};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
 use glam::{Vec2, Vec3A};
 use kiln_scene::textures::TextureImage;
@@ -118,6 +118,8 @@ pub struct SphereLight {
     /// The shape's alpha texture: where it masks the surface the sphere emits nothing (an
     /// alpha-0 sphere light is dark as well as invisible, as in pbrt-v4).
     pub alpha: Option<u32>,
+    /// The sphere's rotation, by which its (u, v) turn (for the alpha texture).
+    pub rotation: Rotation,
 }
 
 /// A point on an area light from which photons leave: position, emitting normal, radiance,
@@ -275,7 +277,7 @@ impl SphereLight {
             return false;
         };
         let n = ((q - self.center) / self.radius).normalize_or_zero();
-        alpha_masked(geometry, alpha, q, n, sphere_uv(n))
+        alpha_masked(geometry, alpha, q, n, sphere_uv(self.rotation.to_object(n)))
     }
 
     pub fn sample(&self, geometry: &Geometry, p: Vec3A, u: Vec2) -> Option<LightSample> {
@@ -402,6 +404,7 @@ mod tests {
             two_sided: false,
             inward: false,
             alpha: None,
+            rotation: Rotation::IDENTITY,
         };
         let geometry = Geometry::new(Default::default());
         let n = 4096;

@@ -35,7 +35,8 @@ impl Geometry {
         };
         let p = origin + dir * t;
         let n = (p - s.center).normalize_or_zero();
-        self.opaque(alpha, p, n, super::sphere::sphere_uv(n), origin, dir)
+        let uv = super::sphere::sphere_uv(s.rotation.to_object(n));
+        self.opaque(alpha, p, n, uv, origin, dir)
     }
 
     pub(super) fn opaque(

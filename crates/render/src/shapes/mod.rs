@@ -579,6 +579,7 @@ mod tests {
             spheres: vec![Sphere {
                 center: Vec3A::new(0.0, 0.0, 5.0),
                 radius: 1.0,
+                rotation: sphere::Rotation::IDENTITY,
                 surface,
                 flip: false,
             }],

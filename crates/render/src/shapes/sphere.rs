@@ -1,13 +1,17 @@
 //! Spheres: whole spheres in world space (ray intersection, hit records, and sampling: the
 //! visible cone from outside, the area from inside), and pbrt-v4's partial spheres in
 //! object space ([`PartialSphere`]), which [`super::quadric`] places in the world.
+//!
+//! A whole sphere is intersected in world space, but parametrised as pbrt-v4 parametrises
+//! it, in its object space: (u, v), dp/du and dp/dv follow the sphere's rotation, so that a
+//! texture, a bump map or an anisotropic roughness turns with the sphere.
 
 use super::local::LocalPoint;
 use super::{Geometry, ShapeSample, SurfaceHit, SurfaceInfo};
 use crate::math::{Frame, Ray};
 use crate::math::{phi_of, solve_quadratic};
 use crate::sampling::{uniform_cone, uniform_sphere};
-use glam::{DVec3, Vec2, Vec3A};
+use glam::{DVec3, Mat3A, Vec2, Vec3A};
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
 use std::f32::consts::PI;
@@ -16,9 +20,40 @@ use std::f32::consts::PI;
 pub struct Sphere {
     pub center: Vec3A,
     pub radius: f32,
+    /// The rotation (a mirroring, perhaps) from the sphere's object space to the world.
+    pub rotation: Rotation,
     pub surface: SurfaceInfo,
     /// Normals point inwards (ReverseOrientation).
     pub flip: bool,
+}
+
+/// An orthonormal map from a whole sphere's object space to the world: its object-to-world
+/// transform without the translation and the uniform scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rotation(Mat3A);
+
+impl Rotation {
+    pub const IDENTITY: Rotation = Rotation(Mat3A::IDENTITY);
+
+    /// The rotation whose columns are the images of the object's axes, `columns` (each
+    /// of unit length and at right angles to the others).
+    pub fn from_columns(columns: [Vec3A; 3]) -> Rotation {
+        Rotation(Mat3A::from_cols(columns[0], columns[1], columns[2]))
+    }
+
+    /// An object-space direction in the world.
+    pub fn to_world(&self, v: Vec3A) -> Vec3A {
+        self.0 * v
+    }
+
+    /// A world direction in object space (by the transpose, the inverse of a rotation).
+    pub fn to_object(&self, v: Vec3A) -> Vec3A {
+        Vec3A::new(
+            self.0.x_axis.dot(v),
+            self.0.y_axis.dot(v),
+            self.0.z_axis.dot(v),
+        )
+    }
 }
 
 impl Sphere {
@@ -65,23 +100,24 @@ impl Geometry {
         let mut n = (ray.at(t) - s.center).normalize();
         // Put the point back on the surface to limit self-intersection.
         let p = s.center + n * s.radius;
-        // pbrt-v4's parametrisation of a whole sphere: u = φ / 2π, v = 1 − θ / π (0 at the
-        // bottom), with dp/du and dp/dv to match.
+        // pbrt-v4's parametrisation of a whole sphere, in its object space: u = φ / 2π,
+        // v = 1 − θ / π (0 at the bottom), with dp/du and dp/dv to match, carried back to
+        // the world by the sphere's rotation.
         use std::f32::consts::{PI, TAU};
-        let q = p - s.center;
+        let q = s.rotation.to_object(p - s.center);
+        let n_object = s.rotation.to_object(n);
         let r_xy = (q.x * q.x + q.y * q.y).sqrt();
         let (cos_phi, sin_phi) = if r_xy > 0.0 {
             (q.x / r_xy, q.y / r_xy)
         } else {
             (1.0, 0.0)
         };
-        let theta = libm::acosf(n.z.clamp(-1.0, 1.0));
-        let dpdu = Vec3A::new(-TAU * q.y, TAU * q.x, 0.0);
-        let dpdv = -PI * Vec3A::new(q.z * cos_phi, q.z * sin_phi, -s.radius * libm::sinf(theta));
-        let uv = Vec2::new(
-            (libm::atan2f(n.y, n.x) / TAU).rem_euclid(1.0),
-            1.0 - theta / PI,
+        let theta = libm::acosf(n_object.z.clamp(-1.0, 1.0));
+        let dpdu = s.rotation.to_world(Vec3A::new(-TAU * q.y, TAU * q.x, 0.0));
+        let dpdv = s.rotation.to_world(
+            -PI * Vec3A::new(q.z * cos_phi, q.z * sin_phi, -s.radius * libm::sinf(theta)),
         );
+        let uv = sphere_uv(n_object);
         if s.flip {
             n = -n;
         }
@@ -99,8 +135,8 @@ impl Geometry {
     }
 }
 
-/// pbrt-v4's (u, v) of the point of a whole sphere with outward normal `n`: u = φ / 2π,
-/// v = 1 − θ / π (0 at the bottom).
+/// pbrt-v4's (u, v) of the point of a whole sphere with outward normal `n` in the sphere's
+/// object space: u = φ / 2π, v = 1 − θ / π (0 at the bottom).
 pub fn sphere_uv(n: Vec3A) -> Vec2 {
     use std::f32::consts::{PI, TAU};
     Vec2::new(

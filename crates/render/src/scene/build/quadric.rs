@@ -5,6 +5,7 @@ use super::{BuildError, Builder, WORLD_LIMIT_TEXT, power_scale, within_world_lim
 use crate::lights::EmissionImage;
 use crate::lights::{Light, QuadricLight, SphereLight, VolumeQuadricLight, VolumeSphereLight};
 use crate::math::rgb;
+use crate::shapes::sphere::Rotation;
 use crate::shapes::{Quadric, QuadricShape, Sphere, SurfaceInfo};
 use glam::{DMat4, Vec3A};
 use kiln_scene::{AreaLightDesc, ShapeDesc};
@@ -56,6 +57,12 @@ impl Builder {
         // (A VolumeLight's sphere always faces out: its inside is its inside.)
         let flip = volume.is_none() && (shape.reverse_orientation ^ (to_world.determinant() < 0.0));
         let world_radius = (radius * scale) as f32;
+        // The object's axes in the world, without the scale: the sphere is parametrised in
+        // its object space, as pbrt-v4 does.
+        let rotation = Rotation::from_columns(
+            [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z]
+                .map(|a| Vec3A::from((to_world.transform_vector3(a) / scale).as_vec3())),
+        );
         let center_f32 = Vec3A::from(center.as_vec3());
         if !within_world_limit(center_f32 + world_radius)
             || !within_world_limit(center_f32 - world_radius)
@@ -88,6 +95,7 @@ impl Builder {
                 two_sided: *two_sided,
                 inward: flip,
                 alpha: surface(None).alpha,
+                rotation,
             }));
         }
         if let Some(volume) = volume {
@@ -107,6 +115,7 @@ impl Builder {
         self.prims.spheres.push(Sphere {
             center: center.as_vec3().into(),
             radius: world_radius,
+            rotation,
             surface: surface(light),
             flip,
         });

@@ -4,6 +4,8 @@
 use super::quadric::revolution_is_closed;
 use super::*;
 use crate::lights::Light;
+use crate::math::Ray;
+use glam::Vec3A;
 use std::f32::consts::PI;
 
 fn build(world: &str) -> Result<Scene, BuildError> {
@@ -194,4 +196,78 @@ fn coincident_primitives_build_in_bounded_stack_and_time() {
             hit.t
         );
     }
+}
+
+/// A whole sphere is traced in world space but parametrised in its object space, as pbrt-v4
+/// parametrises it: under any rotation (and a mirroring) its (u, v), dp/du, dp/dv and
+/// normals are those of the same sphere traced as a quadric in object space (made so by a
+/// sweep a hair short of 360 degrees).
+#[test]
+fn a_whole_sphere_is_parametrised_in_its_object_space() {
+    let transforms = [
+        "Rotate -90 1 0 0",
+        "Translate 0.5 -1 2 Rotate 37 0.3 1 0.2 Scale 2 2 2",
+        "Rotate 120 0 1 1 Scale -1.5 1.5 1.5",
+    ];
+    for transform in transforms {
+        let whole = build(&format!("{transform} Shape \"sphere\"")).unwrap();
+        let quadric = build(&format!(
+            "{transform} Shape \"sphere\" \"float phimax\" [ 359.9999 ]"
+        ))
+        .unwrap();
+        assert_eq!(whole.geometry.prims.spheres.len(), 1, "{transform}");
+        assert_eq!(quadric.geometry.prims.spheres.len(), 0, "{transform}");
+        let center = whole.geometry.prims.spheres[0].center;
+        let mut compared = 0;
+        for k in 0..64 {
+            let from = Vec3A::new(
+                libm::sinf(k as f32 * 0.7) * 6.0,
+                libm::cosf(k as f32 * 1.3) * 6.0,
+                libm::sinf(k as f32 * 2.1 + 0.4) * 6.0,
+            ) + center;
+            let ray = Ray::new(from, (center - from).normalize());
+            let (Some(a), Some(b)) = (
+                whole.geometry.intersect(&ray, f32::INFINITY),
+                quadric.geometry.intersect(&ray, f32::INFINITY),
+            ) else {
+                panic!("{transform}: ray {k} misses");
+            };
+            // Away from the seam, where u wraps from 1 to 0.
+            if a.uv.x.min(1.0 - a.uv.x) < 0.01 {
+                continue;
+            }
+            let close = |x: Vec3A, y: Vec3A| (x - y).length() <= 1e-3 * (1.0 + y.length());
+            assert!(
+                (a.uv - b.uv).abs().max_element() < 1e-4,
+                "{transform}: uv {} vs {}",
+                a.uv,
+                b.uv
+            );
+            assert!(
+                close(a.dpdu, b.dpdu),
+                "{transform}: dpdu {} vs {}",
+                a.dpdu,
+                b.dpdu
+            );
+            assert!(
+                close(a.dpdv, b.dpdv),
+                "{transform}: dpdv {} vs {}",
+                a.dpdv,
+                b.dpdv
+            );
+            assert!(close(a.ng, b.ng), "{transform}: ng {} vs {}", a.ng, b.ng);
+            compared += 1;
+        }
+        assert!(compared > 50, "{transform}: {compared} hits compared");
+    }
+    // Turned -90 degrees about x, the sphere's pole faces up, so the point facing the
+    // camera on +z is on its equator, a quarter turn before its seam.
+    let turned = build("Rotate -90 1 0 0 Shape \"sphere\"").unwrap();
+    let ray = Ray::new(Vec3A::new(0.0, 0.0, 5.0), -Vec3A::Z);
+    let hit = turned.geometry.intersect(&ray, f32::INFINITY).unwrap();
+    assert!(
+        (hit.uv - glam::Vec2::new(0.75, 0.5)).abs().max_element() < 1e-5,
+        "{}",
+        hit.uv
+    );
 }
