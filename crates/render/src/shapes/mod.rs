@@ -1,8 +1,9 @@
 //! Shapes and the aggregate that holds them: scene geometry in world space, triangle meshes
 //! ([`triangle`]), whole spheres ([`sphere`]) and pbrt-v4's other quadrics, partial or
-//! transformed spheres, disks and cylinders ([`quadric`]) and curves ([`curve`]). Triangles
-//! are in Kiln's own wide BVH ([`wide`]: four boxes and four triangles tested at once, the
-//! same hit on every CPU); each other kind is in an obvhs compressed wide BVH (CWBVH).
+//! transformed spheres, disks and cylinders ([`quadric`]) and curves ([`curve`]). Every
+//! primitive of every kind, and every moving group (an object-space geometry of its own),
+//! is in one hierarchy, Kiln's own wide BVH ([`wide`]: eight boxes and four triangles tested
+//! at once, the same hit on every CPU), walked once per ray.
 //!
 //! A shape kind's file holds its intersection, its hit record, and its area sampling (the
 //! solid-angle density of a point on it seen from another point), which area lights and
@@ -37,9 +38,9 @@ pub const QUADRIC_BYTES: usize = std::mem::size_of::<Quadric>();
 use crate::math::Ray;
 use crate::textures::FloatTexture;
 use glam::{Affine3A, Vec2, Vec3A};
-use obvhs::BvhBuildParams;
-use obvhs::cwbvh::CwBvh;
-use obvhs::ray::{Ray as BvhRay, RayHit};
+use obvhs::Boundable;
+use obvhs::aabb::Aabb;
+use obvhs::ray::Ray as BvhRay;
 use obvhs::rt_triangle::RtTriangle;
 use std::time::Duration;
 
@@ -141,14 +142,12 @@ pub struct Primitives {
 pub struct Geometry {
     /// The primitives, in the order the scene declared them.
     pub prims: Primitives,
-    triangle_bvh: Option<wide::WideBvh>,
-    sphere_bvh: Option<CwBvh>,
-    quadric_bvh: Option<CwBvh>,
-    curve_bvh: Option<CwBvh>,
-    mover_bvh: Option<CwBvh>,
-    /// Whether each CWBVH (spheres, quadrics, curves, movers) can be walked nearest child
-    /// first ([`traverse`]); obvhs's own walk where not.
-    walks: [bool; 4],
+    /// The one hierarchy over every primitive: ids are the triangles', then the spheres',
+    /// quadrics', curve pieces' and moving groups' after them ([`Geometry::kind_of`]).
+    bvh: Option<wide::WideBvh>,
+    /// Where each kind's ids start: spheres, quadrics, curve pieces, moving groups, and the
+    /// end.
+    first: [u32; 5],
     /// Some surface has an alpha texture: candidate hits must be tested against it.
     any_alpha: bool,
     /// Time spent building BVHs.
@@ -190,7 +189,7 @@ pub struct ShapeSample {
 }
 
 impl Geometry {
-    /// Builds the BVHs over `primitives`.
+    /// Builds the hierarchy over `primitives`.
     pub fn new(primitives: Primitives) -> Geometry {
         let Primitives {
             positions,
@@ -212,113 +211,84 @@ impl Geometry {
                 )
             })
             .collect();
-        // Build on one thread: the BVH must be the same whatever the machine, so that
-        // ties between equally distant hits always resolve the same way.
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().ok();
-        let build = |f: &mut (dyn FnMut() + Send)| match &pool {
-            Some(p) => p.install(f),
-            None => f(),
-        };
-        let mut triangle_bvh = None;
-        if !tris.is_empty() {
-            build(&mut || {
-                let plain: Vec<obvhs::triangle::Triangle> = triangle_vertices
-                    .iter()
-                    .map(|v| obvhs::triangle::Triangle {
-                        v0: positions[v[0] as usize],
-                        v1: positions[v[1] as usize],
-                        v2: positions[v[2] as usize],
-                    })
-                    .collect();
-                triangle_bvh = Some(bvh_build::build_triangle_wide_bvh(
-                    &plain,
-                    &tris,
-                    &mut build_time,
-                ));
-            });
-        }
-        let mut sphere_bvh = None;
-        if !spheres.is_empty() {
-            build(&mut || {
-                sphere_bvh = Some(bvh_build::build_cwbvh(
-                    spheres,
-                    BvhBuildParams::medium_build(),
-                    &mut build_time,
-                ));
-            });
-        }
-        let mut quadric_bvh = None;
-        if !quadrics.is_empty() {
-            build(&mut || {
-                quadric_bvh = Some(bvh_build::build_cwbvh(
-                    quadrics,
-                    BvhBuildParams::medium_build(),
-                    &mut build_time,
-                ));
-            });
-        }
-        let mut curve_bvh = None;
-        if !curve_pieces.is_empty() {
-            build(&mut || {
-                curve_bvh = Some(bvh_build::build_cwbvh(
-                    curve_pieces,
-                    BvhBuildParams::medium_build(),
-                    &mut build_time,
-                ));
-            });
-        }
-        let mut mover_bvh = None;
-        if !movers.is_empty() {
-            build(&mut || {
-                mover_bvh = Some(bvh_build::build_cwbvh(
-                    movers,
-                    BvhBuildParams::medium_build(),
-                    &mut build_time,
-                ));
-            });
-        }
-        let walk = |b: &Option<CwBvh>| b.as_ref().is_some_and(traverse::fits);
-        let walks = [
-            walk(&sphere_bvh),
-            walk(&quadric_bvh),
-            walk(&curve_bvh),
-            walk(&mover_bvh),
-        ];
+        let plain: Vec<obvhs::triangle::Triangle> = triangle_vertices
+            .iter()
+            .map(|v| obvhs::triangle::Triangle {
+                v0: positions[v[0] as usize],
+                v1: positions[v[1] as usize],
+                v2: positions[v[2] as usize],
+            })
+            .collect();
+        // The other primitives' boxes, kind after kind, in the order of their ids.
+        let mut others: Vec<Aabb> = Vec::new();
+        let mut first = [0u32; 5];
+        others.extend(spheres.iter().map(Boundable::aabb));
+        first[0] = tris.len() as u32;
+        first[1] = first[0] + spheres.len() as u32;
+        others.extend(quadrics.iter().map(Boundable::aabb));
+        first[2] = first[1] + quadrics.len() as u32;
+        others.extend(curve_pieces.iter().map(Boundable::aabb));
+        first[3] = first[2] + curve_pieces.len() as u32;
+        others.extend(movers.iter().map(Boundable::aabb));
+        first[4] = first[3] + movers.len() as u32;
+        let bvh = (first[4] > 0)
+            .then(|| bvh_build::build_wide_bvh(&plain, &tris, &others, &mut build_time));
         Geometry {
-            walks,
             any_alpha: !primitives.alphas.is_empty(),
             prims: primitives,
-            triangle_bvh,
-            sphere_bvh,
-            quadric_bvh,
-            curve_bvh,
-            mover_bvh,
+            bvh,
+            first,
             build_time,
         }
     }
 
-    /// The same geometry walked by obvhs's own closest-hit traversal (octant order), for
-    /// benchmarks to compare with Kiln's nearest-child-first walk.
-    pub fn with_obvhs_walk(mut self) -> Geometry {
-        self.walks = [false; 4];
-        self
+    /// The kind of primitive `id` (an id of the hierarchy) and its index among its kind.
+    #[inline(always)]
+    fn kind_of(&self, id: u32) -> (HitKind, u32) {
+        let f = &self.first;
+        if id < f[0] {
+            (HitKind::Triangle, id)
+        } else if id < f[1] {
+            (HitKind::Sphere, id - f[0])
+        } else if id < f[2] {
+            (HitKind::Quadric, id - f[1])
+        } else if id < f[3] {
+            (HitKind::Curve, id - f[2])
+        } else {
+            (HitKind::Mover, id - f[3])
+        }
     }
 
-    /// The kernel that walks the triangles' BVH, if there are triangles.
+    /// Where a primitive other than a triangle stops the ray from `origin` along `dir`
+    /// before `limit` (at `time`, for moving groups), alpha considered.
+    #[inline(always)]
+    fn other_t(&self, id: u32, origin: Vec3A, dir: Vec3A, limit: f32, time: f32) -> Option<f32> {
+        let r = bvh_ray(origin, dir, 0.0, limit);
+        let (kind, i) = self.kind_of(id);
+        let t = match kind {
+            HitKind::Sphere => self.sphere_t(&r, i, 1e-7),
+            HitKind::Quadric => self.quadric_t(&r, i, 1e-7),
+            HitKind::Curve => self.curve_t(origin, dir, i, limit),
+            HitKind::Mover => self.prims.movers[i as usize].hit_t(origin, dir, limit, time),
+            HitKind::Triangle => unreachable!("triangles are tested in the walk"),
+        };
+        (t < limit).then_some(t)
+    }
+
+    /// The kernel that walks the hierarchy, if there is anything in it.
     pub fn bvh_kernel(&self) -> Option<wide::Kernel> {
-        self.triangle_bvh.as_ref().map(wide::WideBvh::kernel)
+        self.bvh.as_ref().map(wide::WideBvh::kernel)
     }
 
-    /// The triangles' BVH's nodes, packs of four triangles, and lanes holding one.
+    /// The hierarchy's nodes, packs of four triangles, and lanes holding one.
     pub fn triangle_bvh_counts(&self) -> (usize, usize, usize) {
-        self.triangle_bvh
-            .as_ref()
-            .map_or((0, 0, 0), wide::WideBvh::counts)
+        self.bvh.as_ref().map_or((0, 0, 0), wide::WideBvh::counts)
     }
 
-    /// The bytes the triangles' BVH holds (its nodes and its packed triangles).
+    /// The bytes the hierarchy holds (its nodes, its packed triangles and its leaves of
+    /// other primitives).
     pub fn triangle_bvh_bytes(&self) -> usize {
-        self.triangle_bvh.as_ref().map_or(0, wide::WideBvh::bytes)
+        self.bvh.as_ref().map_or(0, wide::WideBvh::bytes)
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -350,80 +320,16 @@ impl Geometry {
 
     /// Distance, kind and index of the closest hit.
     fn closest(&self, ray: &Ray, tmax: f32) -> Option<(f32, HitKind, u32)> {
-        let mut best_t = tmax;
-        let mut best: Option<(HitKind, u32)> = None;
-        // Each BVH in turn, within the closest distance the ones before it found.
-        let bray = |best_t: f32| bvh_ray(ray.origin, ray.dir, 0.0, best_t);
-        if let Some(bvh) = &self.triangle_bvh
-            && let Some((t, id)) = bvh.closest(ray.origin, ray.dir, best_t, |id, t| {
-                self.triangle_is_opaque(id, ray.origin, ray.dir, t)
-            })
-            && t < best_t
-        {
-            best_t = t;
-            best = Some((HitKind::Triangle, id));
-        }
-        if let Some(bvh) = &self.sphere_bvh
-            && let Some((t, slot)) = self.nearest_in(0, bvh, bray(best_t), |r, slot| {
-                self.sphere_t(r, bvh.primitive_indices[slot], r.tmin.max(1e-7))
-            })
-            && t < best_t
-        {
-            best_t = t;
-            best = Some((HitKind::Sphere, bvh.primitive_indices[slot as usize]));
-        }
-        if let Some(bvh) = &self.quadric_bvh
-            && let Some((t, slot)) = self.nearest_in(1, bvh, bray(best_t), |r, slot| {
-                self.quadric_t(r, bvh.primitive_indices[slot], r.tmin.max(1e-7))
-            })
-            && t < best_t
-        {
-            best_t = t;
-            best = Some((HitKind::Quadric, bvh.primitive_indices[slot as usize]));
-        }
-        if let Some(bvh) = &self.curve_bvh
-            && let Some((t, slot)) = self.nearest_in(2, bvh, bray(best_t), |r, slot| {
-                self.curve_t(r.origin, r.direction, bvh.primitive_indices[slot], r.tmax)
-            })
-            && t < best_t
-        {
-            best_t = t;
-            best = Some((HitKind::Curve, bvh.primitive_indices[slot as usize]));
-        }
-        if let Some(bvh) = &self.mover_bvh
-            && let Some((t, slot)) = self.nearest_in(3, bvh, bray(best_t), |r, slot| {
-                self.prims.movers[bvh.primitive_indices[slot] as usize].hit_t(
-                    r.origin,
-                    r.direction,
-                    r.tmax,
-                    ray.time,
-                )
-            })
-            && t < best_t
-        {
-            best_t = t;
-            best = Some((HitKind::Mover, bvh.primitive_indices[slot as usize]));
-        }
-        let (kind, id) = best?;
-        Some((best_t, kind, id))
-    }
-
-    /// The closest hit in CWBVH `k` of [`Self::walks`]: distance and BVH slot.
-    #[inline(always)]
-    fn nearest_in(
-        &self,
-        k: usize,
-        bvh: &CwBvh,
-        ray: BvhRay,
-        hit: impl Fn(&BvhRay, usize) -> f32,
-    ) -> Option<(f32, u32)> {
-        if self.walks[k] {
-            traverse::closest(bvh, ray, hit)
-        } else {
-            let mut h = RayHit::none();
-            bvh.ray_traverse(ray, &mut h, hit)
-                .then_some((h.t, h.primitive_id))
-        }
+        let (origin, dir) = (ray.origin, ray.dir);
+        let (t, id) = self.bvh.as_ref()?.closest_with(
+            origin,
+            dir,
+            tmax,
+            |id, t| self.triangle_is_opaque(id, origin, dir, t),
+            |id, limit| self.other_t(id, origin, dir, limit, ray.time),
+        )?;
+        let (kind, index) = self.kind_of(id);
+        Some((t, kind, index))
     }
 
     /// The distance to quadric `id` along `r` beyond `tmin`, as [`Self::triangle_t`].
@@ -466,48 +372,16 @@ impl Geometry {
     /// which pays for itself when the nearest hit is wanted, made them 1.9x slower on the
     /// headline snail.
     pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, tmax: f32, time: f32) -> bool {
-        if let Some(bvh) = &self.triangle_bvh
-            && bvh.any(origin, dir, tmax, |id, t| {
-                self.triangle_is_opaque(id, origin, dir, t)
-            })
-        {
-            return false;
-        }
-        let bray = bvh_ray(origin, dir, 0.0, tmax);
-        if let Some(bvh) = &self.sphere_bvh
-            && !bvh.ray_traverse_miss(bray, |r, id| {
-                self.sphere_t(r, bvh.primitive_indices[id], 1e-7)
-            })
-        {
-            return false;
-        }
-        if let Some(bvh) = &self.quadric_bvh
-            && !bvh.ray_traverse_miss(bray, |r, id| {
-                self.quadric_t(r, bvh.primitive_indices[id], 1e-7)
-            })
-        {
-            return false;
-        }
-        if let Some(bvh) = &self.curve_bvh
-            && !bvh.ray_traverse_miss(bray, |r, id| {
-                self.curve_t(r.origin, r.direction, bvh.primitive_indices[id], r.tmax)
-            })
-        {
-            return false;
-        }
-        if let Some(bvh) = &self.mover_bvh
-            && !bvh.ray_traverse_miss(bray, |r, id| {
-                self.prims.movers[bvh.primitive_indices[id] as usize].hit_t(
-                    r.origin,
-                    r.direction,
-                    r.tmax,
-                    time,
-                )
-            })
-        {
-            return false;
-        }
-        true
+        let Some(bvh) = &self.bvh else {
+            return true;
+        };
+        !bvh.any_with(
+            origin,
+            dir,
+            tmax,
+            |id, t| self.triangle_is_opaque(id, origin, dir, t),
+            |id, tmax| self.other_t(id, origin, dir, tmax, time).is_some(),
+        )
     }
 
     /// Bounding box of everything.

@@ -1,4 +1,6 @@
-//! Closest-hit traversal of obvhs's compressed wide BVH (CWBVH), nearest child first.
+//! Closest-hit traversal of obvhs's compressed wide BVH (CWBVH), nearest child first: the
+//! design before Kiln's own wide BVH ([`super::wide`]), which the scene no longer uses; kept
+//! for `benches/traversal.rs` to compare the two on the same rays.
 //!
 //! obvhs walks a CWBVH as Ylitie et al. do on the GPU: children in the order of the ray's
 //! octant, a group of siblings on the stack with no distances. For a ray that starts on a

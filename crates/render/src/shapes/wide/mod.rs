@@ -1,6 +1,8 @@
-//! Kiln's own wide BVH over triangles: eight children per node with their boxes stored axis
-//! by axis (one AVX2 operation, or two SSE ones, tests eight boxes), and leaves of packs of
-//! four triangles tested at once ([`tri4`]).
+//! Kiln's own wide BVH over every primitive of a scene: eight children per node with their
+//! boxes stored axis by axis (one AVX2 operation, or two SSE ones, tests eight boxes), and
+//! leaves either of packs of four triangles tested at once ([`tri4`]) or of other
+//! primitives (spheres, quadrics, curves, moving groups), which the walks hand to the
+//! caller one by one. One walk finds the closest hit of every kind.
 //!
 //! It is collapsed from a binary build (Kiln's binned SAH, [`sah`], or the median split of
 //! [`super::bvh_build`] where that is too deep): each node takes its binary node's two
@@ -24,10 +26,12 @@ use obvhs::bvh2::node::Bvh2Node;
 use obvhs::rt_triangle::RtTriangle;
 use tri4::Tri4;
 
-/// A child that is a leaf: the pack count less one in bits 27-30, the first pack below.
+/// A child that is a leaf: its count less one in bits 27-29 and its first below: packs of
+/// triangles, or with [`OTHERS`] set, entries of [`WideBvh::others`].
 const LEAF: u32 = 1 << 31;
+const OTHERS: u32 = 1 << 30;
 const LEAF_FIRST: u32 = (1 << 27) - 1;
-const LEAF_PACKS: u32 = 16;
+const LEAF_COUNT: u32 = 8;
 /// A slot with no child (its box is empty, so no ray enters it).
 const EMPTY: u32 = u32::MAX;
 
@@ -125,28 +129,31 @@ impl<'a> From<&'a Bvh2> for Binary<'a> {
     }
 }
 
-/// The wide BVH over a mesh's triangles.
+/// The wide BVH over a scene's triangles and other primitives.
 #[derive(Clone)]
 pub struct WideBvh {
     nodes: Vec<Node>,
     packs: Vec<Tri4>,
+    /// The other primitives' leaves: their ids (at least the triangle count).
+    others: Vec<u32>,
     /// Node levels from the root to the deepest leaf.
     depth: usize,
     kernel: Kernel,
 }
 
 impl WideBvh {
-    /// The BVH over `tris` (`tris[i]` is the triangle the scene declared `i`th), collapsed
-    /// from `bvh2`, whose primitive indices are into `tris`. `None` where the tree is too
-    /// deep for the walks' stack.
+    /// The BVH over `tris` (`tris[i]` is the triangle the scene declared `i`th) and other
+    /// primitives (ids from `tris.len()` on), collapsed from `bvh2`, whose leaves never mix
+    /// the two. `None` where the tree is too deep for the walks' stack.
     pub fn collapse(bvh2: &Binary, tris: &[RtTriangle]) -> Option<WideBvh> {
         let mut b = WideBvh {
             nodes: Vec::new(),
             packs: Vec::new(),
+            others: Vec::new(),
             depth: 0,
             kernel: Kernel::choose(),
         };
-        if bvh2.nodes.is_empty() || tris.is_empty() {
+        if bvh2.nodes.is_empty() || bvh2.prims.is_empty() {
             return None;
         }
         let root = &bvh2.nodes[0];
@@ -182,11 +189,23 @@ impl WideBvh {
         Some(b)
     }
 
-    /// The packs of binary leaf `n2`'s triangles, as a child code.
+    /// Binary leaf `n2` as a child code: its triangles' packs, or its other primitives.
     fn leaf(&mut self, bvh2: &Binary, n2: usize, tris: &[RtTriangle]) -> Option<u32> {
         let node = &bvh2.nodes[n2];
         let first = node.first_index as usize;
         let ids = &bvh2.prims[first..first + node.prim_count as usize];
+        let is_triangle = |i: &u32| (*i as usize) < tris.len();
+        if !ids.iter().all(is_triangle) {
+            assert!(
+                !ids.iter().any(is_triangle),
+                "a leaf mixes triangles and others"
+            );
+            let start = self.others.len();
+            self.others.extend_from_slice(ids);
+            let count = ids.len() as u32;
+            return (start < LEAF_FIRST as usize && count <= LEAF_COUNT)
+                .then(|| LEAF | OTHERS | ((count - 1) << 27) | start as u32);
+        }
         let start = self.packs.len();
         for chunk in ids.chunks(4) {
             let lanes: Vec<(RtTriangle, u32)> =
@@ -194,7 +213,7 @@ impl WideBvh {
             self.packs.push(Tri4::pack(&lanes));
         }
         let count = (self.packs.len() - start) as u32;
-        (start < LEAF_FIRST as usize && count <= LEAF_PACKS)
+        (start < LEAF_FIRST as usize && count <= LEAF_COUNT)
             .then(|| LEAF | ((count - 1) << 27) | start as u32)
     }
 
@@ -202,6 +221,7 @@ impl WideBvh {
     pub fn bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<Node>()
             + self.packs.len() * std::mem::size_of::<Tri4>()
+            + self.others.len() * std::mem::size_of::<u32>()
     }
 
     /// Nodes, packs, and the lanes of the packs that hold a triangle.

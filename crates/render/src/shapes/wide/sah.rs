@@ -1,8 +1,9 @@
 //! A binary BVH by the surface area heuristic, binned, top down, for the wide BVH to
 //! collapse: each node splits where the expected cost of a ray through it is least (boxes
-//! entered, packs of four triangles tested), or stays a leaf of at most [`MAX_LEAF`] where
-//! that costs less. Sequential and with a total order on every choice, so the tree is the
-//! same on every machine.
+//! entered, packs of four triangles tested, other primitives tested one by one), or stays
+//! a leaf of at most [`MAX_LEAF`] where that costs less. A leaf holds triangles or other
+//! primitives, never both. Sequential and with a total order on every choice, so the tree
+//! is the same on every machine.
 
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::node::Bvh2Node;
@@ -15,16 +16,35 @@ pub const MAX_LEAF: usize = 8;
 const NODE_COST: f32 = 1.0;
 const PACK_COST: f32 = 1.0;
 
-/// The cost of testing `n` primitives: their packs.
-fn packs(n: usize) -> f32 {
-    n.div_ceil(4) as f32 * PACK_COST
+/// Triangles and other primitives, counted apart.
+#[derive(Clone, Copy, Default)]
+struct Count {
+    triangles: usize,
+    others: usize,
+}
+
+impl Count {
+    fn add(&mut self, c: Count) {
+        self.triangles += c.triangles;
+        self.others += c.others;
+    }
+
+    fn total(self) -> usize {
+        self.triangles + self.others
+    }
+
+    /// The cost of testing them: the triangles' packs, and each other primitive.
+    fn cost(self) -> f32 {
+        (self.triangles.div_ceil(4) + self.others) as f32 * PACK_COST
+    }
 }
 
 /// A binary BVH over `aabbs`, whose leaves index `ids` (`ids[i]` is the primitive `aabbs[i]`
-/// bounds: a triangle may have several boxes, cut by spatial splits). Returns the nodes and
-/// the leaves' primitives.
-pub fn build(aabbs: &[Aabb], ids: &[u32]) -> (Vec<Bvh2Node>, Vec<u32>) {
+/// bounds: a triangle may have several boxes, cut by spatial splits; ids below
+/// `triangles` are triangles). Returns the nodes and the leaves' primitives.
+pub fn build(aabbs: &[Aabb], ids: &[u32], triangles: u32) -> (Vec<Bvh2Node>, Vec<u32>) {
     let n = aabbs.len();
+    let is_triangle = |i: u32| ids[i as usize] < triangles;
     let centres: Vec<glam::Vec3A> = aabbs.iter().map(Aabb::center).collect();
     let mut order: Vec<u32> = (0..n as u32).collect();
     let mut nodes = vec![Bvh2Node::new(Aabb::empty(), 0, 0)];
@@ -33,12 +53,13 @@ pub fn build(aabbs: &[Aabb], ids: &[u32]) -> (Vec<Bvh2Node>, Vec<u32>) {
     while let Some((node, lo, hi)) = todo.pop() {
         let mut bounds = Aabb::empty();
         let mut cb = Aabb::empty();
+        let mut count = Count::default();
         for &i in &order[lo..hi] {
             bounds = bounds.union(&aabbs[i as usize]);
             cb.extend(centres[i as usize]);
+            count.add(kind(is_triangle(i)));
         }
-        let count = hi - lo;
-        let split = if count > 1 {
+        let split = if count.total() > 1 {
             best_split(
                 &order[lo..hi],
                 aabbs,
@@ -46,19 +67,28 @@ pub fn build(aabbs: &[Aabb], ids: &[u32]) -> (Vec<Bvh2Node>, Vec<u32>) {
                 &cb,
                 bounds.half_area(),
                 count,
+                is_triangle,
             )
         } else {
             None
         };
         let mid = match split {
-            Some(s) => partition(&mut order[lo..hi], &centres, &cb, s) + lo,
-            None if count <= MAX_LEAF => {
-                nodes[node] = Bvh2Node::new(bounds, count as u32, lo as u32);
+            Some(s) => {
+                partition(&mut order[lo..hi], |i| {
+                    bin(centres[i as usize][s.axis], &cb, s.axis) < s.bins_left
+                }) + lo
+            }
+            None if count.total() <= MAX_LEAF && count.triangles > 0 && count.others > 0 => {
+                // A leaf is of one kind: the triangles on one side, the others on the other.
+                partition(&mut order[lo..hi], is_triangle) + lo
+            }
+            None if count.total() <= MAX_LEAF => {
+                nodes[node] = Bvh2Node::new(bounds, count.total() as u32, lo as u32);
                 continue;
             }
             // Too many to be a leaf and nothing to split by (their centres in one bin):
             // halve them in the order they are in.
-            None => lo + count / 2,
+            None => lo + count.total() / 2,
         };
         let first = nodes.len();
         nodes.push(Bvh2Node::new(Aabb::empty(), 0, 0));
@@ -86,50 +116,60 @@ fn bin(c: f32, cb: &Aabb, axis: usize) -> usize {
     b.min(BINS - 1)
 }
 
+/// One primitive of its kind.
+fn kind(triangle: bool) -> Count {
+    Count {
+        triangles: triangle as usize,
+        others: !triangle as usize,
+    }
+}
+
 /// The cheapest split of `items` if it is cheaper than a leaf of them (a leaf is not an
-/// option past [`MAX_LEAF`]).
+/// option past [`MAX_LEAF`], nor for a mix of triangles and other primitives).
 fn best_split(
     items: &[u32],
     aabbs: &[Aabb],
     centres: &[glam::Vec3A],
     cb: &Aabb,
     area: f32,
-    count: usize,
+    count: Count,
+    is_triangle: impl Fn(u32) -> bool,
 ) -> Option<Split> {
     let mut best: Option<(f32, Split)> = None;
     // Every axis binned in one pass over the items.
     let mut boxes = [[Aabb::empty(); BINS]; 3];
-    let mut counts = [[0usize; BINS]; 3];
+    let mut counts = [[Count::default(); BINS]; 3];
     let live: [bool; 3] = std::array::from_fn(|a| cb.max[a] - cb.min[a] > 0.0);
     for &i in items {
         let (c, b) = (centres[i as usize], &aabbs[i as usize]);
+        let one = kind(is_triangle(i));
         for axis in 0..3 {
             if live[axis] {
                 let k = bin(c[axis], cb, axis);
                 boxes[axis][k] = boxes[axis][k].union(b);
-                counts[axis][k] += 1;
+                counts[axis][k].add(one);
             }
         }
     }
     for axis in (0..3).filter(|&a| live[a]) {
         let (boxes, counts) = (&boxes[axis], &counts[axis]);
         // Right to left: the area and count of bins k.. for each k.
-        let mut right = [(0f32, 0usize); BINS];
-        let (mut acc, mut n) = (Aabb::empty(), 0);
+        let mut right = [(0f32, Count::default()); BINS];
+        let (mut acc, mut n) = (Aabb::empty(), Count::default());
         for k in (1..BINS).rev() {
             acc = acc.union(&boxes[k]);
-            n += counts[k];
+            n.add(counts[k]);
             right[k] = (acc.half_area(), n);
         }
-        let (mut acc, mut n) = (Aabb::empty(), 0);
+        let (mut acc, mut n) = (Aabb::empty(), Count::default());
         for k in 1..BINS {
             acc = acc.union(&boxes[k - 1]);
-            n += counts[k - 1];
+            n.add(counts[k - 1]);
             let (ra, rn) = right[k];
-            if n == 0 || rn == 0 {
+            if n.total() == 0 || rn.total() == 0 {
                 continue;
             }
-            let cost = acc.half_area() * packs(n) + ra * packs(rn);
+            let cost = acc.half_area() * n.cost() + ra * rn.cost();
             if best.is_none_or(|(c, _)| cost < c) {
                 best = Some((cost, Split { axis, bins_left: k }));
             }
@@ -137,12 +177,12 @@ fn best_split(
     }
     let (cost, split) = best?;
     let split_cost = NODE_COST + cost / area.max(f32::MIN_POSITIVE);
-    (count > MAX_LEAF || split_cost < packs(count)).then_some(split)
+    let mixed = count.triangles > 0 && count.others > 0;
+    (count.total() > MAX_LEAF || mixed || split_cost < count.cost()).then_some(split)
 }
 
-/// Puts the items left of `split` first; returns how many they are.
-fn partition(items: &mut [u32], centres: &[glam::Vec3A], cb: &Aabb, split: Split) -> usize {
-    let left = |i: u32| bin(centres[i as usize][split.axis], cb, split.axis) < split.bins_left;
+/// Puts the items `left` takes first; returns how many they are.
+fn partition(items: &mut [u32], left: impl Fn(u32) -> bool) -> usize {
     let (mut a, mut b) = (0, items.len());
     while a < b {
         if left(items[a]) {
@@ -161,10 +201,11 @@ mod tests {
     use glam::Vec3A;
 
     /// Every primitive is in exactly one leaf, every node's box holds its children's and its
-    /// primitives', and leaves hold at most MAX_LEAF unless their centres coincide.
+    /// primitives', leaves hold at most MAX_LEAF unless their centres coincide, and no leaf
+    /// mixes triangles with other primitives.
     fn check(aabbs: &[Aabb]) -> usize {
         let ids: Vec<u32> = (0..aabbs.len() as u32).collect();
-        let (nodes, prims) = build(aabbs, &ids);
+        let (nodes, prims) = build(aabbs, &ids, aabbs.len() as u32 / 2);
         let mut seen = vec![0u32; aabbs.len()];
         let mut todo = vec![0usize];
         let mut leaves = 0;
@@ -178,6 +219,13 @@ mod tests {
                 let range =
                     node.first_index as usize..(node.first_index + node.prim_count) as usize;
                 let mut centres = Aabb::empty();
+                // The first half of the ids are triangles, the rest other primitives.
+                let half = aabbs.len() as u32 / 2;
+                let leaf = &prims[range.clone()];
+                assert!(
+                    leaf.iter().all(|&p| p < half) || leaf.iter().all(|&p| p >= half),
+                    "a leaf of triangles and other primitives: {leaf:?}"
+                );
                 for &p in &prims[range] {
                     seen[p as usize] += 1;
                     assert!(contains(&node.aabb, &aabbs[p as usize]));

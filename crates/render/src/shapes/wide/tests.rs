@@ -1,6 +1,7 @@
 use super::*;
 use crate::shapes::bvh_build;
 use glam::Vec3A;
+use obvhs::aabb::Aabb;
 use obvhs::ray::Ray;
 use obvhs::triangle::Triangle;
 
@@ -233,4 +234,82 @@ fn one_triangle_and_axis_aligned_rays() {
         |_, _| true,
     );
     assert_eq!(hit, None);
+}
+
+/// Where a ray meets a sphere beyond 1e-7 and before `limit`.
+fn sphere_t(c: Vec3A, r: f32, o: Vec3A, d: Vec3A, limit: f32) -> Option<f32> {
+    let f = o - c;
+    let b = f.dot(d);
+    let disc = b * b - (f.length_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    [-b - s, -b + s]
+        .into_iter()
+        .find(|&t| t > 1e-7 && t < limit)
+}
+
+/// Spheres in the same hierarchy as triangles, handed to the caller's test: the closest
+/// hit of either kind is the brute-force smallest (distance, id), a sphere declared twice
+/// is hit under its smaller id, and any-hit agrees, with every kernel.
+#[test]
+fn other_primitives_share_the_hierarchy_and_ties_go_to_the_smaller_id() {
+    let mut s = 3u64;
+    let tris = soup(2_000, &mut s);
+    let rt: Vec<RtTriangle> = tris.iter().map(RtTriangle::from).collect();
+    let mut spheres: Vec<(Vec3A, f32)> = (0..200)
+        .map(|_| (v(&mut s) * 10.0, 0.05 + rng(&mut s) * 0.3))
+        .collect();
+    for k in (0..200).step_by(3) {
+        spheres.push(spheres[k]);
+    }
+    let boxes: Vec<Aabb> = spheres
+        .iter()
+        .map(|&(c, r)| Aabb::new(c - r, c + r))
+        .collect();
+    let bvh = bvh_build::build_wide_bvh(&tris, &rt, &boxes, &mut std::time::Duration::default());
+    let base = tris.len() as u32;
+    let (mut sphere_hits, mut twins) = (0, 0);
+    for kernel in Kernel::available() {
+        let bvh = bvh.clone().with_kernel(kernel);
+        for k in 0..4_000 {
+            let r = ray(k, &mut s, &tris);
+            let mut want = brute(&rt, &r, |_| true);
+            for (i, &(c, rad)) in spheres.iter().enumerate() {
+                let id = base + i as u32;
+                if let Some(t) = sphere_t(c, rad, r.origin, r.direction, r.tmax)
+                    && want.is_none_or(|(bt, bid)| t < bt || (t == bt && id < bid))
+                {
+                    want = Some((t, id));
+                }
+            }
+            let other = |id: u32, limit: f32| {
+                let (c, rad) = spheres[(id - base) as usize];
+                sphere_t(c, rad, r.origin, r.direction, limit)
+            };
+            let got = bvh.closest_with(r.origin, r.direction, r.tmax, |_, _| true, other);
+            assert_eq!(
+                got.map(|(t, id)| (t.to_bits(), id)),
+                want.map(|(t, id)| (t.to_bits(), id)),
+                "{kernel:?}, ray {k}"
+            );
+            let any = bvh.any_with(
+                r.origin,
+                r.direction,
+                r.tmax,
+                |_, _| true,
+                |id, limit| other(id, limit).is_some(),
+            );
+            assert_eq!(any, want.is_some(), "{kernel:?}, ray {k}");
+            if let Some((_, id)) = want
+                && id >= base
+            {
+                sphere_hits += 1;
+                twins += ((id - base).is_multiple_of(3) && id - base < 200) as u32;
+            }
+        }
+    }
+    assert!(sphere_hits > 200, "{sphere_hits} rays hit a sphere first");
+    assert!(twins > 50, "{twins} rays hit a sphere declared twice");
 }

@@ -1,7 +1,8 @@
 //! Walking the wide BVH: the closest hit (children nearest first, the nearest taken at once
 //! and the others stacked, a child whose entry is beyond the closest hit so far left
 //! unopened) and any hit (shadow rays and transmittance: children largest first, out at the
-//! first opaque hit).
+//! first opaque hit). Triangles are tested here; other primitives by the caller's function,
+//! and of hits at the same distance the smallest id wins whatever its kind.
 //!
 //! The box test is the slab test with the far distances widened by 1 + 2γ₃ (as pbrt does,
 //! so rounding never loses a box a ray grazes), and a NaN (a ray in a slab's plane, parallel
@@ -11,7 +12,7 @@
 use super::lanes::F8;
 use super::lanes::{F4, Mask};
 use super::tri4::{Ray4, Tri4};
-use super::{EMPTY, Kernel, LEAF, LEAF_FIRST, Node, STACK, WIDTH, WideBvh};
+use super::{EMPTY, Kernel, LEAF, LEAF_FIRST, Node, OTHERS, STACK, WIDTH, WideBvh};
 use glam::Vec3A;
 
 /// How far past the closest hit so far a box is still opened: a triangle's distance and
@@ -201,7 +202,7 @@ fn quad(row: &[f32; WIDTH], q: usize) -> &[f32; 4] {
 impl WideBvh {
     /// The closest triangle along `dir` from `origin` within `[0, tmax]` that `opaque(id,
     /// t)` lets stop the ray: its distance and id (the id the scene declared; of equally
-    /// distant ones, the smallest).
+    /// distant ones, the smallest). A BVH with other primitives needs [`Self::closest_with`].
     #[inline(always)]
     pub fn closest(
         &self,
@@ -210,18 +211,33 @@ impl WideBvh {
         tmax: f32,
         opaque: impl FnMut(u32, f32) -> bool,
     ) -> Option<(f32, u32)> {
+        self.closest_with(origin, dir, tmax, opaque, |_, _| None)
+    }
+
+    /// [`Self::closest`] over triangles and other primitives: `other(id, limit)` is the
+    /// distance at which other primitive `id` stops the ray before `limit` (exclusive), if
+    /// it does.
+    #[inline(always)]
+    pub fn closest_with(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+        other: impl FnMut(u32, f32) -> Option<f32>,
+    ) -> Option<(f32, u32)> {
         match self.kernel {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernel is AVX2 only where the CPU has it (Kernel::choose).
-            Kernel::Avx2 => unsafe { self.closest_avx2(origin, dir, tmax, opaque) },
+            Kernel::Avx2 => unsafe { self.closest_avx2(origin, dir, tmax, opaque, other) },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernel is AVX-512 only where the CPU has it (Kernel::choose).
-            Kernel::Avx512 => unsafe { self.closest_avx512(origin, dir, tmax, opaque) },
-            _ => self.closest_in::<Quads>(origin, dir, tmax, opaque),
+            Kernel::Avx512 => unsafe { self.closest_avx512(origin, dir, tmax, opaque, other) },
+            _ => self.closest_in::<Quads>(origin, dir, tmax, opaque, other),
         }
     }
 
-    /// [`Self::closest`] compiled for AVX2.
+    /// [`Self::closest_with`] compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn closest_avx2(
@@ -230,11 +246,12 @@ impl WideBvh {
         dir: Vec3A,
         tmax: f32,
         opaque: impl FnMut(u32, f32) -> bool,
+        other: impl FnMut(u32, f32) -> Option<f32>,
     ) -> Option<(f32, u32)> {
-        self.closest_in::<Octs>(origin, dir, tmax, opaque)
+        self.closest_in::<Octs>(origin, dir, tmax, opaque, other)
     }
 
-    /// [`Self::closest`] compiled for AVX-512.
+    /// [`Self::closest_with`] compiled for AVX-512.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,avx512f,avx512vl")]
     unsafe fn closest_avx512(
@@ -243,8 +260,9 @@ impl WideBvh {
         dir: Vec3A,
         tmax: f32,
         opaque: impl FnMut(u32, f32) -> bool,
+        other: impl FnMut(u32, f32) -> Option<f32>,
     ) -> Option<(f32, u32)> {
-        self.closest_in::<Octs>(origin, dir, tmax, opaque)
+        self.closest_in::<Octs>(origin, dir, tmax, opaque, other)
     }
 
     #[inline(always)]
@@ -254,6 +272,7 @@ impl WideBvh {
         dir: Vec3A,
         tmax: f32,
         mut opaque: impl FnMut(u32, f32) -> bool,
+        mut other: impl FnMut(u32, f32) -> Option<f32>,
     ) -> Option<(f32, u32)> {
         let r = BoxRay::new(origin, dir);
         let p = K::prepare(&r);
@@ -265,9 +284,27 @@ impl WideBvh {
         // on the stack.
         let mut code = 0u32;
         loop {
-            if code & LEAF != 0 {
+            if code & (LEAF | OTHERS) == LEAF | OTHERS {
                 let first = (code & LEAF_FIRST) as usize;
-                let count = ((code >> 27) & 0xf) as usize + 1;
+                let count = ((code >> 27) & 0x7) as usize + 1;
+                for &id in &self.others[first..first + count] {
+                    // Up to the closest hit so far inclusive, once there is one: at an equal
+                    // distance the smaller id wins, whichever the walk met first.
+                    let limit = if best.is_some() {
+                        best_t.next_up()
+                    } else {
+                        best_t
+                    };
+                    if let Some(t) = other(id, limit)
+                        && (t < best_t || best.is_none_or(|b| id < b))
+                    {
+                        best_t = t;
+                        best = Some(id);
+                    }
+                }
+            } else if code & LEAF != 0 {
+                let first = (code & LEAF_FIRST) as usize;
+                let count = ((code >> 27) & 0x7) as usize + 1;
                 let packs = &self.packs[first..first + count];
                 for k in (0..count).step_by(2) {
                     let (t, mut hits, ids) = test_packs::<K>(&r, packs, k, best_t);
@@ -332,7 +369,7 @@ impl WideBvh {
     }
 
     /// Whether some triangle that `opaque(id, t)` lets stop the ray lies along `dir` from
-    /// `origin` within `[0, tmax]`.
+    /// `origin` within `[0, tmax]`. A BVH with other primitives needs [`Self::any_with`].
     #[inline(always)]
     pub fn any(
         &self,
@@ -341,18 +378,32 @@ impl WideBvh {
         tmax: f32,
         opaque: impl FnMut(u32, f32) -> bool,
     ) -> bool {
+        self.any_with(origin, dir, tmax, opaque, |_, _| false)
+    }
+
+    /// [`Self::any`] over triangles and other primitives: `other(id, tmax)` says whether
+    /// other primitive `id` stops the ray within `tmax`.
+    #[inline(always)]
+    pub fn any_with(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        opaque: impl FnMut(u32, f32) -> bool,
+        other: impl FnMut(u32, f32) -> bool,
+    ) -> bool {
         match self.kernel {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernel is AVX2 only where the CPU has it (Kernel::choose).
-            Kernel::Avx2 => unsafe { self.any_avx2(origin, dir, tmax, opaque) },
+            Kernel::Avx2 => unsafe { self.any_avx2(origin, dir, tmax, opaque, other) },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernel is AVX-512 only where the CPU has it (Kernel::choose).
-            Kernel::Avx512 => unsafe { self.any_avx512(origin, dir, tmax, opaque) },
-            _ => self.any_in::<Quads>(origin, dir, tmax, opaque),
+            Kernel::Avx512 => unsafe { self.any_avx512(origin, dir, tmax, opaque, other) },
+            _ => self.any_in::<Quads>(origin, dir, tmax, opaque, other),
         }
     }
 
-    /// [`Self::any`] compiled for AVX2.
+    /// [`Self::any_with`] compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn any_avx2(
@@ -361,11 +412,12 @@ impl WideBvh {
         dir: Vec3A,
         tmax: f32,
         opaque: impl FnMut(u32, f32) -> bool,
+        other: impl FnMut(u32, f32) -> bool,
     ) -> bool {
-        self.any_in::<Octs>(origin, dir, tmax, opaque)
+        self.any_in::<Octs>(origin, dir, tmax, opaque, other)
     }
 
-    /// [`Self::any`] compiled for AVX-512.
+    /// [`Self::any_with`] compiled for AVX-512.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,avx512f,avx512vl")]
     unsafe fn any_avx512(
@@ -374,8 +426,9 @@ impl WideBvh {
         dir: Vec3A,
         tmax: f32,
         opaque: impl FnMut(u32, f32) -> bool,
+        other: impl FnMut(u32, f32) -> bool,
     ) -> bool {
-        self.any_in::<Octs>(origin, dir, tmax, opaque)
+        self.any_in::<Octs>(origin, dir, tmax, opaque, other)
     }
 
     #[inline(always)]
@@ -385,6 +438,7 @@ impl WideBvh {
         dir: Vec3A,
         tmax: f32,
         mut opaque: impl FnMut(u32, f32) -> bool,
+        mut other: impl FnMut(u32, f32) -> bool,
     ) -> bool {
         let r = BoxRay::new(origin, dir);
         let p = K::prepare(&r);
@@ -395,9 +449,20 @@ impl WideBvh {
             sp -= 1;
             // SAFETY: entries below `sp` were written before `sp` passed them.
             let code = unsafe { stack[sp].assume_init() };
+            if code & (LEAF | OTHERS) == LEAF | OTHERS {
+                let first = (code & LEAF_FIRST) as usize;
+                let count = ((code >> 27) & 0x7) as usize + 1;
+                if self.others[first..first + count]
+                    .iter()
+                    .any(|&id| other(id, tmax))
+                {
+                    return true;
+                }
+                continue;
+            }
             if code & LEAF != 0 {
                 let first = (code & LEAF_FIRST) as usize;
-                let count = ((code >> 27) & 0xf) as usize + 1;
+                let count = ((code >> 27) & 0x7) as usize + 1;
                 let packs = &self.packs[first..first + count];
                 for k in (0..count).step_by(2) {
                     let (t, mut hits, ids) = test_packs::<K>(&r, packs, k, tmax);
