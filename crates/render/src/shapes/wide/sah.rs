@@ -74,8 +74,9 @@ pub fn build(aabbs: &[Aabb], ids: &[u32], triangles: u32) -> (Vec<Bvh2Node>, Vec
         };
         let mid = match split {
             Some(s) => {
+                let bins = Bins::new(&cb);
                 partition(&mut order[lo..hi], |i| {
-                    bin(centres[i as usize][s.axis], &cb, s.axis) < s.bins_left
+                    bins.of(centres[i as usize][s.axis], s.axis) < s.bins_left
                 }) + lo
             }
             None if count.total() <= MAX_LEAF && count.triangles > 0 && count.others > 0 => {
@@ -108,12 +109,25 @@ struct Split {
     bins_left: usize,
 }
 
-/// The bin of centre `c` on `axis` of the centres' bounds `cb`.
-#[inline]
-fn bin(c: f32, cb: &Aabb, axis: usize) -> usize {
-    let extent = cb.max[axis] - cb.min[axis];
-    let b = ((c - cb.min[axis]) / extent * BINS as f32) as usize;
-    b.min(BINS - 1)
+/// Which bin a centre falls in, per axis, over the centres' bounds `cb`: by one multiply
+/// (the division by the extent done once per node).
+struct Bins {
+    min: glam::Vec3A,
+    scale: glam::Vec3A,
+}
+
+impl Bins {
+    fn new(cb: &Aabb) -> Bins {
+        Bins {
+            min: cb.min,
+            scale: BINS as f32 / (cb.max - cb.min),
+        }
+    }
+
+    #[inline]
+    fn of(&self, c: f32, axis: usize) -> usize {
+        (((c - self.min[axis]) * self.scale[axis]) as usize).min(BINS - 1)
+    }
 }
 
 /// One primitive of its kind.
@@ -140,12 +154,13 @@ fn best_split(
     let mut boxes = [[Aabb::empty(); BINS]; 3];
     let mut counts = [[Count::default(); BINS]; 3];
     let live: [bool; 3] = std::array::from_fn(|a| cb.max[a] - cb.min[a] > 0.0);
+    let bins = Bins::new(cb);
     for &i in items {
         let (c, b) = (centres[i as usize], &aabbs[i as usize]);
         let one = kind(is_triangle(i));
         for axis in 0..3 {
             if live[axis] {
-                let k = bin(c[axis], cb, axis);
+                let k = bins.of(c[axis], axis);
                 boxes[axis][k] = boxes[axis][k].union(b);
                 counts[axis][k].add(one);
             }
