@@ -347,7 +347,9 @@ impl ParamSet {
                         .chunks_exact(2)
                         .map(|c| (c[0] as f32, c[1] as f32))
                         .collect();
-                    spectrum::sampled_to_rgb(&pairs, usage)
+                    // Zero beyond its ends, as pbrt-v4 reads a scene's spectra (inline or
+                    // from a file), where its named spectra carry their end values on.
+                    spectrum::sampled_to_rgb_with(&pairs, usage, spectrum::Ends::Zero)
                         .map(Some)
                         .map_err(|e| at(format!("'spectrum {name}': {e}")))
                 }

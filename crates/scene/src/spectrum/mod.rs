@@ -142,15 +142,21 @@ pub(crate) fn spectrum_at(pairs: &[(f64, f64)], lambda: f64) -> f64 {
 /// ∫ S(λ) · D65(λ)? · (x̄, ȳ, z̄)(λ) dλ over 360–830 nm, exact for piecewise-linear S (see the
 /// module docs). `under_d65` adds the D65 factor (reflectances seen under daylight).
 fn integrate_xyz(pairs: &[(f64, f64)], under_d65: bool) -> [f64; 3] {
+    integrate_xyz_over(pairs, under_d65, LAMBDA_MIN, LAMBDA_MAX)
+}
+
+/// [`integrate_xyz`] over `lo`..`hi` only (within 360–830 nm).
+fn integrate_xyz_over(pairs: &[(f64, f64)], under_d65: bool, lo: f64, hi: f64) -> [f64; 3] {
+    if lo >= hi {
+        return [0.0; 3];
+    }
     let mut breaks: Vec<f64> = (0..TABLE_LEN)
         .map(|i| LAMBDA_MIN + TABLE_STEP * i as f64)
+        .filter(|&l| l > lo && l < hi)
         .collect();
-    breaks.extend(
-        pairs
-            .iter()
-            .map(|p| p.0)
-            .filter(|&l| l > LAMBDA_MIN && l < LAMBDA_MAX),
-    );
+    breaks.push(lo);
+    breaks.push(hi);
+    breaks.extend(pairs.iter().map(|p| p.0).filter(|&l| l > lo && l < hi));
     breaks.sort_by(f64::total_cmp);
     breaks.dedup();
     let integrand = |l: f64| {
@@ -324,9 +330,37 @@ fn d65_reference() -> ([f64; 3], f64) {
     })
 }
 
+/// What a sampled spectrum is beyond its first and last wavelengths.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ends {
+    /// Its end values carry on (pbrt-v4's named spectra, which it extends to the visible
+    /// range).
+    Constant,
+    /// Zero: pbrt-v4's `PiecewiseLinearSpectrum` for a spectrum a scene gives, inline or in
+    /// a file, which it does not extend.
+    Zero,
+}
+
 /// Shared conversion for validated spectra. Negative channels (spectra outside the sRGB gamut)
 /// are clamped to 0: negative reflectance, IOR or emission is meaningless to the renderer.
 fn spectrum_to_rgb(pairs: &[(f64, f64)], usage: SpectrumUse) -> Result<[f32; 3], String> {
+    spectrum_to_rgb_with(pairs, usage, Ends::Constant)
+}
+
+fn spectrum_to_rgb_with(
+    pairs: &[(f64, f64)],
+    usage: SpectrumUse,
+    ends: Ends,
+) -> Result<[f32; 3], String> {
+    let (lo, hi) = match ends {
+        Ends::Constant => (LAMBDA_MIN, LAMBDA_MAX),
+        Ends::Zero => (
+            pairs[0].0.max(LAMBDA_MIN),
+            pairs[pairs.len() - 1].0.min(LAMBDA_MAX),
+        ),
+    };
+    let integrate_xyz =
+        |pairs: &[(f64, f64)], under_d65| integrate_xyz_over(pairs, under_d65, lo, hi);
     let (white, d65_y) = d65_reference();
     let xyz = match usage {
         // rgb_c = ∫ S·w_c / ∫ w_c with w_c(λ) = (M · (x̄, ȳ, z̄)(λ))_c · D65(λ): the sRGB channel
@@ -395,6 +429,16 @@ pub fn albedo_rgb_weights(wavelengths: &[f32]) -> Result<Vec<[f64; 3]>, String> 
 /// Also rejects non-finite numbers. [`SpectrumUse::Illuminant`] results are normalised to
 /// luminance Y = 1 (an all-zero spectrum gives black); negative channels are clamped to 0.
 pub fn sampled_to_rgb(pairs: &[(f32, f32)], usage: SpectrumUse) -> Result<[f32; 3], String> {
+    sampled_to_rgb_with(pairs, usage, Ends::Constant)
+}
+
+/// [`sampled_to_rgb`] with the spectrum's values beyond its ends as `ends` says: a scene's
+/// own spectra are zero there, as pbrt-v4 reads them.
+pub fn sampled_to_rgb_with(
+    pairs: &[(f32, f32)],
+    usage: SpectrumUse,
+    ends: Ends,
+) -> Result<[f32; 3], String> {
     if pairs.is_empty() {
         return Err("a sampled spectrum needs at least one (wavelength, value) pair".into());
     }
@@ -415,7 +459,7 @@ pub fn sampled_to_rgb(pairs: &[(f32, f32)], usage: SpectrumUse) -> Result<[f32; 
         }
         checked.push((lambda, f64::from(value)));
     }
-    spectrum_to_rgb(&checked, usage)
+    spectrum_to_rgb_with(&checked, usage, ends)
 }
 
 /// Named spectra as precomputed linear sRGB, so no raw tables need to ship.
@@ -648,6 +692,35 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// pbrt-v4 reads a scene's spectrum as zero beyond its ends and a named spectrum as
+    /// carrying its end values on: a reflector given only from 600 to 700 nm is red as a
+    /// scene spectrum, and as one whose ends carry on, 1 everywhere, white.
+    #[test]
+    fn a_scene_spectrum_is_zero_beyond_its_ends() {
+        let band = [(600.0, 1.0), (700.0, 1.0)];
+        let red = sampled_to_rgb_with(&band, SpectrumUse::Albedo, Ends::Zero).unwrap();
+        assert!(red[0] > 0.5 && red[1] < 0.1 && red[2] < 0.01, "{red:?}");
+        let white = sampled_to_rgb_with(&band, SpectrumUse::Albedo, Ends::Constant).unwrap();
+        assert_close(white, [1.0; 3], 1e-3, "constant ends");
+        assert_eq!(white, sampled_to_rgb(&band, SpectrumUse::Albedo).unwrap());
+        // Spectra covering 360-830 nm are the same either way.
+        let wide = [(300.0, 0.2), (500.0, 0.9), (900.0, 0.4)];
+        for usage in [SpectrumUse::Albedo, SpectrumUse::Illuminant] {
+            assert_close(
+                sampled_to_rgb_with(&wide, usage, Ends::Zero).unwrap(),
+                sampled_to_rgb(&wide, usage).unwrap(),
+                1e-6,
+                "covering",
+            );
+        }
+        // Nothing within 360-830 nm: black.
+        let beyond = [(900.0, 1.0), (950.0, 1.0)];
+        assert_eq!(
+            sampled_to_rgb_with(&beyond, SpectrumUse::Albedo, Ends::Zero).unwrap(),
+            [0.0; 3]
+        );
     }
 
     #[test]
