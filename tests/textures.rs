@@ -933,3 +933,26 @@ AttributeEnd
         3,
     );
 }
+
+/// A reflectance spectrum given from 600 to 700 nm only is zero elsewhere, as pbrt-v4 reads a
+/// scene's spectrum: pbrt-v4 5f7a606 renders the plane below at mean RGB 0.7616, -0.0339,
+/// -0.0112 (its film keeps colours outside the gamut; Kiln's are clamped at 0). Read with its
+/// end values carried on, the reflectance was 0.9 grey.
+#[test]
+fn a_scene_spectrum_is_zero_beyond_its_ends_as_pbrt_v4_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 15 ]
+Sampler "halton" "integer pixelsamples" [ 16 ]
+Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ]
+Integrator "path" "integer maxdepth" [ 1 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+Material "diffuse" "spectrum reflectance" [ 600 0.9 700 0.9 ]
+Shape "bilinearmesh" "point3 P" [ -1 -1 0  1 -1 0  -1 1 0  1 1 0 ]
+"#;
+    let path = write_scene(dir.path(), "band.pbrt", text);
+    let mean = render(&path, dir.path(), "band", &[]).image.mean();
+    assert!((mean[0] / 0.7616 - 1.0).abs() < 0.01, "{mean:?}");
+    assert!(mean[1] < 1e-3 && mean[2] < 1e-3, "{mean:?}");
+}
