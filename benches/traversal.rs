@@ -236,7 +236,7 @@ fn bench_scene(name: &str, path: &Path, width: u32, repeats: usize, out_dir: &Pa
     let cw_blocked = cw_any();
     let cw_closest_s = best(&|| cw_closest().1);
     let cw_any_s = best(&|| cw_any() as f64);
-    let wide_bytes = geometry.triangle_bvh_bytes();
+    let wide_bytes = geometry.bvh_bytes();
     let cw_bytes = cw.nodes.len() * std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
         + rt.len() * (std::mem::size_of::<obvhs::rt_triangle::RtTriangle>() + 4);
     println!(

@@ -274,6 +274,30 @@ Shape "revolution" "point2 contour" [ 0 -1  500 -1  500 0  0 0 ]
     );
 }
 
+/// A unit sphere of `material` at the origin under a spherical area light up and to the
+/// left and a dim sky, seen from the front at 96x96: the scene both subsurface spheres
+/// below were rendered in by pbrt-v4.
+fn lit_sphere(spp: u32, max_depth: u32, material: &str) -> String {
+    format!(
+        r#"LookAt 0 -5 1.2  0 0 0.2  0 0 1
+Camera "perspective" "float fov" [ 30 ]
+Sampler "halton" "integer pixelsamples" [ {spp} ]
+Film "rgb" "integer xresolution" [ 96 ] "integer yresolution" [ 96 ]
+Integrator "volpath" "integer maxdepth" [ {max_depth} ]
+WorldBegin
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [ 10 10 10 ]
+Material "diffuse" "rgb reflectance" [ 0 0 0 ]
+Translate 2 -2 3
+Shape "sphere" "float radius" 0.6
+AttributeEnd
+LightSource "infinite" "rgb L" [ 0.05 0.05 0.05 ]
+{material}
+Shape "sphere"
+"#
+    )
+}
+
 /// pbrt-v4 (5f7a606, CPU, built here) on the same grey subsurface sphere under an area light
 /// (96x96, 256 spp halton, the sphere's disk of pixels): its volumetric path tracer with the
 /// medium inside a dielectric, the ground truth, gave 0.06673; its `subsurface` material,
@@ -284,23 +308,12 @@ fn a_subsurface_sphere_matches_pbrt_v4s_volumetric_ground_truth() {
     const PBRT_VOLUMETRIC: f64 = 0.06673;
     const PBRT_BSSRDF: f64 = 0.05827;
     let dir = tempfile::tempdir().unwrap();
-    let text = r#"LookAt 0 -5 1.2  0 0 0.2  0 0 1
-Camera "perspective" "float fov" [ 30 ]
-Sampler "halton" "integer pixelsamples" [ 256 ]
-Film "rgb" "integer xresolution" [ 96 ] "integer yresolution" [ 96 ]
-Integrator "volpath" "integer maxdepth" [ 256 ]
-WorldBegin
-AttributeBegin
-AreaLightSource "diffuse" "rgb L" [ 10 10 10 ]
-Material "diffuse" "rgb reflectance" [ 0 0 0 ]
-Translate 2 -2 3
-Shape "sphere" "float radius" 0.6
-AttributeEnd
-LightSource "infinite" "rgb L" [ 0.05 0.05 0.05 ]
-Material "subsurface" "float eta" 1.33 "rgb sigma_a" [ 1 1 1 ] "rgb sigma_s" [ 7 7 7 ]
-Shape "sphere"
-"#;
-    let path = write_scene(dir.path(), "sphere.pbrt", text);
+    let text = lit_sphere(
+        256,
+        256,
+        r#"Material "subsurface" "float eta" 1.33 "rgb sigma_a" [ 1 1 1 ] "rgb sigma_s" [ 7 7 7 ]"#,
+    );
+    let path = write_scene(dir.path(), "sphere.pbrt", &text);
     let img = render(&path, dir.path(), "sphere", &[]).image;
     let (mut sum, mut n) = (0.0f64, 0u32);
     for y in 0..96u32 {
@@ -347,23 +360,12 @@ fn a_coloured_subsurface_sphere_matches_pbrt_v4s_volumetric_ground_truth() {
     ];
     const WITHIN: [f64; 3] = [0.03, 0.02, 0.05];
     let dir = tempfile::tempdir().unwrap();
-    let text = r#"LookAt 0 -5 1.2  0 0 0.2  0 0 1
-Camera "perspective" "float fov" [ 30 ]
-Sampler "halton" "integer pixelsamples" [ 512 ]
-Film "rgb" "integer xresolution" [ 96 ] "integer yresolution" [ 96 ]
-Integrator "volpath" "integer maxdepth" [ 1000 ]
-WorldBegin
-AttributeBegin
-AreaLightSource "diffuse" "rgb L" [ 10 10 10 ]
-Material "diffuse" "rgb reflectance" [ 0 0 0 ]
-Translate 2 -2 3
-Shape "sphere" "float radius" 0.6
-AttributeEnd
-LightSource "infinite" "rgb L" [ 0.05 0.05 0.05 ]
-Material "subsurface" "float eta" 1.33 "rgb sigma_a" [ 0.08 0.2 0.5 ] "rgb sigma_s" [ 8 7 6 ]
-Shape "sphere"
-"#;
-    let path = write_scene(dir.path(), "coloured.pbrt", text);
+    let text = lit_sphere(
+        512,
+        1000,
+        r#"Material "subsurface" "float eta" 1.33 "rgb sigma_a" [ 0.08 0.2 0.5 ] "rgb sigma_s" [ 8 7 6 ]"#,
+    );
+    let path = write_scene(dir.path(), "coloured.pbrt", &text);
     let img = render(&path, dir.path(), "coloured", &[]).image;
     let mut sums = [[0.0f64; 3]; 3];
     let mut counts = [0u32; 3];

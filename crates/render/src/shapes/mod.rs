@@ -281,13 +281,13 @@ impl Geometry {
     }
 
     /// The hierarchy's nodes, packs of four triangles, and lanes holding one.
-    pub fn triangle_bvh_counts(&self) -> (usize, usize, usize) {
+    pub fn bvh_counts(&self) -> (usize, usize, usize) {
         self.bvh.as_ref().map_or((0, 0, 0), wide::WideBvh::counts)
     }
 
     /// The bytes the hierarchy holds (its nodes, its packed triangles and its leaves of
     /// other primitives).
-    pub fn triangle_bvh_bytes(&self) -> usize {
+    pub fn bvh_bytes(&self) -> usize {
         self.bvh.as_ref().map_or(0, wide::WideBvh::bytes)
     }
 
