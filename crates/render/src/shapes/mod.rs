@@ -40,7 +40,6 @@ use crate::textures::FloatTexture;
 use glam::{Affine3A, Vec2, Vec3A};
 use obvhs::Boundable;
 use obvhs::aabb::Aabb;
-use obvhs::ray::Ray as BvhRay;
 use obvhs::rt_triangle::RtTriangle;
 use std::time::Duration;
 
@@ -170,12 +169,6 @@ pub fn transformed_bounds(m: &Affine3A, lo: Vec3A, hi: Vec3A) -> (Vec3A, Vec3A) 
     (a, b)
 }
 
-/// obvhs's CWBVH traversal misses everything when a direction component is -0.0
-/// (see shared/CRATES.md); adding +0.0 turns -0.0 into +0.0 and changes nothing else.
-fn bvh_ray(origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32) -> BvhRay {
-    BvhRay::new(origin, dir + Vec3A::ZERO, tmin, tmax)
-}
-
 /// A point sampled on a shape as seen from a reference point.
 #[derive(Debug, Clone, Copy)]
 pub struct ShapeSample {
@@ -263,11 +256,10 @@ impl Geometry {
     /// before `limit` (at `time`, for moving groups), alpha considered.
     #[inline(always)]
     fn other_t(&self, id: u32, origin: Vec3A, dir: Vec3A, limit: f32, time: f32) -> Option<f32> {
-        let r = bvh_ray(origin, dir, 0.0, limit);
         let (kind, i) = self.kind_of(id);
         let t = match kind {
-            HitKind::Sphere => self.sphere_t(&r, i, 1e-7),
-            HitKind::Quadric => self.quadric_t(&r, i, 1e-7),
+            HitKind::Sphere => self.sphere_t(origin, dir, i, limit),
+            HitKind::Quadric => self.quadric_t(origin, dir, i, limit),
             HitKind::Curve => self.curve_t(origin, dir, i, limit),
             HitKind::Mover => self.prims.movers[i as usize].hit_t(origin, dir, limit, time),
             HitKind::Triangle => unreachable!("triangles are tested in the walk"),
@@ -332,15 +324,15 @@ impl Geometry {
         Some((t, kind, index))
     }
 
-    /// The distance to quadric `id` along `r` beyond `tmin`, as [`Self::triangle_t`].
+    /// The distance to quadric `id` along `dir` from `origin` in (1e-7, `tmax`), alpha
+    /// considered, or infinity. (A -0.0 direction component is taken as +0.0, as the
+    /// hierarchies before Kiln's own needed it.)
     #[inline(always)]
-    fn quadric_t(&self, r: &BvhRay, id: u32, tmin: f32) -> f32 {
+    fn quadric_t(&self, origin: Vec3A, dir: Vec3A, id: u32, tmax: f32) -> f32 {
+        let dir = dir + Vec3A::ZERO;
         let q = &self.prims.quadrics[id as usize];
-        let t = q.intersect(r.origin, r.direction, tmin, r.tmax);
-        if self.any_alpha
-            && t < f32::INFINITY
-            && !self.quadric_is_opaque_at(id, r.origin, r.direction, t)
-        {
+        let t = q.intersect(origin, dir, 1e-7, tmax);
+        if self.any_alpha && t < f32::INFINITY && !self.quadric_is_opaque_at(id, origin, dir, t) {
             return f32::INFINITY;
         }
         t
@@ -353,15 +345,13 @@ impl Geometry {
         !self.any_alpha || self.triangle_is_opaque_at(id, origin, dir, t)
     }
 
-    /// The distance to sphere `id` along `r` beyond `tmin`, as [`Self::triangle_t`].
+    /// The distance to sphere `id`, as [`Self::quadric_t`].
     #[inline(always)]
-    fn sphere_t(&self, r: &BvhRay, id: u32, tmin: f32) -> f32 {
+    fn sphere_t(&self, origin: Vec3A, dir: Vec3A, id: u32, tmax: f32) -> f32 {
+        let dir = dir + Vec3A::ZERO;
         let s = &self.prims.spheres[id as usize];
-        let t = s.intersect(r.origin, r.direction, tmin, r.tmax);
-        if self.any_alpha
-            && t < f32::INFINITY
-            && !self.sphere_is_opaque_at(id, r.origin, r.direction, t)
-        {
+        let t = s.intersect(origin, dir, 1e-7, tmax);
+        if self.any_alpha && t < f32::INFINITY && !self.sphere_is_opaque_at(id, origin, dir, t) {
             return f32::INFINITY;
         }
         t
