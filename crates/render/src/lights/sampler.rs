@@ -350,22 +350,27 @@ impl LightBvh {
             place: vec![u32::MAX; bounds.len()],
         };
         let mut finite: Vec<(u32, LightBounds)> = Vec::new();
-        // Each group's members and their bounds, in the order groups first appear.
-        let mut grouped: Vec<(u32, Vec<(u32, LightBounds)>)> = Vec::new();
+        // Each group's members and their bounds, in the order groups first appear (the map
+        // finds a key's place: a scene may have many VolumeLights).
+        let mut grouped: Vec<Vec<(u32, LightBounds)>> = Vec::new();
+        let mut place_of: std::collections::HashMap<u32, usize> = Default::default();
         for (i, b) in bounds.iter().enumerate() {
             match (b, group.get(i).copied().flatten()) {
                 (None, _) => bvh.infinite.lights.push(i as u32),
                 (Some(b), key) if b.phi > 0.0 && b.phi.is_finite() => match key {
                     None => finite.push((i as u32, *b)),
-                    Some(key) => match grouped.iter_mut().find(|(k, _)| *k == key) {
-                        Some((_, members)) => members.push((i as u32, *b)),
-                        None => grouped.push((key, vec![(i as u32, *b)])),
-                    },
+                    Some(key) => {
+                        let k = *place_of.entry(key).or_insert_with(|| {
+                            grouped.push(Vec::new());
+                            grouped.len() - 1
+                        });
+                        grouped[k].push((i as u32, *b));
+                    }
                 },
                 (Some(_), _) => {}
             }
         }
-        for (_, members) in grouped {
+        for members in grouped {
             if members.len() == 1 {
                 finite.push(members[0]);
                 continue;
