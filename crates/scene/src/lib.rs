@@ -35,6 +35,7 @@ mod params;
 mod parser;
 pub mod photometry;
 mod rgb_spectrum;
+pub mod sigmoid_table;
 pub mod spectrum;
 pub mod textures;
 pub mod voxel_grid;

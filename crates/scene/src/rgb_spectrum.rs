@@ -40,7 +40,13 @@ pub(crate) struct Upsampler {
 
 impl Upsampler {
     pub(crate) fn new() -> Upsampler {
-        let lambdas: Vec<f64> = grid().collect();
+        Upsampler::on(grid().collect())
+    }
+
+    /// An upsampler whose sums run over `lambdas` (nm, evenly spaced) instead of every
+    /// nanometre: the coefficient tables use a coarser grid to be built in a fraction of a
+    /// second.
+    pub(crate) fn on(lambdas: Vec<f64>) -> Upsampler {
         let raw: Vec<[f64; 3]> = lambdas
             .iter()
             .map(|&l| {
@@ -72,7 +78,7 @@ impl Upsampler {
     }
 
     /// Linear sRGB (under D65) of the spectrum of `c`, and its Jacobian by the coefficients.
-    fn colour(&self, c: [f64; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
+    pub(crate) fn colour(&self, c: [f64; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
         let mut rgb = [0.0; 3];
         let mut jac = [[0.0; 3]; 3];
         for (&t, w) in self.t.iter().zip(&self.weights) {
@@ -92,6 +98,11 @@ impl Upsampler {
     /// [0, 1]), starting from `start`. Colours outside what 0 < ρ < 1 can reach get the
     /// nearest it can.
     pub(crate) fn fit(&self, target: [f64; 3], start: [f64; 3]) -> [f64; 3] {
+        self.fit_within(target, start, 1e-22)
+    }
+
+    /// [`Upsampler::fit`], stopping once the squared colour error is below `tolerance`.
+    pub(crate) fn fit_within(&self, target: [f64; 3], start: [f64; 3], tolerance: f64) -> [f64; 3] {
         let mut c = start;
         let residual = |rgb: [f64; 3]| -> [f64; 3] { std::array::from_fn(|i| rgb[i] - target[i]) };
         let norm = |r: [f64; 3]| r.iter().map(|v| v * v).sum::<f64>();
@@ -99,7 +110,7 @@ impl Upsampler {
         let mut err = norm(residual(rgb));
         let mut damping = 1e-3;
         for _ in 0..200 {
-            if err < 1e-22 {
+            if err < tolerance {
                 break;
             }
             let r = residual(rgb);
