@@ -261,7 +261,7 @@ mod tests {
             ng: Vec3A::new(0.0, 0.0, -2.0),
             ns: Vec3A::new(0.0, 1.0, 0.0),
             uv: Vec2::new(0.25, 0.75),
-            albedo: Color::new(0.5, 0.4, 0.3),
+            albedo: crate::math::rgb3(0.5, 0.4, 0.3),
             dpdx: Vec3A::new(0.1, 0.0, -0.2),
             dpdy: Vec3A::ZERO,
         };

@@ -1,16 +1,51 @@
 //! Rays, colours and orthonormal frames.
+//!
+//! A [`Color`] is four lanes, one SIMD register. In RGB mode they are linear sRGB's red,
+//! green and blue, and the fourth lane repeats green: every colour is made by [`rgb`], and
+//! lane-wise arithmetic (products, sums, quotients, exponentials, selects) then keeps the
+//! fourth lane a copy of the second, so the largest and smallest lanes are the colour's and
+//! its three lanes are computed exactly as three would be. In spectral mode the four lanes
+//! are a path's four wavelengths.
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 
-/// Linear sRGB radiance or throughput.
-pub type Color = Vec3A;
+/// Linear sRGB radiance or throughput (the fourth lane repeating green), or their values at
+/// a path's four wavelengths.
+pub type Color = Vec4;
 
+/// The luminance of an RGB colour.
 pub fn luminance(c: Color) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
+/// The RGB colour `c` (its fourth lane repeating green).
 pub fn rgb(c: [f32; 3]) -> Color {
-    Vec3A::from_array(c)
+    Vec4::new(c[0], c[1], c[2], c[1])
+}
+
+/// The RGB colour (r, g, b).
+pub fn rgb3(r: f32, g: f32, b: f32) -> Color {
+    Vec4::new(r, g, b, g)
+}
+
+/// The red, green and blue of an RGB colour.
+pub fn rgb_of(c: Color) -> [f32; 3] {
+    [c.x, c.y, c.z]
+}
+
+/// An RGB colour as a vector (for matrices on colours).
+pub fn rgb_vec(c: Color) -> Vec3A {
+    Vec3A::new(c.x, c.y, c.z)
+}
+
+/// The RGB colour of a vector's three lanes.
+pub fn vec_rgb(v: Vec3A) -> Color {
+    rgb3(v.x, v.y, v.z)
+}
+
+/// The sum of an RGB colour's three lanes, ((r + g) + b).
+pub fn rgb_sum(c: Color) -> f32 {
+    (c.x + c.y) + c.z
 }
 
 #[derive(Debug, Clone, Copy)]

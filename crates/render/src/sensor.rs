@@ -6,8 +6,8 @@
 //! `kiln_scene::camera_sensor`). With pbrt-v4's defaults it is the identity and costs
 //! nothing.
 
-use crate::math::Color;
-use glam::Mat3A;
+use crate::math::{Color, rgb_of, rgb_vec, vec_rgb};
+use glam::{Mat3A, Vec3A};
 use kiln_scene::SensorDesc;
 use kiln_scene::camera_sensor::RawTable;
 use kiln_scene::spectrum::{SRGB_TO_XYZ, white_balance_srgb};
@@ -51,21 +51,21 @@ impl Sensor {
     pub fn respond(&self, l: Color) -> Color {
         let mut l = l * self.ratio;
         if let Some((to_raw, to_image)) = &self.camera {
-            let mut raw = Color::from(to_raw.raw(l.to_array()));
+            let mut raw = Vec3A::from(to_raw.raw(rgb_of(l)));
             let m = raw.max_element();
             if m > self.max_component {
                 raw *= self.max_component / m;
             }
-            return *to_image * raw;
+            return vec_rgb(*to_image * raw);
         }
         if self.max_component.is_finite() {
-            let m = (self.to_xyz * l).max_element();
+            let m = (self.to_xyz * rgb_vec(l)).max_element();
             if m > self.max_component {
                 l *= self.max_component / m;
             }
         }
         match &self.balance {
-            Some(b) => *b * l,
+            Some(b) => vec_rgb(*b * rgb_vec(l)),
             None => l,
         }
     }
@@ -77,7 +77,7 @@ mod tests {
 
     #[test]
     fn iso_scales_clamps_in_xyz_and_defaults_change_nothing() {
-        let l = Color::new(0.3, 2.0, 0.7);
+        let l = crate::math::rgb3(0.3, 2.0, 0.7);
         assert_eq!(Sensor::identity().respond(l), l);
         let iso = Sensor::new(
             &SensorDesc {
@@ -95,7 +95,7 @@ mod tests {
             1.0,
         );
         let out = clamp.respond(l * 10.0);
-        let xyz = mat(SRGB_TO_XYZ) * out;
+        let xyz = mat(SRGB_TO_XYZ) * rgb_vec(out);
         assert!((xyz.max_element() - 1.0).abs() < 1e-5, "{xyz}");
         // The clamp keeps the colour: a scaled copy of the input.
         let k = out.y / l.y;

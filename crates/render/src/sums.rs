@@ -311,7 +311,7 @@ mod tests {
                 p.weight = 1.0 / 3.0 + i as f64;
                 if gbuffer {
                     let mut g = GBufferPixel::default();
-                    g.add(crate::math::Color::new(1.0, 2.0, 3.0), 0.5 + i as f32, None);
+                    g.add(crate::math::rgb3(1.0, 2.0, 3.0), 0.5 + i as f32, None);
                     p.gbuffer = g;
                 }
                 p.taken = if adaptive { 64 + i as u32 } else { 77 };

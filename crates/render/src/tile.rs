@@ -482,7 +482,7 @@ fn render_sppm(
                     }
                     l = Color::ZERO;
                 }
-                scene.sensor.respond(l).to_array()
+                crate::math::rgb_of(scene.sensor.respond(l))
             })
             .collect();
         results.push(TileResult {

@@ -108,7 +108,7 @@ impl FresnelTable {
     /// From at least two entries.
     pub fn new(rgb: &[[f32; 3]]) -> FresnelTable {
         assert!(rgb.len() >= 2, "a Fresnel table needs two entries");
-        FresnelTable(rgb.iter().map(|c| Color::from_array(*c)).collect())
+        FresnelTable(rgb.iter().map(|c| crate::math::rgb(*c)).collect())
     }
 
     /// The reflectance at `cos_i`, linearly interpolated.
@@ -121,7 +121,7 @@ impl FresnelTable {
 }
 
 pub fn fresnel_complex(cos_i: f32, eta: Color, k: Color) -> Color {
-    Color::new(
+    crate::math::rgb3(
         fresnel_complex_1(cos_i, eta.x, k.x),
         fresnel_complex_1(cos_i, eta.y, k.y),
         fresnel_complex_1(cos_i, eta.z, k.z),

@@ -100,8 +100,8 @@ impl HairBxdf {
 
     /// pbrt-v4's absorption from melanin concentrations (eumelanin, pheomelanin).
     pub fn sigma_a_from_melanin(eumelanin: f32, pheomelanin: f32) -> Color {
-        Color::new(0.419, 0.697, 1.37) * eumelanin.max(0.0)
-            + Color::new(0.187, 0.4, 1.05) * pheomelanin.max(0.0)
+        crate::math::rgb3(0.419, 0.697, 1.37) * eumelanin.max(0.0)
+            + crate::math::rgb3(0.187, 0.4, 1.05) * pheomelanin.max(0.0)
     }
 
     /// The absorption that gives roughly the colour `c` after multiple scattering, for
@@ -112,7 +112,7 @@ impl HairBxdf {
             + 5.574 * b.powi(4)
             + 0.245 * b.powi(5);
         let c = c.clamp(Color::splat(1e-4), Color::ONE);
-        Color::new(
+        crate::math::rgb3(
             (libm::logf(c.x) / d).powi(2),
             (libm::logf(c.y) / d).powi(2),
             (libm::logf(c.z) / d).powi(2),
@@ -142,7 +142,7 @@ impl HairBxdf {
         }
         let tf = transmittance * f;
         let rest = Color::ONE - tf;
-        ap[P_MAX] = Color::new(
+        ap[P_MAX] = crate::math::rgb3(
             if rest.x > 0.0 {
                 ap[P_MAX - 1].x * tf.x / rest.x
             } else {
@@ -458,7 +458,7 @@ mod tests {
         }
         assert!(sum.x < 0.9 && sum.x > sum.y && sum.y > sum.z, "{sum}");
         // The reflectance inversion gives back a colour's order.
-        let s = HairBxdf::sigma_a_from_reflectance(Color::new(0.8, 0.5, 0.2), 0.3);
+        let s = HairBxdf::sigma_a_from_reflectance(crate::math::rgb3(0.8, 0.5, 0.2), 0.3);
         assert!(s.x < s.y && s.y < s.z);
     }
 }

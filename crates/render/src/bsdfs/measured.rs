@@ -84,7 +84,7 @@ impl MeasuredBxdf<'_> {
     /// The reflectance table at sample point `u` seen from (phi_o, theta_o).
     fn reflectance(&self, u: Vec2, phi_o: f32, theta_o: f32) -> Color {
         let c = |k: f32| self.tables.rgb.evaluate(u, &[phi_o, theta_o, k]).max(0.0);
-        Color::new(c(0.0), c(1.0), c(2.0))
+        crate::math::rgb3(c(0.0), c(1.0), c(2.0))
     }
 
     /// The half vector's point on the warped square, seen from `wo` (upper hemisphere).

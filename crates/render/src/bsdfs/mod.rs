@@ -236,12 +236,12 @@ mod tests {
                 r: Color::splat(0.8),
             }),
             Bsdf::DiffuseTransmission(DiffuseTransmissionBxdf {
-                r: Color::new(0.2, 0.5, 0.1),
-                t: Color::new(0.6, 0.3, 0.0),
+                r: crate::math::rgb3(0.2, 0.5, 0.1),
+                t: crate::math::rgb3(0.6, 0.3, 0.0),
             }),
             Bsdf::Conductor(ConductorBxdf {
-                eta: Color::new(0.2, 0.9, 1.1),
-                k: Color::new(3.9, 2.4, 2.1),
+                eta: crate::math::rgb3(0.2, 0.9, 1.1),
+                k: crate::math::rgb3(3.9, 2.4, 2.1),
                 distrib: TrowbridgeReitz::new(0.3, 0.3),
                 table: None,
             }),

@@ -53,7 +53,7 @@ impl EmissionImage {
             }
         }
         let n = f64::from(w) * f64::from(h);
-        let mean = Color::new(
+        let mean = crate::math::rgb3(
             (sum[0] / n) as f32,
             (sum[1] / n) as f32,
             (sum[2] / n) as f32,
@@ -75,7 +75,7 @@ impl EmissionImage {
         let (dx, dy) = (x - xf, y - yf);
         let texel = |xi: i64, yi: i64| {
             let (xi, yi) = (xi.clamp(0, w - 1) as u32, yi.clamp(0, h - 1) as u32);
-            Color::new(
+            crate::math::rgb3(
                 self.image.channel(xi, yi, 0),
                 self.image.channel(xi, yi, 1),
                 self.image.channel(xi, yi, 2),

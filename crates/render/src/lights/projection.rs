@@ -65,7 +65,7 @@ impl ProjectionLight {
         let (iw, ih) = (self.image.width, self.image.height);
         let x = ((u * iw as f32) as u32).min(iw - 1);
         let y = ((v * ih as f32) as u32).min(ih - 1);
-        Color::from_array(self.image.pixels[(y * iw + x) as usize]).max(Color::ZERO) * self.scale
+        crate::math::rgb(self.image.pixels[(y * iw + x) as usize]).max(Color::ZERO) * self.scale
     }
 
     pub fn power(&self) -> f32 {

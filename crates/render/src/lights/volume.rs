@@ -375,7 +375,7 @@ mod tests {
     #[test]
     fn uniform_segments_integrate_exactly() {
         let e = VolumeInterior {
-            le: Color::new(1.0, 2.0, 3.0),
+            le: crate::math::rgb3(1.0, 2.0, 3.0),
             sigma_a: Color::ZERO,
             grid: None,
             world_to_grid: Affine3A::IDENTITY,
@@ -385,7 +385,7 @@ mod tests {
         };
         assert_eq!(
             e.segment(Vec3A::ZERO, Vec3A::X, 2.0),
-            Color::new(2.0, 4.0, 6.0)
+            crate::math::rgb3(2.0, 4.0, 6.0)
         );
         let absorbing = VolumeInterior {
             sigma_a: Color::splat(0.5),

@@ -95,13 +95,13 @@ enum Field {
 
 fn rgb_lookup(g: &Option<Box<[SampledGrid; 3]>>, p: Vec3A) -> Color {
     g.as_deref().map_or(Color::ONE, |[r, gr, b]| {
-        Color::new(r.lookup(p), gr.lookup(p), b.lookup(p))
+        crate::math::rgb3(r.lookup(p), gr.lookup(p), b.lookup(p))
     })
 }
 
 fn rgb_max_over(g: &Option<Box<[SampledGrid; 3]>>, lo: Vec3A, hi: Vec3A) -> Color {
     g.as_deref().map_or(Color::ONE, |[r, gr, b]| {
-        Color::new(r.max_over(lo, hi), gr.max_over(lo, hi), b.max_over(lo, hi))
+        crate::math::rgb3(r.max_over(lo, hi), gr.max_over(lo, hi), b.max_over(lo, hi))
     })
 }
 
@@ -290,7 +290,7 @@ impl GridMedium {
             Emission::Constant(le) => *le * s,
             Emission::Rgb(grids, scale) => {
                 let [r, g, b] = &**grids;
-                Color::new(r.lookup(p), g.lookup(p), b.lookup(p)) * (*scale * s)
+                crate::math::rgb3(r.lookup(p), g.lookup(p), b.lookup(p)) * (*scale * s)
             }
             Emission::Temperature {
                 grid,
@@ -480,8 +480,8 @@ impl GridMedium {
                     emission(t, sigma_maj, *beta * sigma_a * le);
                 }
             }
-            let p_a = sigma_a.element_sum() / (3.0 * sigma_maj);
-            let p_s = sigma_s.element_sum() / (3.0 * sigma_maj);
+            let p_a = crate::math::rgb_sum(sigma_a) / (3.0 * sigma_maj);
+            let p_s = crate::math::rgb_sum(sigma_s) / (3.0 * sigma_maj);
             let xi = choice.next_f32();
             if xi < p_a {
                 event = MediumEvent::Absorbed;
@@ -618,7 +618,7 @@ mod tests {
         let d = to_world.transform_vector3a(Vec3A::X);
         // Box x from -1 to 1: density(x) at sample centres, linear between 0.2 (x=-0.875)
         // and 0.9 (x=0.875); over [-0.75, 0.75] its mean is the midpoint value 0.55.
-        let sigma_t = Color::new(2.0, 1.5, 1.0);
+        let sigma_t = crate::math::rgb3(2.0, 1.5, 1.0);
         let exact = (-sigma_t * 0.55 * 1.5).exp();
         let runs = 20_000;
         let mut sum = Color::ZERO;

@@ -82,7 +82,7 @@ fn track(
     };
     if t < t_max {
         let tr = (-sigma_t * t).exp();
-        let density = (sigma_t * tr).element_sum() / 3.0;
+        let density = crate::math::rgb_sum(sigma_t * tr) / 3.0;
         if density <= 0.0 {
             return MediumEvent::Absorbed;
         }
@@ -96,7 +96,7 @@ fn track(
             return MediumEvent::Absorbed;
         }
         let tr = (-sigma_t * t_max).exp();
-        let p_cross = tr.element_sum() / 3.0;
+        let p_cross = crate::math::rgb_sum(tr) / 3.0;
         if p_cross <= 0.0 {
             return MediumEvent::Absorbed;
         }

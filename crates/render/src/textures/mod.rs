@@ -140,7 +140,7 @@ impl TexValue for f32 {
 fn color_from_channels(c: &[f32]) -> Color {
     match c.len() {
         1 | 2 => Color::splat(c[0]),
-        _ => Color::new(c[0], c[1], c[2]),
+        _ => crate::math::rgb3(c[0], c[1], c[2]),
     }
 }
 

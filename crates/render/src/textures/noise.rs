@@ -212,7 +212,7 @@ impl Marble {
         let t = 0.5 + 0.5 * libm::sinf(m);
         let first = ((t * 6.0).floor() as usize).min(5);
         let u = t * 6.0 - first as f32;
-        let cp = |i: usize| Color::from(MARBLE[first + i]);
+        let cp = |i: usize| crate::math::rgb(MARBLE[first + i]);
         let v = 1.0 - u;
         let rgb = cp(0) * (v * v * v)
             + cp(1) * (3.0 * v * v * u)

@@ -163,7 +163,7 @@ pub fn encode(lists: &[&[Photon]]) -> Vec<u8> {
                     out.extend_from_slice(&x.to_le_bytes());
                 }
             }
-            for x in ph.power.to_array() {
+            for x in crate::math::rgb_of(ph.power) {
                 out.extend_from_slice(&x.to_le_bytes());
             }
         }
@@ -208,7 +208,7 @@ pub fn decode(bytes: &[u8]) -> Result<Vec<Vec<Photon>>, String> {
                     p: v(0),
                     wi: v(3),
                     n: v(6),
-                    power: Color::new(f(b + 9), f(b + 10), f(b + 11)),
+                    power: crate::math::rgb3(f(b + 9), f(b + 10), f(b + 11)),
                 }
             })
             .collect();

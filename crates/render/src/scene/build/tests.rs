@@ -92,7 +92,10 @@ fn emitting_shapes_become_lights_of_their_power() {
         // pbrt-v4's "power" is per shape, and each triangle of a mesh is one: L · Φ / (π ·
         // the triangle's area) = 5 · π / (π · 0.5).
         assert!(
-            (t.radiance - Vec3A::splat(10.0)).abs().max_element() < 1e-4,
+            (t.radiance - crate::math::Color::splat(10.0))
+                .abs()
+                .max_element()
+                < 1e-4,
             "{:?}",
             t.radiance
         );
