@@ -47,6 +47,7 @@ pub mod scene;
 pub mod sensor;
 pub mod shapes;
 pub mod shared;
+pub mod spectral;
 pub mod sums;
 pub mod textures;
 pub mod tile;

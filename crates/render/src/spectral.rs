@@ -1,0 +1,224 @@
+//! Spectral rendering as pbrt-v4 does it: each camera sample carries four wavelengths, a
+//! [`Color`]'s four lanes are the path's values at them, RGB inputs become spectra where a
+//! path meets them, and the film turns each sample back into linear sRGB.
+//!
+//! - Wavelengths: pbrt-v4's visible-wavelength density (peaked near 538 nm, 360–830 nm),
+//!   a hero wavelength from one sampler dimension and three more at offsets of a quarter
+//!   in that dimension (stratified).
+//! - RGB to spectrum (pbrt-v4's three kinds): reflectances are sigmoid-quadratic spectra
+//!   bounded by 0 and 1 ([`Wavelengths::albedo`]); unbounded values are twice their
+//!   largest component times the spectrum of the colour scaled to a largest component of
+//!   ½ ([`Wavelengths::unbounded`]); light is an unbounded spectrum times the sRGB white,
+//!   D65 ([`Wavelengths::illuminant`]). The coefficients come from Kiln's own table
+//!   (`kiln_scene::sigmoid_table`).
+//! - The film: each lane's value over its wavelength's density, times the sRGB response
+//!   at that wavelength, averaged over the lanes ([`Wavelengths::to_rgb`]); negative,
+//!   out-of-gamut values are kept, as pbrt-v4's film keeps them. A reflectance under D65
+//!   light is then, in expectation, exactly the RGB the scene gave it (within the table's
+//!   2e-3).
+
+use crate::math::{Color, rgb3};
+use glam::Vec4;
+use kiln_scene::sigmoid_table::{Coefficients, SigmoidTable};
+use std::sync::OnceLock;
+
+/// The shortest and longest wavelengths sampled, nm.
+const LAMBDA_MIN: f32 = 360.0;
+const LAMBDA_MAX: f32 = 830.0;
+
+/// The sRGB response and normalised D65 at every nanometre (see
+/// `kiln_scene::spectrum::srgb_response_per_nm`), as lanes (r̄, ḡ, b̄, D65).
+fn response() -> &'static [Vec4] {
+    static TABLE: OnceLock<Vec<Vec4>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        kiln_scene::spectrum::srgb_response_per_nm()
+            .iter()
+            .map(|v| Vec4::from_array(v.map(|x| x as f32)))
+            .collect()
+    })
+}
+
+/// The response at `lambda` nm, linear between the nanometres.
+fn response_at(lambda: f32) -> Vec4 {
+    let table = response();
+    let x = (lambda - LAMBDA_MIN).clamp(0.0, (table.len() - 1) as f32);
+    let i = (x as usize).min(table.len() - 2);
+    let u = x - i as f32;
+    table[i] * (1.0 - u) + table[i + 1] * u
+}
+
+/// A path's four wavelengths and their densities.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wavelengths {
+    /// nm.
+    pub lambda: Vec4,
+    /// One over each wavelength's density.
+    pub inv_pdf: Vec4,
+    /// Each lane's reduced wavelength t = (λ − 555) / 175, as the sigmoid spectra use it.
+    t: Vec4,
+}
+
+/// pbrt-v4's visible-wavelength sampling: the wavelength at `u` in [0, 1).
+fn sample_visible(u: f32) -> f32 {
+    538.0 - 138.888_89 * libm::atanhf(0.856_910_6 - 1.827_502 * u)
+}
+
+/// Its density at `lambda` (0 outside 360–830 nm).
+fn visible_pdf(lambda: f32) -> f32 {
+    if !(LAMBDA_MIN..=LAMBDA_MAX).contains(&lambda) {
+        return 0.0;
+    }
+    let c = libm::coshf(0.0072 * (lambda - 538.0));
+    0.003_939_804 / (c * c)
+}
+
+impl Wavelengths {
+    /// Four wavelengths from one uniform number: the hero at `u`, the others at u + ¼,
+    /// u + ½ and u + ¾ (wrapped into [0, 1)).
+    pub fn sample(u: f32) -> Wavelengths {
+        let lambda = Vec4::from_array(std::array::from_fn(|i| {
+            let mut up = u + i as f32 / 4.0;
+            if up >= 1.0 {
+                up -= 1.0;
+            }
+            sample_visible(up).clamp(LAMBDA_MIN, LAMBDA_MAX)
+        }));
+        let inv_pdf = Vec4::from_array(lambda.to_array().map(|l| 1.0 / visible_pdf(l)));
+        Wavelengths {
+            lambda,
+            inv_pdf,
+            t: (lambda - Vec4::splat(555.0)) / 175.0,
+        }
+    }
+
+    /// The spectrum of sigmoid coefficients `c` at these wavelengths.
+    pub fn sigmoid(&self, c: Coefficients) -> Color {
+        if c[0].is_infinite() {
+            return Color::splat(if c[0] > 0.0 { 1.0 } else { 0.0 });
+        }
+        let z = Vec4::splat(c[0]) + self.t * (Vec4::splat(c[1]) + self.t * c[2]);
+        let root = Vec4::from_array((Vec4::ONE + z * z).to_array().map(f32::sqrt));
+        Vec4::splat(0.5) + z / (2.0 * root)
+    }
+
+    /// A reflectance (RGB clamped to [0, 1]) as a spectrum bounded by 0 and 1.
+    pub fn albedo(&self, rgb: Color) -> Color {
+        self.sigmoid(SigmoidTable::srgb().coefficients([rgb.x, rgb.y, rgb.z]))
+    }
+
+    /// A value that may exceed 1 (a scattering coefficient, an index of refraction), or
+    /// the colour of light before its white: 2·max times the spectrum of rgb / (2·max).
+    pub fn unbounded(&self, rgb: Color) -> Color {
+        let m = rgb.x.max(rgb.y).max(rgb.z);
+        if m.is_nan() || m <= 0.0 {
+            return Color::ZERO;
+        }
+        let scale = 2.0 * m;
+        let scaled = [rgb.x, rgb.y, rgb.z].map(|c| c / scale);
+        self.sigmoid(SigmoidTable::srgb().coefficients(scaled)) * scale
+    }
+
+    /// Light of RGB colour `rgb`: its unbounded spectrum times D65 (normalised so that
+    /// (1, 1, 1) is exactly the sRGB white).
+    pub fn illuminant(&self, rgb: Color) -> Color {
+        self.unbounded(rgb) * self.d65()
+    }
+
+    /// D65 at these wavelengths, normalised to ∫ D65·ȳ = 1.
+    pub fn d65(&self) -> Color {
+        Vec4::from_array(self.lambda.to_array().map(|l| response_at(l).w))
+    }
+
+    /// What the film records of radiance `l` at these wavelengths: linear sRGB (as an RGB
+    /// [`Color`]), negative lanes kept.
+    pub fn to_rgb(&self, l: Color) -> Color {
+        let weighted = l * self.inv_pdf;
+        let mut sum = Vec4::ZERO;
+        for (i, v) in weighted.to_array().into_iter().enumerate() {
+            sum += response_at(self.lambda[i]) * v;
+        }
+        let avg = sum * 0.25;
+        rgb3(avg.x, avg.y, avg.z)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rgb;
+
+    /// The mean of `f`'s film response over many stratified wavelength samples.
+    fn film_mean(f: impl Fn(&Wavelengths) -> Color) -> [f64; 3] {
+        let n = 20_000;
+        let mut sum = [0.0f64; 3];
+        for i in 0..n {
+            let w = Wavelengths::sample((i as f32 + 0.5) / n as f32);
+            let c = w.to_rgb(f(&w));
+            for k in 0..3 {
+                sum[k] += c[k] as f64;
+            }
+        }
+        sum.map(|s| s / n as f64)
+    }
+
+    /// The wavelength density integrates to 1 over 360–830 nm and inverts its sampling.
+    #[test]
+    fn visible_wavelengths_are_sampled_by_their_density() {
+        let n = 47_000;
+        let integral: f64 = (0..n)
+            .map(|i| {
+                visible_pdf(360.0 + 470.0 * (i as f32 + 0.5) / n as f32) as f64 * 470.0 / n as f64
+            })
+            .sum();
+        assert!((integral - 1.0).abs() < 2e-3, "{integral}");
+        let w = Wavelengths::sample(0.3);
+        for i in 1..4 {
+            assert!(w.lambda[i] != w.lambda[0]);
+        }
+        assert!(
+            w.lambda
+                .to_array()
+                .iter()
+                .all(|l| (360.0..=830.0).contains(l))
+        );
+    }
+
+    /// White light is white; D65 light on a reflectance gives back the reflectance's RGB;
+    /// an RGB light is its colour; a flat spectrum 1 (a white furnace's) is (1, 1, 1).
+    #[test]
+    fn the_film_gives_back_the_colours_spectra_were_made_from() {
+        let close = |got: [f64; 3], want: [f32; 3], tol: f64| {
+            for k in 0..3 {
+                assert!((got[k] - want[k] as f64).abs() < tol, "{got:?} vs {want:?}");
+            }
+        };
+        close(film_mean(|w| w.d65()), [1.0; 3], 2e-3);
+        for c in [
+            [0.8, 0.4, 0.1],
+            [0.1, 0.7, 0.2],
+            [0.2, 0.3, 0.9],
+            [0.5, 0.5, 0.5],
+        ] {
+            close(film_mean(|w| w.albedo(rgb(c)) * w.d65()), c, 4e-3);
+            close(film_mean(|w| w.illuminant(rgb(c))), c, 4e-3);
+            let big = c.map(|v| 7.0 * v);
+            close(film_mean(|w| w.illuminant(rgb(big))), big, 3e-2);
+        }
+        close(film_mean(|w| w.illuminant(rgb([1.0; 3]))), [1.0; 3], 2e-3);
+    }
+
+    /// Spectra are lane-wise: the four wavelengths' values are each a function of their
+    /// own wavelength, and reflectances stay within [0, 1].
+    #[test]
+    fn albedo_spectra_are_bounded_and_lane_wise() {
+        let w = Wavelengths::sample(0.61);
+        let c = rgb([0.9, 0.05, 0.3]);
+        let s = w.albedo(c);
+        assert!(s.cmpge(Vec4::ZERO).all() && s.cmple(Vec4::ONE).all(), "{s}");
+        let coeffs = SigmoidTable::srgb().coefficients([0.9, 0.05, 0.3]);
+        for i in 0..4 {
+            let one = kiln_scene::sigmoid_table::evaluate(coeffs, w.lambda[i]);
+            assert!((s[i] - one).abs() < 1e-5, "{} vs {one}", s[i]);
+        }
+    }
+}
