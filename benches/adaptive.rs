@@ -36,6 +36,7 @@ fn main() {
             spp: Some(spp),
             seed: Some(seed),
             noise_threshold: Some(threshold.unwrap_or(0.0)),
+            ..Default::default()
         })
         .unwrap();
         desc.sampler.min_samples = min_samples;

@@ -21,7 +21,9 @@ const CRATES: [&str; 5] = ["scene", "render", "image", "farm", "cli"];
 /// kiln-render's top-level modules from the bottom up, as ARCHITECTURE.md lists them: a
 /// module uses only modules of lower layers.
 const RENDER_LAYERS: &[&[&str]] = &[
-    &["math", "work", "rect", "motion", "sampling", "shared"],
+    &[
+        "math", "work", "rect", "motion", "sampling", "shared", "spectral",
+    ],
     &["textures", "phase", "filter", "sensor", "gbuffer"],
     &["shapes", "bsdfs", "sums"],
     &["nesting", "materials", "media", "lens", "adaptive"],
@@ -36,6 +38,8 @@ const NEVER: &[(&str, &str, &str)] = &[
     // sampling/ and math.rs know nothing else in the crate.
     ("render", "sampling", "*"),
     ("render", "math", "*"),
+    // spectral.rs knows nothing else in the crate either.
+    ("render", "spectral", "*"),
     // Textures know nothing of materials or lights.
     ("render", "textures", "materials"),
     ("render", "textures", "lights"),

@@ -466,7 +466,7 @@ fn grid_emitted_power(medium: &kiln_render::media::Medium) -> f64 {
 
 /// Kiln's luminance of linear sRGB.
 fn luminance_f64(rgb: [f64; 3]) -> f64 {
-    let c = kiln_render::math::Color::new(rgb[0] as f32, rgb[1] as f32, rgb[2] as f32);
+    let c = kiln_render::math::rgb3(rgb[0] as f32, rgb[1] as f32, rgb[2] as f32);
     kiln_render::math::luminance(c) as f64
 }
 

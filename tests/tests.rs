@@ -20,6 +20,7 @@ mod reference;
 mod revolution;
 mod sensor;
 mod shapes;
+mod spectral;
 mod subsurface;
 mod textures;
 mod volume_light;

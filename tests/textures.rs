@@ -51,14 +51,14 @@ fn shade_at(scene: &Scene, x: f32, y: f32) -> (kiln_render::shapes::SurfaceHit, 
         .geometry
         .intersect(&ray, f32::INFINITY)
         .expect("a hit");
-    let bsdf = scene.bsdf(&mut hit, 1.0);
+    let bsdf = scene.bsdf(&mut hit, 1.0, None);
     (hit, bsdf)
 }
 
 /// The diffuse reflectance the scene's material has where a ray down -z meets (x, y).
 fn reflectance_at(scene: &Scene, x: f32, y: f32) -> Vec3A {
     match shade_at(scene, x, y).1 {
-        Some(Bsdf::Diffuse(d)) => d.r,
+        Some(Bsdf::Diffuse(d)) => kiln_render::math::rgb_vec(d.r),
         other => panic!("expected a diffuse BSDF, got {other:?}"),
     }
 }

@@ -27,6 +27,14 @@ pub struct RenderArgs {
     /// this (default: the scene's Sampler "noisethreshold"; 0 turns it off).
     #[arg(long, allow_hyphen_values = true)]
     noise_threshold: Option<f32>,
+    /// Render spectrally: four wavelengths per camera sample, colours as spectra, as
+    /// pbrt-v4 renders (default: the scene's Option "kiln.spectral", or RGB). Not yet for
+    /// media, VolumeLights, photon maps, SPPM, hair, measured materials or G-buffers.
+    #[arg(long, conflicts_with = "rgb")]
+    spectral: bool,
+    /// Render in RGB even where the scene asks for spectral rendering.
+    #[arg(long)]
+    rgb: bool,
     /// Resolution as WIDTHxHEIGHT (default: the scene's Film).
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<(u32, u32)>,
@@ -169,6 +177,13 @@ fn load(args: &RenderArgs) -> Result<(kiln_scene::SceneDescription, Renderer)> {
         spp: args.spp,
         seed: args.seed,
         noise_threshold: args.noise_threshold,
+        spectral: if args.spectral {
+            Some(true)
+        } else if args.rgb {
+            Some(false)
+        } else {
+            None
+        },
     })
     .map_err(anyhow::Error::msg)?;
     desc.check_frame_size(args.max_frame_pixels)

@@ -56,6 +56,7 @@ impl JobSpec {
                 .or_else(|| self.passes.as_ref().and_then(|p| p.last().copied())),
             seed: self.seed,
             noise_threshold: None,
+            spectral: None,
         }
     }
 }

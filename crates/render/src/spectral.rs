@@ -1,6 +1,9 @@
 //! Spectral rendering as pbrt-v4 does it: each camera sample carries four wavelengths, a
-//! [`Color`]'s four lanes are the path's values at them, RGB inputs become spectra where a
+//! `Color`'s four lanes are the path's values at them, RGB inputs become spectra where a
 //! path meets them, and the film turns each sample back into linear sRGB.
+//!
+//! This module knows nothing else in the crate: a colour here is the [`Vec4`] that
+//! `math::Color` is (an RGB colour's fourth lane repeating green).
 //!
 //! - Wavelengths: pbrt-v4's visible-wavelength density (peaked near 538 nm, 360–830 nm),
 //!   a hero wavelength from one sampler dimension and three more at offsets of a quarter
@@ -17,7 +20,6 @@
 //!   light is then, in expectation, exactly the RGB the scene gave it (within the table's
 //!   2e-3).
 
-use crate::math::{Color, rgb3};
 use glam::Vec4;
 use kiln_scene::sigmoid_table::{Coefficients, SigmoidTable};
 use std::sync::OnceLock;
@@ -92,9 +94,9 @@ impl Wavelengths {
     }
 
     /// The spectrum of sigmoid coefficients `c` at these wavelengths.
-    pub fn sigmoid(&self, c: Coefficients) -> Color {
+    pub fn sigmoid(&self, c: Coefficients) -> Vec4 {
         if c[0].is_infinite() {
-            return Color::splat(if c[0] > 0.0 { 1.0 } else { 0.0 });
+            return Vec4::splat(if c[0] > 0.0 { 1.0 } else { 0.0 });
         }
         let z = Vec4::splat(c[0]) + self.t * (Vec4::splat(c[1]) + self.t * c[2]);
         let root = Vec4::from_array((Vec4::ONE + z * z).to_array().map(f32::sqrt));
@@ -102,16 +104,16 @@ impl Wavelengths {
     }
 
     /// A reflectance (RGB clamped to [0, 1]) as a spectrum bounded by 0 and 1.
-    pub fn albedo(&self, rgb: Color) -> Color {
+    pub fn albedo(&self, rgb: Vec4) -> Vec4 {
         self.sigmoid(SigmoidTable::srgb().coefficients([rgb.x, rgb.y, rgb.z]))
     }
 
     /// A value that may exceed 1 (a scattering coefficient, an index of refraction), or
     /// the colour of light before its white: 2·max times the spectrum of rgb / (2·max).
-    pub fn unbounded(&self, rgb: Color) -> Color {
+    pub fn unbounded(&self, rgb: Vec4) -> Vec4 {
         let m = rgb.x.max(rgb.y).max(rgb.z);
         if m.is_nan() || m <= 0.0 {
-            return Color::ZERO;
+            return Vec4::ZERO;
         }
         let scale = 2.0 * m;
         let scaled = [rgb.x, rgb.y, rgb.z].map(|c| c / scale);
@@ -120,25 +122,61 @@ impl Wavelengths {
 
     /// Light of RGB colour `rgb`: its unbounded spectrum times D65 (normalised so that
     /// (1, 1, 1) is exactly the sRGB white).
-    pub fn illuminant(&self, rgb: Color) -> Color {
+    pub fn illuminant(&self, rgb: Vec4) -> Vec4 {
         self.unbounded(rgb) * self.d65()
     }
 
     /// D65 at these wavelengths, normalised to ∫ D65·ȳ = 1.
-    pub fn d65(&self) -> Color {
+    pub fn d65(&self) -> Vec4 {
         Vec4::from_array(self.lambda.to_array().map(|l| response_at(l).w))
     }
 
     /// What the film records of radiance `l` at these wavelengths: linear sRGB (as an RGB
-    /// [`Color`]), negative lanes kept.
-    pub fn to_rgb(&self, l: Color) -> Color {
+    /// `Color`), negative lanes kept.
+    pub fn to_rgb(&self, l: Vec4) -> Vec4 {
         let weighted = l * self.inv_pdf;
         let mut sum = Vec4::ZERO;
         for (i, v) in weighted.to_array().into_iter().enumerate() {
             sum += response_at(self.lambda[i]) * v;
         }
         let avg = sum * 0.25;
-        rgb3(avg.x, avg.y, avg.z)
+        Vec4::new(avg.x, avg.y, avg.z, avg.y)
+    }
+}
+
+/// A spectrum tabulated every nanometre from 360 to 830 nm: a scene's piecewise-linear
+/// spectrum resampled (its end values held beyond its ends, as pbrt-v4 extends its named
+/// spectra), read at a path's wavelengths by linear interpolation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DenseSpectrum(Vec<f32>);
+
+impl DenseSpectrum {
+    /// From (wavelength nm, value) pairs in increasing wavelength (at least one).
+    pub fn new(pairs: &[(f32, f32)]) -> DenseSpectrum {
+        assert!(!pairs.is_empty(), "a spectrum needs a sample");
+        let at = |l: f32| {
+            let j = pairs.partition_point(|p| p.0 <= l);
+            if j == 0 {
+                return pairs[0].1;
+            }
+            if j == pairs.len() {
+                return pairs[j - 1].1;
+            }
+            let ((l0, v0), (l1, v1)) = (pairs[j - 1], pairs[j]);
+            v0 + (v1 - v0) * (l - l0) / (l1 - l0)
+        };
+        let n = (LAMBDA_MAX - LAMBDA_MIN) as usize;
+        DenseSpectrum((0..=n).map(|i| at(LAMBDA_MIN + i as f32)).collect())
+    }
+
+    /// The spectrum at `waves`' wavelengths.
+    pub fn at(&self, waves: &Wavelengths) -> Vec4 {
+        Vec4::from_array(waves.lambda.to_array().map(|l| {
+            let x = (l - LAMBDA_MIN).clamp(0.0, (self.0.len() - 1) as f32);
+            let i = (x as usize).min(self.0.len() - 2);
+            let u = x - i as f32;
+            self.0[i] * (1.0 - u) + self.0[i + 1] * u
+        }))
     }
 }
 
@@ -148,7 +186,7 @@ mod tests {
     use crate::math::rgb;
 
     /// The mean of `f`'s film response over many stratified wavelength samples.
-    fn film_mean(f: impl Fn(&Wavelengths) -> Color) -> [f64; 3] {
+    fn film_mean(f: impl Fn(&Wavelengths) -> Vec4) -> [f64; 3] {
         let n = 20_000;
         let mut sum = [0.0f64; 3];
         for i in 0..n {

@@ -12,6 +12,7 @@ use crate::rect::TileRect;
 use crate::sampling::PixelSampler;
 use crate::scene::{BuildError, MediaPolicy, Scene};
 use crate::shared::SharedPrepass;
+use crate::spectral::Wavelengths;
 use crate::sums::{PixelSums, SumsLayout, TileSums};
 use crate::work::Work;
 use glam::Vec2;
@@ -36,6 +37,9 @@ pub struct RenderSettings {
     /// Adaptive sampling: a pixel stops taking samples once its own estimate is good
     /// enough (the scene's Sampler `noisethreshold`), or None.
     pub adaptive: Option<Adaptive>,
+    /// Spectral rendering: each camera sample carries four wavelengths (see
+    /// [`crate::spectral`]); otherwise RGB.
+    pub spectral: bool,
 }
 
 impl RenderSettings {
@@ -70,7 +74,36 @@ impl RenderSettings {
             gbuffer: desc.film.gbuffer,
             footprint_spp: None,
             adaptive: Adaptive::of(&desc.sampler),
+            spectral: desc.spectral,
         }
+    }
+}
+
+/// What a scene or its settings hold that spectral rendering does not render yet, if
+/// anything: those parts still compute in RGB, and a spectral path through them would be
+/// wrong rather than approximate.
+fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static str> {
+    use crate::materials::Model;
+    let path = match &settings.integrator {
+        Integrator::Path(p) | Integrator::VolPath(p) => p,
+        Integrator::Sppm(_) => return Some("the 'sppm' integrator"),
+    };
+    if path.photons != kiln_scene::PhotonDesc::NONE {
+        Some("photon maps")
+    } else if !scene.media.is_empty() {
+        Some("participating media and subsurface materials")
+    } else if !scene.volumes.is_empty() {
+        Some("VolumeLights")
+    } else if settings.gbuffer.is_some() {
+        Some("a G-buffer film")
+    } else if scene
+        .materials
+        .iter()
+        .any(|m| matches!(m.model, Model::Hair(_) | Model::Measured(_)))
+    {
+        Some("hair and measured materials")
+    } else {
+        None
     }
 }
 
@@ -120,6 +153,16 @@ impl Renderer {
             });
         }
         let scene = Scene::build(desc, media)?;
+        if settings.spectral
+            && let Some(what) = not_yet_spectral(&scene, &settings)
+        {
+            return Err(BuildError::Unsupported {
+                loc: desc.integrator.loc.clone(),
+                message: format!(
+                    "spectral rendering does not handle {what} yet; render this scene in RGB (without --spectral or Option \"kiln.spectral\")"
+                ),
+            });
+        }
         Ok(Renderer::new_sharing(scene, settings, shared))
     }
 
@@ -506,6 +549,8 @@ struct CameraSample {
     time: f32,
     weight: f32,
     ray: Option<(crate::math::Ray, f32)>,
+    /// The sample's wavelengths in spectral mode.
+    waves: Option<Wavelengths>,
 }
 
 fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) -> CameraSample {
@@ -522,6 +567,11 @@ fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) -> CameraSamp
     } else {
         0.0
     };
+    // Its wavelengths, from a dimension of their own too.
+    let waves = renderer
+        .settings
+        .spectral
+        .then(|| Wavelengths::sample(sampler.value(WAVELENGTH_DIMENSION)));
     CameraSample {
         sampler,
         film,
@@ -529,6 +579,7 @@ fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) -> CameraSamp
         time,
         weight,
         ray: scene.camera.generate_weighted_ray_at(film, lens, time),
+        waves,
     }
 }
 
@@ -604,6 +655,9 @@ fn add_samples(
 /// The sampler dimension a camera sample's time comes from: far from the path's own.
 const TIME_DIMENSION: u32 = 0x4000_0000;
 
+/// The sampler dimension a camera sample's wavelengths come from, beside its time's.
+const WAVELENGTH_DIMENSION: u32 = 0x4000_0001;
+
 /// One camera sample: its radiance (zeroed if not finite) and filter weight. (SPPM has no
 /// estimate from one camera sample: it gives black; its pixels come from [`render_tile`].)
 pub fn render_sample(
@@ -636,6 +690,7 @@ fn render_sample_seeing(
         time,
         weight,
         ray,
+        waves,
     } = camera_sample(renderer, x, y, sample);
     let mut work = Work::default();
     // A realistic camera's lens may stop the ray (the sample counts, black) and weighs it.
@@ -649,6 +704,7 @@ fn render_sample_seeing(
                 &mut sampler,
                 &mut work,
                 gbuffer.is_some().then_some(&mut seen),
+                waves,
             ) * camera_weight;
             if let (Some(space), Some(s)) = (gbuffer, seen.as_mut()) {
                 *s = seen_from_camera(renderer, s, &ray, film, lens, time, space);
@@ -657,6 +713,10 @@ fn render_sample_seeing(
         }
         None => Color::ZERO,
     };
+    // The film records a spectral sample as linear sRGB.
+    if let Some(w) = &waves {
+        l = w.to_rgb(l);
+    }
     stats.samples += 1;
     stats.rays += work.rays;
     if work.cut_walks > 0 {

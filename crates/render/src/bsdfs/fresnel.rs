@@ -120,11 +120,21 @@ impl FresnelTable {
     }
 }
 
+/// The Fresnel reflectance of each lane's complex index. An RGB colour's fourth lane (a copy
+/// of the second) is copied, not computed again; a spectral lane equal to the second has the
+/// same value anyway.
 pub fn fresnel_complex(cos_i: f32, eta: Color, k: Color) -> Color {
-    crate::math::rgb3(
+    let y = fresnel_complex_1(cos_i, eta.y, k.y);
+    let w = if eta.w == eta.y && k.w == k.y {
+        y
+    } else {
+        fresnel_complex_1(cos_i, eta.w, k.w)
+    };
+    Color::new(
         fresnel_complex_1(cos_i, eta.x, k.x),
-        fresnel_complex_1(cos_i, eta.y, k.y),
+        y,
         fresnel_complex_1(cos_i, eta.z, k.z),
+        w,
     )
 }
 

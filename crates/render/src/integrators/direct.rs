@@ -7,6 +7,7 @@ use crate::math::{Color, Ray, offset_origin};
 use crate::sampling::{PixelSampler, TrackingRng, power_heuristic};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
+use crate::spectral::Wavelengths;
 use crate::work::Work;
 use glam::Vec3A;
 use kiln_scene::LightStrategy;
@@ -60,6 +61,8 @@ pub(super) struct Vertex<'a> {
     /// The path's last scattering (maxdepth reached): as in pbrt-v4, the segment after it
     /// counts no medium emission, so light sampling skips emissive media here too.
     pub last: bool,
+    /// The path's wavelengths in spectral mode (None: RGB).
+    pub waves: Option<&'a Wavelengths>,
 }
 
 impl Vertex<'_> {
@@ -149,12 +152,16 @@ pub(super) fn sample_direct(
         return Color::ZERO;
     }
     let light_pdf = pmf * ls.pdf;
+    let radiance = match v.waves {
+        None => ls.radiance,
+        Some(w) => w.illuminant(ls.radiance),
+    };
     if ls.delta {
-        return f * tr * ls.radiance / light_pdf;
+        return f * tr * radiance / light_pdf;
     }
     let w = match settings.strategy {
         LightStrategy::Mis => power_heuristic(light_pdf, pdf(ls.wi) * ls.scatter_rate),
         _ => 1.0,
     };
-    f * tr * ls.radiance * (w / light_pdf)
+    f * tr * radiance * (w / light_pdf)
 }

@@ -218,6 +218,7 @@ impl Integrator {
         sampler: &mut PixelSampler,
         work: &mut Work,
         visible: Option<&mut Option<crate::gbuffer::VisibleSurface>>,
+        waves: Option<crate::spectral::Wavelengths>,
     ) -> Color {
         match self {
             // The path tracer is the volumetric one; without media in the scene its medium
@@ -228,6 +229,7 @@ impl Integrator {
                     settings,
                     prepass,
                     footprint,
+                    waves,
                 };
                 path::path_li(&ctx, ray, sampler, work, visible)
             }

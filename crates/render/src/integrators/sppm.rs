@@ -140,7 +140,7 @@ pub fn camera_pass<'a>(
             state.ld += beta * le;
         }
         let mut shaded = hit;
-        let Some(bsdf) = scene.bsdf_nested(&mut shaded, 1.0, &nesting, ray.dir) else {
+        let Some(bsdf) = scene.bsdf_nested(&mut shaded, 1.0, None, &nesting, ray.dir) else {
             // An interface: straight on, without counting a bounce.
             if !pass_through(
                 scene,
@@ -167,6 +167,7 @@ pub fn camera_pass<'a>(
                     medium,
                     time: ray.time,
                     last: false,
+                    waves: None,
                 };
                 let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
                 let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
@@ -289,7 +290,7 @@ fn trace_photon(
         let Some(mut hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
             return;
         };
-        let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, &nesting, ray.dir) else {
+        let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, None, &nesting, ray.dir) else {
             // SPPM renders no media: the medium an interface leads to is not followed.
             if !pass_through(
                 scene,

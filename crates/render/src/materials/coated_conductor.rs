@@ -39,11 +39,20 @@ impl CoatedConductorMaterial {
         // Inside the coat the conductor meets a medium of index interface_eta: pbrt-v4
         // divides its eta and k by it (and the spectral table was made so).
         let (eta, k, table) = match &self.conductor {
-            ConductorSpec::EtaK { eta, k, table } => {
-                (eta.evaluate(ctx), k.evaluate(ctx), table.as_deref())
+            // The table is RGB: a spectral path takes eta and k at its wavelengths.
+            ConductorSpec::EtaK {
+                eta,
+                k,
+                table,
+                spectra,
+            } => {
+                let (eta, k) = super::conductor::eta_k(eta, k, spectra.as_deref(), ctx);
+                (eta, k, table.as_deref().filter(|_| ctx.waves.is_none()))
             }
             ConductorSpec::Reflectance(r) => {
-                let r = r.evaluate(ctx).clamp(Color::ZERO, Color::splat(0.9999));
+                let r = ctx
+                    .reflectance(r.evaluate(ctx))
+                    .clamp(Color::ZERO, Color::splat(0.9999));
                 (
                     Color::ONE,
                     2.0 * r.powf(0.5) / (Color::ONE - r).powf(0.5),

@@ -46,10 +46,11 @@ impl CoatedDiffuseMaterial {
             eta: self.eta,
             distrib: self.roughness.distribution(ctx),
         };
-        let r = self
-            .reflectance
-            .evaluate(ctx)
-            .clamp(Color::ZERO, Color::ONE);
+        let r = ctx.reflectance(
+            self.reflectance
+                .evaluate(ctx)
+                .clamp(Color::ZERO, Color::ONE),
+        );
         Bsdf::Layered(self.layer.bxdf(top, Base::Diffuse(DiffuseBxdf { r }), ctx))
     }
 }

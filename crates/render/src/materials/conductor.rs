@@ -4,6 +4,7 @@
 use super::RoughnessTexture;
 use crate::bsdfs::{Bsdf, ConductorBxdf, FresnelTable};
 use crate::math::Color;
+use crate::spectral::DenseSpectrum;
 use crate::textures::{SpectrumTexture, TextureEvalContext};
 use std::sync::Arc;
 
@@ -15,8 +16,27 @@ pub enum ConductorSpec {
         /// The spectral Fresnel reflectance, when eta and k were given as spectra (and
         /// so are constant).
         table: Option<Arc<FresnelTable>>,
+        /// Those spectra (eta, k), which a spectral path reads at its wavelengths.
+        spectra: Option<Arc<[DenseSpectrum; 2]>>,
     },
     Reflectance(SpectrumTexture),
+}
+
+/// A conductor's eta and k, given as such, as the path sees them: RGB, or spectra at its
+/// wavelengths (the scene's own spectra where it gave them, else the RGB upsampled).
+pub fn eta_k(
+    eta: &SpectrumTexture,
+    k: &SpectrumTexture,
+    spectra: Option<&[DenseSpectrum; 2]>,
+    ctx: &TextureEvalContext,
+) -> (Color, Color) {
+    match (&ctx.waves, spectra) {
+        (Some(w), Some(s)) => (s[0].at(w), s[1].at(w)),
+        _ => (
+            ctx.unbounded(eta.evaluate(ctx)),
+            ctx.unbounded(k.evaluate(ctx)),
+        ),
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -51,15 +71,22 @@ impl ConductorMaterial {
     fn bxdf(&self, ctx: &TextureEvalContext) -> ConductorBxdf<'static> {
         let distrib = self.roughness.distribution(ctx);
         match &self.spec {
-            ConductorSpec::EtaK { eta, k, .. } => ConductorBxdf {
-                eta: eta.evaluate(ctx),
-                k: k.evaluate(ctx),
-                distrib,
-                table: None,
-            },
+            ConductorSpec::EtaK {
+                eta, k, spectra, ..
+            } => {
+                let (eta, k) = eta_k(eta, k, spectra.as_deref(), ctx);
+                ConductorBxdf {
+                    eta,
+                    k,
+                    distrib,
+                    table: None,
+                }
+            }
             // pbrt-v4: a conductor of reflectance r has eta = 1 and k = 2 sqrt(r) / sqrt(1 - r).
             ConductorSpec::Reflectance(r) => {
-                let r = r.evaluate(ctx).clamp(Color::ZERO, Color::splat(0.9999));
+                let r = ctx
+                    .reflectance(r.evaluate(ctx))
+                    .clamp(Color::ZERO, Color::splat(0.9999));
                 ConductorBxdf {
                     eta: Color::ONE,
                     k: 2.0 * r.powf(0.5) / (Color::ONE - r).powf(0.5),
@@ -75,6 +102,11 @@ impl ConductorMaterial {
     }
 
     pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'_> {
+        // The fixed BxDF and the table are RGB: a spectral path makes its own, at its
+        // wavelengths.
+        if ctx.waves.is_some() {
+            return Bsdf::Conductor(self.bxdf(ctx));
+        }
         let mut b: ConductorBxdf<'_> = self.fixed.unwrap_or_else(|| self.bxdf(ctx));
         if let ConductorSpec::EtaK { table, .. } = &self.spec {
             b.table = table.as_deref();

@@ -12,10 +12,11 @@ pub struct DiffuseMaterial {
 impl DiffuseMaterial {
     pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         Bsdf::Diffuse(DiffuseBxdf {
-            r: self
-                .reflectance
-                .evaluate(ctx)
-                .clamp(Color::ZERO, Color::ONE),
+            r: ctx.reflectance(
+                self.reflectance
+                    .evaluate(ctx)
+                    .clamp(Color::ZERO, Color::ONE),
+            ),
         })
     }
 }

@@ -20,8 +20,8 @@ impl DiffuseTransmissionMaterial {
     pub fn bsdf(&self, ctx: &TextureEvalContext) -> Bsdf<'static> {
         let clamp = |c: Color| (c * self.scale).clamp(Color::ZERO, Color::ONE);
         Bsdf::DiffuseTransmission(DiffuseTransmissionBxdf {
-            r: clamp(self.reflectance.evaluate(ctx)),
-            t: clamp(self.transmittance.evaluate(ctx)),
+            r: ctx.reflectance(clamp(self.reflectance.evaluate(ctx))),
+            t: ctx.reflectance(clamp(self.transmittance.evaluate(ctx))),
         })
     }
 }

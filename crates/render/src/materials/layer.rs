@@ -43,7 +43,7 @@ impl Layer {
             top,
             bottom,
             thickness: self.thickness.evaluate(ctx).max(f32::MIN_POSITIVE),
-            albedo: self.albedo.evaluate(ctx).clamp(Color::ZERO, Color::ONE),
+            albedo: ctx.reflectance(self.albedo.evaluate(ctx).clamp(Color::ZERO, Color::ONE)),
             g: self.g.evaluate(ctx).clamp(-0.99, 0.99),
             max_depth: self.max_depth,
             n_samples: self.n_samples,

@@ -132,6 +132,7 @@ impl Model {
                     eta: textures.rgb_value(eta),
                     k: textures.rgb_value(k),
                     table: fresnel_table(spectra.as_deref(), 1.0)?,
+                    spectra: dense_spectra(spectra.as_deref()),
                 },
                 rough(roughness),
             )),
@@ -171,6 +172,7 @@ impl Model {
                         eta: textures.rgb_value(conductor_eta),
                         k: textures.rgb_value(conductor_k),
                         table: fresnel_table(conductor_spectra.as_deref(), *interface_eta)?,
+                        spectra: dense_spectra(conductor_spectra.as_deref()),
                     },
                 },
                 conductor_roughness: rough(conductor_roughness),
@@ -266,6 +268,19 @@ impl Model {
 
 /// The spectral Fresnel table of a conductor given spectra, seen from a medium of index
 /// `outside_eta`.
+/// A conductor's eta and k spectra tabulated for spectral paths.
+fn dense_spectra(
+    spectra: Option<&kiln_scene::ConductorSpectra>,
+) -> Option<std::sync::Arc<[crate::spectral::DenseSpectrum; 2]>> {
+    let s = spectra?;
+    (!s.eta.is_empty() && !s.k.is_empty()).then(|| {
+        std::sync::Arc::new([
+            crate::spectral::DenseSpectrum::new(&s.eta),
+            crate::spectral::DenseSpectrum::new(&s.k),
+        ])
+    })
+}
+
 fn fresnel_table(
     spectra: Option<&kiln_scene::ConductorSpectra>,
     outside_eta: f32,

@@ -20,6 +20,7 @@ use crate::media::subsurface::{TexturedInterior, Walk};
 use crate::nesting::{Crossing, NestedShape, Nesting};
 use crate::sampling::TrackingRng;
 use crate::shapes::{Geometry, SurfaceHit};
+use crate::spectral::Wavelengths;
 use crate::textures::TextureEvalContext;
 use crate::work::Work;
 use glam::Vec3A;
@@ -73,10 +74,16 @@ pub struct Scene {
 impl Scene {
     /// The BSDF of the surface at `hit`; None for an interface. A textured material is
     /// evaluated with the hit's footprint as the camera sees it, scaled by `footprint`; a
-    /// bump or normal map replaces the hit's shading normal and dp/du.
-    pub fn bsdf(&self, hit: &mut SurfaceHit, footprint: f32) -> Option<Bsdf<'_>> {
+    /// bump or normal map replaces the hit's shading normal and dp/du. With `waves`, its
+    /// colours are spectra at those wavelengths.
+    pub fn bsdf(
+        &self,
+        hit: &mut SurfaceHit,
+        footprint: f32,
+        waves: Option<&Wavelengths>,
+    ) -> Option<Bsdf<'_>> {
         let mut material = &self.materials[hit.surface.material as usize];
-        let ctx = if material.is_textured() {
+        let mut ctx = if material.is_textured() {
             let (dpdx, dpdy) = self.camera.approximate_dp_dxy(hit.p, hit.ng, footprint);
             TextureEvalContext::with_footprint(
                 hit.p, hit.ng, hit.uv, hit.dpdu, hit.dpdv, dpdx, dpdy,
@@ -84,6 +91,7 @@ impl Scene {
         } else {
             TextureEvalContext::default()
         };
+        ctx.waves = waves.copied();
         // A mix material stands for one of two materials at each point (mixes may nest;
         // they refer only to materials defined before them, so this ends).
         while let Model::Mix(mix) = &material.model {
@@ -228,12 +236,13 @@ impl Scene {
         &self,
         hit: &mut SurfaceHit,
         footprint: f32,
+        waves: Option<&Wavelengths>,
         nesting: &Nesting,
         dir: Vec3A,
     ) -> Option<Bsdf<'_>> {
         match hit.surface.nest {
-            None => self.bsdf(hit, footprint),
-            Some(id) => self.nested_bsdf(id, hit, footprint, nesting, dir),
+            None => self.bsdf(hit, footprint, waves),
+            Some(id) => self.nested_bsdf(id, hit, footprint, waves, nesting, dir),
         }
     }
 
@@ -244,12 +253,13 @@ impl Scene {
         id: u32,
         hit: &mut SurfaceHit,
         footprint: f32,
+        waves: Option<&Wavelengths>,
         nesting: &Nesting,
         dir: Vec3A,
     ) -> Option<Bsdf<'_>> {
         match nesting.crossing(&self.nested, id, hit, dir) {
             Crossing::Through => None,
-            Crossing::Interface { eta } => match self.bsdf(hit, footprint) {
+            Crossing::Interface { eta } => match self.bsdf(hit, footprint, waves) {
                 Some(Bsdf::Dielectric(d)) => Some(Bsdf::Dielectric(DielectricBxdf { eta, ..d })),
                 // An interface between media of different indices refracts, smoothly.
                 _ => Some(Bsdf::Dielectric(DielectricBxdf {

@@ -22,6 +22,7 @@ pub mod mipmap;
 pub mod noise;
 
 use crate::math::{Color, rgb};
+use crate::spectral::Wavelengths;
 use glam::{Vec2, Vec3A};
 use kiln_scene::{
     FloatTextureDesc, FloatValue, RgbValue, SpectrumTextureDesc, TextureDesc, TextureKind,
@@ -48,6 +49,8 @@ pub struct TextureEvalContext {
     pub dudy: f32,
     pub dvdx: f32,
     pub dvdy: f32,
+    /// The path's wavelengths in spectral mode (None: RGB), which colours become spectra at.
+    pub waves: Option<Wavelengths>,
 }
 
 impl TextureEvalContext {
@@ -85,6 +88,27 @@ impl TextureEvalContext {
             dvdx: tidy((a00 * b1x - a01 * b0x) * inv_det),
             dudy: tidy((a11 * b0y - a01 * b1y) * inv_det),
             dvdy: tidy((a00 * b1y - a01 * b0y) * inv_det),
+            waves: None,
+        }
+    }
+
+    /// A reflectance a texture gave in RGB, as the path sees it: that RGB, or its bounded
+    /// spectrum at the path's wavelengths.
+    #[inline]
+    pub fn reflectance(&self, rgb: Color) -> Color {
+        match &self.waves {
+            None => rgb,
+            Some(w) => w.albedo(rgb),
+        }
+    }
+
+    /// An unbounded value (an index of refraction, an absorption) a texture gave in RGB,
+    /// as the path sees it.
+    #[inline]
+    pub fn unbounded(&self, rgb: Color) -> Color {
+        match &self.waves {
+            None => rgb,
+            Some(w) => w.unbounded(rgb),
         }
     }
 }

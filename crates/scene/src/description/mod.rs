@@ -30,6 +30,9 @@ pub use crate::spectrum::Rgb;
 /// A whole scene: camera and film settings, materials, shapes and lights.
 #[derive(Debug, Clone)]
 pub struct SceneDescription {
+    /// Render spectrally (four wavelengths per camera sample) rather than in RGB: Kiln's
+    /// `Option "kiln.spectral" true`, or `kiln render --spectral`.
+    pub spectral: bool,
     pub camera: CameraDesc,
     pub film: FilmDesc,
     pub sampler: SamplerDesc,
@@ -64,6 +67,8 @@ pub struct Overrides {
     pub seed: Option<u32>,
     /// Adaptive sampling's threshold; 0 turns it off.
     pub noise_threshold: Option<f32>,
+    /// Spectral (true) or RGB (false) rendering.
+    pub spectral: Option<bool>,
 }
 
 impl SceneDescription {
@@ -126,6 +131,9 @@ impl SceneDescription {
                 ));
             }
             self.sampler.noise_threshold = (t > 0.0).then_some(t);
+        }
+        if let Some(spectral) = o.spectral {
+            self.spectral = spectral;
         }
         Ok(())
     }

@@ -102,6 +102,8 @@ struct Parser {
     transform_times: [f64; 2],
     /// pbrt-v4's `Option "seed"`: the sampler's seed where the Sampler gives none.
     option_seed: Option<u32>,
+    /// Kiln's `Option "kiln.spectral"`.
+    option_spectral: bool,
     /// The Sampler directive gave a "seed".
     sampler_seed_given: bool,
     /// Named coordinate systems: the transforms at the shutter's start and end.
@@ -163,6 +165,7 @@ impl Parser {
             warned_transform_begin: false,
             transform_times: [0.0, 1.0],
             option_seed: None,
+            option_spectral: false,
             sampler_seed_given: false,
             named_coordinate_systems: HashMap::new(),
             in_world: false,
@@ -531,6 +534,7 @@ impl Parser {
             loc: Loc::synthetic("default film"),
         });
         Ok(SceneDescription {
+            spectral: self.option_spectral,
             camera,
             film,
             sampler: {

@@ -61,6 +61,15 @@ impl Parser {
                 loc,
                 format!("Option \"{name}\" does not change Kiln's image; ignored"),
             ),
+            "kiln.spectral" => match truthy {
+                Some(spectral) => self.option_spectral = spectral,
+                None => {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("Option \"kiln.spectral\" needs true or false, got '{value}'"),
+                    ));
+                }
+            },
             "disablepixeljitter" | "disabletexturefiltering" | "forcediffuse" => match truthy {
                 Some(false) => {}
                 Some(true) => {

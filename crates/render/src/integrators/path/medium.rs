@@ -131,6 +131,7 @@ fn scatter(
             medium: state.travel.medium,
             time: ray.time,
             last: state.depth == settings.max_depth,
+            waves: ctx.waves.as_ref(),
         };
         state.l += state.beta
             * sample_direct(

@@ -24,6 +24,7 @@ use crate::nesting::Nesting;
 use crate::sampling::PixelSampler;
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
+use crate::spectral::Wavelengths;
 use crate::work::Work;
 use gather::Gather;
 use glam::Vec3A;
@@ -36,6 +37,20 @@ pub(super) struct PathContext<'a> {
     pub prepass: &'a Prepass,
     /// The scale of the camera's pixel footprint for texture filtering.
     pub footprint: f32,
+    /// The path's wavelengths in spectral mode (None: RGB).
+    pub waves: Option<Wavelengths>,
+}
+
+impl PathContext<'_> {
+    /// Emission a light gave in RGB, as the path sees it: that RGB, or its illuminant
+    /// spectrum at the path's wavelengths.
+    #[inline]
+    pub fn emitted(&self, rgb: Color) -> Color {
+        match &self.waves {
+            None => rgb,
+            Some(w) => w.illuminant(rgb),
+        }
+    }
 }
 
 /// Everything a path carries from one segment to the next: what it has gathered and
@@ -253,7 +268,7 @@ fn escape(ctx: &PathContext, state: &mut PathState, ray: &Ray) {
         if le != Color::ZERO {
             let prev = &state.prev;
             let w = prev.emission_weight(ctx, i, prev.pdf, ray.dir, Vec3A::ZERO, Vec3A::ZERO);
-            state.l += state.beta * le * w;
+            state.l += state.beta * ctx.emitted(le) * w;
         }
     }
 }
@@ -281,6 +296,6 @@ fn surface_emission(
     if le != Color::ZERO {
         let prev = &state.prev;
         let w = prev.emission_weight(ctx, light_id, prev.pdf, ray.dir, hit.p, hit.ng);
-        state.l += state.beta * le * w;
+        state.l += state.beta * ctx.emitted(le) * w;
     }
 }

@@ -27,8 +27,13 @@ pub(super) fn surface_step(
     let (scene, settings) = (ctx.scene, ctx.settings);
     // Shading may perturb the normal (bump and normal maps): shade a copy of the hit.
     let hit = &mut hit.clone();
-    let Some(mut bsdf) = scene.bsdf_nested(hit, ctx.footprint, &state.travel.nesting, ray.dir)
-    else {
+    let Some(mut bsdf) = scene.bsdf_nested(
+        hit,
+        ctx.footprint,
+        ctx.waves.as_ref(),
+        &state.travel.nesting,
+        ray.dir,
+    ) else {
         // An interface: continue straight through without counting a bounce.
         if !state.travel.pass_through(scene, hit, ray) {
             return Next::Stop;
@@ -92,6 +97,7 @@ fn scatter(
             medium: state.travel.medium,
             time: ray.time,
             last: state.depth == settings.max_depth,
+            waves: ctx.waves.as_ref(),
         };
         let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
         let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));

@@ -156,7 +156,7 @@ impl Shooter<'_> {
         stored: &mut Stored,
     ) -> Step {
         let scene = self.scene;
-        let Some(bsdf) = scene.bsdf_nested(hit, 1.0, &f.nesting, f.ray.dir) else {
+        let Some(bsdf) = scene.bsdf_nested(hit, 1.0, None, &f.nesting, f.ray.dir) else {
             // An interface: straight on, into the medium on the other side.
             let before = f.medium;
             if !super::super::pass_through(
