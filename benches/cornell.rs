@@ -2,7 +2,9 @@
 //! the file's max depth (65), with 1 and 2 threads, and prints samples per second,
 //! rays per second, peak memory, and the error against Tungsten's converged render.
 //!
-//! `cargo bench --bench cornell [-- --spp N --resolution N --repeats N]`
+//! `cargo bench --bench cornell [-- --spp N --resolution N --repeats N --spectral]`
+//! (`--spectral`: four wavelengths per sample; the table of spectra is built before the
+//! timed renders, once per process, and its time printed).
 //! Mitsuba 3's figures on the same scene and settings: benches/mitsuba/.
 
 mod common;
@@ -31,6 +33,15 @@ fn main() {
     desc.film.yresolution = res;
     desc.film.pixel_bounds = [0, res, 0, res];
     desc.sampler.pixel_samples = spp;
+    desc.spectral = std::env::args().any(|a| a == "--spectral");
+    if desc.spectral {
+        let start = Instant::now();
+        kiln_scene::sigmoid_table::SigmoidTable::srgb();
+        println!(
+            "spectral: sigmoid table built in {:.3} s",
+            start.elapsed().as_secs_f64()
+        );
+    }
     let renderer = Renderer::build(&desc).expect("the reference scene builds");
     let scene = renderer.scene();
     let tiles = split_into_tiles(desc.film.pixel_bounds, 32);

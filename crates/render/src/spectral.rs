@@ -49,6 +49,32 @@ fn response_at(lambda: f32) -> Vec4 {
     table[i] * (1.0 - u) + table[i + 1] * u
 }
 
+/// Entries of each thread's memo of recent lookups.
+const MEMO: usize = 32;
+
+thread_local! {
+    /// Each thread's last lookups, by colour: a scene's few constant colours (its lights, its
+    /// untextured materials) are met again and again. A pure function's memo: it changes
+    /// no bit of the result.
+    static RECENT: std::cell::RefCell<[([u32; 3], Coefficients); MEMO]> =
+        const { std::cell::RefCell::new([([u32::MAX; 3], [0.0; 3]); MEMO]) };
+}
+
+/// The sigmoid coefficients of `rgb` (sRGB, clamped to [0, 1]), from the table or the
+/// thread's memo of it.
+fn coefficients(rgb: [f32; 3]) -> Coefficients {
+    let key = rgb.map(f32::to_bits);
+    let slot =
+        (key[0] ^ key[1].rotate_left(11) ^ key[2].rotate_left(22)).wrapping_mul(0x9E37_79B1) >> 27;
+    RECENT.with_borrow_mut(|memo| {
+        let entry = &mut memo[slot as usize % MEMO];
+        if entry.0 != key {
+            *entry = (key, SigmoidTable::srgb().coefficients(rgb));
+        }
+        entry.1
+    })
+}
+
 /// A path's four wavelengths and their densities.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Wavelengths {
@@ -58,14 +84,21 @@ pub struct Wavelengths {
     pub inv_pdf: Vec4,
     /// Each lane's reduced wavelength t = (λ − 555) / 175, as the sigmoid spectra use it.
     t: Vec4,
+    /// D65 at each wavelength, normalised to ∫ D65·ȳ = 1.
+    d65: Vec4,
 }
 
-/// pbrt-v4's visible-wavelength sampling: the wavelength at `u` in [0, 1).
-fn sample_visible(u: f32) -> f32 {
-    538.0 - 138.888_89 * libm::atanhf(0.856_910_6 - 1.827_502 * u)
+/// pbrt-v4's visible-wavelength sampling: the wavelength at `u` in [0, 1), and its density.
+/// With x = 0.8569 − 1.8275·u the wavelength is 538 − 138.89·atanh(x), and as
+/// 0.0072 · 138.89 = 1, the density 0.0039398 / cosh²(0.0072·(λ − 538)) is 0.0039398·(1 − x²).
+fn sample_visible(u: f32) -> (f32, f32) {
+    let x = 0.856_910_6 - 1.827_502 * u;
+    let lambda = 538.0 - 138.888_89 * 0.5 * libm::logf((1.0 + x) / (1.0 - x));
+    (lambda, 0.003_939_804 * (1.0 - x * x))
 }
 
 /// Its density at `lambda` (0 outside 360–830 nm).
+#[cfg(test)]
 fn visible_pdf(lambda: f32) -> f32 {
     if !(LAMBDA_MIN..=LAMBDA_MAX).contains(&lambda) {
         return 0.0;
@@ -78,18 +111,23 @@ impl Wavelengths {
     /// Four wavelengths from one uniform number: the hero at `u`, the others at u + ¼,
     /// u + ½ and u + ¾ (wrapped into [0, 1)).
     pub fn sample(u: f32) -> Wavelengths {
-        let lambda = Vec4::from_array(std::array::from_fn(|i| {
+        let mut lambda = [0.0; 4];
+        let mut pdf = [0.0; 4];
+        for i in 0..4 {
             let mut up = u + i as f32 / 4.0;
             if up >= 1.0 {
                 up -= 1.0;
             }
-            sample_visible(up).clamp(LAMBDA_MIN, LAMBDA_MAX)
-        }));
-        let inv_pdf = Vec4::from_array(lambda.to_array().map(|l| 1.0 / visible_pdf(l)));
+            (lambda[i], pdf[i]) = sample_visible(up);
+        }
+        let lambda =
+            Vec4::from_array(lambda).clamp(Vec4::splat(LAMBDA_MIN), Vec4::splat(LAMBDA_MAX));
+        let inv_pdf = Vec4::ONE / Vec4::from_array(pdf);
         Wavelengths {
             lambda,
             inv_pdf,
             t: (lambda - Vec4::splat(555.0)) / 175.0,
+            d65: Vec4::from_array(lambda.to_array().map(|l| response_at(l).w)),
         }
     }
 
@@ -105,7 +143,7 @@ impl Wavelengths {
 
     /// A reflectance (RGB clamped to [0, 1]) as a spectrum bounded by 0 and 1.
     pub fn albedo(&self, rgb: Vec4) -> Vec4 {
-        self.sigmoid(SigmoidTable::srgb().coefficients([rgb.x, rgb.y, rgb.z]))
+        self.sigmoid(coefficients([rgb.x, rgb.y, rgb.z]))
     }
 
     /// A value that may exceed 1 (a scattering coefficient, an index of refraction), or
@@ -117,7 +155,7 @@ impl Wavelengths {
         }
         let scale = 2.0 * m;
         let scaled = [rgb.x, rgb.y, rgb.z].map(|c| c / scale);
-        self.sigmoid(SigmoidTable::srgb().coefficients(scaled)) * scale
+        self.sigmoid(coefficients(scaled)) * scale
     }
 
     /// Light of RGB colour `rgb`: its unbounded spectrum times D65 (normalised so that
@@ -128,7 +166,7 @@ impl Wavelengths {
 
     /// D65 at these wavelengths, normalised to ∫ D65·ȳ = 1.
     pub fn d65(&self) -> Vec4 {
-        Vec4::from_array(self.lambda.to_array().map(|l| response_at(l).w))
+        self.d65
     }
 
     /// What the film records of radiance `l` at these wavelengths: linear sRGB (as an RGB
@@ -212,6 +250,21 @@ mod tests {
         let w = Wavelengths::sample(0.3);
         for i in 1..4 {
             assert!(w.lambda[i] != w.lambda[0]);
+        }
+        // The density the sampling gives is the density pbrt-v4 states.
+        for u in [0.02, 0.1, 0.37, 0.5, 0.81, 0.98] {
+            let (l, pdf) = sample_visible(u);
+            assert!(
+                (pdf - visible_pdf(l)).abs() < 1e-4 * visible_pdf(l),
+                "{u}: {pdf} vs {}",
+                visible_pdf(l)
+            );
+            let step = 1e-3;
+            let slope = (sample_visible(u + step).0 - sample_visible(u - step).0) / (2.0 * step);
+            assert!(
+                (slope * pdf - 1.0).abs() < 5e-3,
+                "{u}: dλ/du {slope}, pdf {pdf}"
+            );
         }
         assert!(
             w.lambda
