@@ -144,6 +144,42 @@ fn spectral_renders_are_deterministic_and_the_option_is_the_flag() {
     assert!(rgb.bytes != one.bytes);
 }
 
+/// Dispersive glass conserves energy: in a white furnace (uniform white light all round) a
+/// lossless glass sphere is invisible, whatever its index, so the image stays white on every
+/// channel though each path through the glass keeps its hero wavelength alone (four times
+/// over) from its first glass hit on. Both a named glass (BK7, by its Sellmeier index) and
+/// an inline spectrum of strong dispersion (1.60 at 400 nm to 1.45 at 700 nm).
+#[test]
+fn dispersive_glass_in_a_white_furnace_stays_white() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, eta) in [
+        ("bk7", "\"glass-BK7\""),
+        ("inline", "[ 400 1.60 700 1.45 ]"),
+    ] {
+        let text = format!(
+            "Integrator \"volpath\" \"integer maxdepth\" [ 100 ]\n\
+             Film \"rgb\" \"integer xresolution\" [ 24 ] \"integer yresolution\" [ 24 ]\n\
+             LookAt 0 0 5  0 0 0  0 1 0\n\
+             Camera \"perspective\" \"float fov\" [ 28 ]\n\
+             WorldBegin\n\
+             LightSource \"infinite\" \"rgb L\" [ 1 1 1 ]\n\
+             Material \"dielectric\" \"spectrum eta\" {eta}\n\
+             Shape \"sphere\" \"float radius\" 1\n"
+        );
+        let path = write_scene(dir.path(), &format!("{name}.pbrt"), &text);
+        let r = render(&path, dir.path(), name, &["--spectral", "--spp", "256"]);
+        let (w, h) = (r.image.width, r.image.height);
+        for c in 0..3 {
+            let (mean, err) = block_stats(&r.image, 0, 0, w, h, c);
+            println!("{name}, channel {c}: {mean:.5} ± {err:.5}");
+            assert!(
+                (mean - 1.0).abs() < 5e-3 + 4.0 * err,
+                "{name} channel {c}: {mean} ± {err}"
+            );
+        }
+    }
+}
+
 /// What spectral rendering does not handle yet is refused with an error that says what,
 /// where, and how to render it instead, not rendered wrongly.
 #[test]

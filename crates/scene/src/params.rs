@@ -436,6 +436,18 @@ impl ParamSet {
         }
     }
 
+    /// A `spectrum` parameter given as one string (a name or a file), if it is.
+    pub fn named_spectrum(&self, name: &str) -> Option<String> {
+        let p = self
+            .params
+            .iter()
+            .find(|p| p.name == name && p.ty == "spectrum")?;
+        match &p.values {
+            ParamValues::Strings(v) if v.len() == 1 => Some(v[0].clone()),
+            _ => None,
+        }
+    }
+
     /// The `spectrum` parameters given as one string that names no built-in spectrum: files
     /// of (wavelength, value) pairs, as (parameter name, file name, location).
     pub fn spectrum_files(&self) -> Vec<(String, String, Loc)> {

@@ -11,6 +11,9 @@ use glam::{Vec2, Vec3A};
 pub struct DielectricBxdf {
     pub eta: f32,
     pub distrib: TrowbridgeReitz,
+    /// Its index is the hero wavelength's of a dispersive glass: a spectral path keeps
+    /// only that wavelength from here on (see `integrators::path`).
+    pub dispersive: bool,
 }
 
 /// Which lobes a sample or a pdf may use (the layered BSDF asks for one at a time).
@@ -45,7 +48,7 @@ impl DielectricBxdf {
     /// The BSDF for radiance (`importance` false: refraction scales by 1/eta²) or for
     /// importance (no scaling), as light paths and layered BSDFs need.
     pub fn f_mode(&self, wo: Vec3A, wi: Vec3A, importance: bool) -> Color {
-        let DielectricBxdf { eta, distrib } = *self;
+        let DielectricBxdf { eta, distrib, .. } = *self;
         if eta == 1.0 || distrib.effectively_smooth() {
             return Color::ZERO;
         }
@@ -57,7 +60,7 @@ impl DielectricBxdf {
     }
 
     pub fn pdf_lobes(&self, wo: Vec3A, wi: Vec3A, lobes: Lobes) -> f32 {
-        let DielectricBxdf { eta, distrib } = *self;
+        let DielectricBxdf { eta, distrib, .. } = *self;
         if eta == 1.0 || distrib.effectively_smooth() {
             return 0.0;
         }
@@ -76,7 +79,7 @@ impl DielectricBxdf {
         lobes: Lobes,
         importance: bool,
     ) -> Option<BsdfSample> {
-        let DielectricBxdf { eta, distrib } = *self;
+        let DielectricBxdf { eta, distrib, .. } = *self;
         sample_dielectric(eta, &distrib, wo, uc, u, lobes, importance)
     }
 

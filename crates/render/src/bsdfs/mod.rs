@@ -254,10 +254,12 @@ mod tests {
             Bsdf::Dielectric(DielectricBxdf {
                 eta: 1.5,
                 distrib: TrowbridgeReitz::new(0.3, 0.3),
+                dispersive: false,
             }),
             Bsdf::Dielectric(DielectricBxdf {
                 eta: 1.5,
                 distrib: TrowbridgeReitz::new(0.0, 0.0),
+                dispersive: false,
             }),
             Bsdf::ThinDielectric(ThinDielectricBxdf { eta: 1.5 }),
         ];
@@ -297,6 +299,7 @@ mod tests {
             top: DielectricBxdf {
                 eta: 1.5,
                 distrib: TrowbridgeReitz::new(roughness, roughness),
+                dispersive: false,
             },
             bottom,
             thickness: 0.1,

@@ -34,6 +34,7 @@ impl CoatedConductorMaterial {
         let top = DielectricBxdf {
             eta: self.interface_eta,
             distrib: self.interface_roughness.distribution(ctx),
+            dispersive: false,
         };
         let distrib = self.conductor_roughness.distribution(ctx);
         // Inside the coat the conductor meets a medium of index interface_eta: pbrt-v4

@@ -45,6 +45,7 @@ impl CoatedDiffuseMaterial {
         let top = DielectricBxdf {
             eta: self.eta,
             distrib: self.roughness.distribution(ctx),
+            dispersive: false,
         };
         let r = ctx.reflectance(
             self.reflectance

@@ -112,13 +112,24 @@ impl Model {
             }),
             // The surface of a subsurface material is a dielectric; its interior becomes a
             // medium inside the shapes that use it (scene/build.rs).
-            MaterialKind::Subsurface { eta, roughness, .. }
-            | MaterialKind::Dielectric { eta, roughness } => {
+            MaterialKind::Subsurface { eta, roughness, .. } => {
                 Model::Dielectric(DielectricMaterial {
                     eta: *eta,
                     roughness: rough(roughness),
+                    dispersion: None,
                 })
             }
+            MaterialKind::Dielectric {
+                eta,
+                roughness,
+                dispersion,
+            } => Model::Dielectric(DielectricMaterial {
+                eta: *eta,
+                roughness: rough(roughness),
+                dispersion: dispersion
+                    .as_deref()
+                    .map(|s| Arc::new(crate::spectral::DenseSpectrum::new(s))),
+            }),
             MaterialKind::ThinDielectric { eta } => {
                 Model::ThinDielectric(ThinDielectricMaterial { eta: *eta })
             }

@@ -265,6 +265,7 @@ impl Scene {
                 _ => Some(Bsdf::Dielectric(DielectricBxdf {
                     eta,
                     distrib: TrowbridgeReitz::new(0.0, 0.0),
+                    dispersive: false,
                 })),
             },
         }

@@ -32,8 +32,12 @@ pub enum MaterialKind {
         interior: SubsurfaceInterior,
     },
     Dielectric {
+        /// The index (a spectrum's at about 550 nm), what RGB rendering refracts by.
         eta: f32,
         roughness: Roughness,
+        /// The index as a spectrum, where the scene gave one (inline, a file or a named
+        /// glass): spectral rendering refracts each path by its hero wavelength's index.
+        dispersion: Option<Arc<Vec<(f32, f32)>>>,
     },
     ThinDielectric {
         eta: f32,

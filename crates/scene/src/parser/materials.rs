@@ -236,6 +236,7 @@ impl Parser {
             "dielectric" => MaterialKind::Dielectric {
                 eta: self.scalar_eta(params, 1.5)?,
                 roughness: self.roughness(params)?,
+                dispersion: dispersion(params),
             },
             "thindielectric" => MaterialKind::ThinDielectric {
                 eta: self.scalar_eta(params, 1.5)?,
@@ -467,6 +468,16 @@ impl Parser {
 
 fn named(name: &str) -> Rgb {
     spectrum::named_spectrum_rgb(name).unwrap_or([1.0; 3])
+}
+
+/// A dielectric's index as a spectrum, when it was given as one: sampled (inline or from a
+/// file) or a named glass Kiln knows the dispersion of.
+fn dispersion(params: &ParamSet) -> Option<Arc<Vec<(f32, f32)>>> {
+    params
+        .sampled_spectrum("eta")
+        .or_else(|| spectrum::glass_index(&params.named_spectrum("eta")?))
+        .filter(|s| s.len() >= 2 && s.iter().any(|p| p.1 != s[0].1))
+        .map(Arc::new)
 }
 
 /// A conductor's eta and k as spectra, when both were given as sampled spectra.

@@ -73,6 +73,9 @@ struct PathState {
     travel: Travel,
     interior: Interior,
     gather: Gather,
+    /// A spectral path that met a dispersive glass keeps only its hero wavelength (see
+    /// [`PathState::keep_hero_only`]).
+    hero_only: bool,
     /// For a G-buffer: whether to note the first surface with a BSDF, and what it was.
     want_visible: bool,
     visible: Option<VisibleSurface>,
@@ -176,6 +179,18 @@ impl Travel {
 }
 
 impl PathState {
+    /// From a dispersive glass on, the path's direction depends on its hero wavelength (the
+    /// first lane), so the other three are dropped, as pbrt-v4's `TerminateSecondary` drops
+    /// them: what the path carries on is the hero's alone, four times over, since the film
+    /// averages the four lanes (the hero's wavelength alone is distributed as each lane is,
+    /// so this stays unbiased). What the path gathered before stays four wavelengths'.
+    fn keep_hero_only(&mut self) {
+        if !self.hero_only {
+            self.hero_only = true;
+            self.beta = Color::new(4.0 * self.beta.x, 0.0, 0.0, 0.0);
+        }
+    }
+
     /// Russian roulette after a scattering event: the path goes on, or stops.
     fn roulette(&mut self, settings: &PathSettings, sampler: &mut PixelSampler) -> Next {
         if survives_roulette(
@@ -226,6 +241,7 @@ pub(super) fn path_li(
         },
         interior: Interior::default(),
         gather: Gather::default(),
+        hero_only: false,
         want_visible: visible.is_some(),
         visible: None,
     };

@@ -43,6 +43,11 @@ pub(super) fn surface_step(
     if state.gather.ending {
         return Next::Stop;
     }
+    if let Bsdf::Dielectric(d) = &bsdf
+        && d.dispersive
+    {
+        state.keep_hero_only();
+    }
     if state.depth == 0 && state.want_visible {
         state.visible = Some(visible_surface(hit, &bsdf, -ray.dir));
     }

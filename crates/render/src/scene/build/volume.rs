@@ -60,6 +60,7 @@ impl Builder {
                 .push(Material::plain(Model::Dielectric(DielectricMaterial {
                     eta: 1.0,
                     roughness: RoughnessTexture::smooth(),
+                    dispersion: None,
                 })));
             (self.materials.len() - 1) as u32
         } else {
