@@ -17,6 +17,20 @@ pub struct DielectricMaterial {
 }
 
 impl DielectricMaterial {
+    /// A dielectric of index `eta`, dispersive where `dispersion` gives its index as a
+    /// spectrum ((wavelength nm, index) pairs).
+    pub fn new(
+        eta: f32,
+        roughness: RoughnessTexture,
+        dispersion: Option<&[(f32, f32)]>,
+    ) -> DielectricMaterial {
+        DielectricMaterial {
+            eta,
+            roughness,
+            dispersion: dispersion.map(|s| Arc::new(DenseSpectrum::new(s))),
+        }
+    }
+
     /// A perfectly smooth interface (what a VolumeLight's surface must be).
     pub fn is_smooth(&self) -> bool {
         self.roughness.is_smooth()

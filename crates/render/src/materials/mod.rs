@@ -113,23 +113,17 @@ impl Model {
             // The surface of a subsurface material is a dielectric; its interior becomes a
             // medium inside the shapes that use it (scene/build.rs).
             MaterialKind::Subsurface { eta, roughness, .. } => {
-                Model::Dielectric(DielectricMaterial {
-                    eta: *eta,
-                    roughness: rough(roughness),
-                    dispersion: None,
-                })
+                Model::Dielectric(DielectricMaterial::new(*eta, rough(roughness), None))
             }
             MaterialKind::Dielectric {
                 eta,
                 roughness,
                 dispersion,
-            } => Model::Dielectric(DielectricMaterial {
-                eta: *eta,
-                roughness: rough(roughness),
-                dispersion: dispersion
-                    .as_deref()
-                    .map(|s| Arc::new(crate::spectral::DenseSpectrum::new(s))),
-            }),
+            } => Model::Dielectric(DielectricMaterial::new(
+                *eta,
+                rough(roughness),
+                dispersion.as_deref().map(Vec::as_slice),
+            )),
             MaterialKind::ThinDielectric { eta } => {
                 Model::ThinDielectric(ThinDielectricMaterial { eta: *eta })
             }
@@ -165,30 +159,7 @@ impl Model {
                 *eta,
                 Layer::new(layer, textures),
             )),
-            MaterialKind::CoatedConductor {
-                interface_roughness,
-                interface_eta,
-                conductor_eta,
-                conductor_k,
-                conductor_spectra,
-                reflectance,
-                conductor_roughness,
-                layer,
-            } => Model::CoatedConductor(CoatedConductorMaterial {
-                interface_eta: *interface_eta,
-                interface_roughness: rough(interface_roughness),
-                conductor: match reflectance {
-                    Some(r) => ConductorSpec::Reflectance(textures.rgb_value(r)),
-                    None => ConductorSpec::EtaK {
-                        eta: textures.rgb_value(conductor_eta),
-                        k: textures.rgb_value(conductor_k),
-                        table: fresnel_table(conductor_spectra.as_deref(), *interface_eta)?,
-                        spectra: dense_spectra(conductor_spectra.as_deref()),
-                    },
-                },
-                conductor_roughness: rough(conductor_roughness),
-                layer: Layer::new(layer, textures),
-            }),
+            MaterialKind::CoatedConductor { .. } => coated_conductor(kind, textures)?,
             MaterialKind::DiffuseTransmission {
                 reflectance,
                 transmittance,
@@ -279,6 +250,39 @@ impl Model {
 
 /// The spectral Fresnel table of a conductor given spectra, seen from a medium of index
 /// `outside_eta`.
+/// pbrt-v4's "coatedconductor" as a description gives it.
+fn coated_conductor(kind: &MaterialKind, textures: &Textures) -> Result<Model, String> {
+    let MaterialKind::CoatedConductor {
+        interface_roughness,
+        interface_eta,
+        conductor_eta,
+        conductor_k,
+        conductor_spectra,
+        reflectance,
+        conductor_roughness,
+        layer,
+    } = kind
+    else {
+        return Err("not a coated conductor".into());
+    };
+    let rough = |r| RoughnessTexture::new(r, textures);
+    Ok(Model::CoatedConductor(CoatedConductorMaterial {
+        interface_eta: *interface_eta,
+        interface_roughness: rough(interface_roughness),
+        conductor: match reflectance {
+            Some(r) => ConductorSpec::Reflectance(textures.rgb_value(r)),
+            None => ConductorSpec::EtaK {
+                eta: textures.rgb_value(conductor_eta),
+                k: textures.rgb_value(conductor_k),
+                table: fresnel_table(conductor_spectra.as_deref(), *interface_eta)?,
+                spectra: dense_spectra(conductor_spectra.as_deref()),
+            },
+        },
+        conductor_roughness: rough(conductor_roughness),
+        layer: Layer::new(layer, textures),
+    }))
+}
+
 /// A conductor's eta and k spectra tabulated for spectral paths.
 fn dense_spectra(
     spectra: Option<&kiln_scene::ConductorSpectra>,

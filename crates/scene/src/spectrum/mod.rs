@@ -16,8 +16,12 @@
 //!   reflectance and the D65 illuminant then come out exactly neutral, as `rgb` values do.
 
 mod conductor;
+mod glass;
+mod response;
 
 pub use conductor::{FRESNEL_TABLE_LEN, conductor_fresnel_rgb};
+pub use glass::glass_index;
+pub use response::srgb_response_per_nm;
 
 use std::sync::OnceLock;
 
@@ -330,28 +334,6 @@ fn d65_reference() -> ([f64; 3], f64) {
     })
 }
 
-/// For spectral rendering, every nanometre from 360 to 830: the linear sRGB response
-/// (r̄, ḡ, b̄)(λ) = XYZ→sRGB · (x̄, ȳ, z̄)(λ), divided channel by channel by the D65
-/// white correction as every conversion here is, and D65(λ) / ∫ D65·ȳ. A spectrum S then
-/// has the sRGB ∫ S·(r̄, ḡ, b̄): D65 so normalised is (1, 1, 1) exactly, and a reflectance
-/// ρ under it is the RGB [`SpectrumUse::Albedo`] gives ρ.
-pub fn srgb_response_per_nm() -> Vec<[f64; 4]> {
-    let (white, d65_y) = d65_reference();
-    let n = (LAMBDA_MAX - LAMBDA_MIN) as usize;
-    (0..=n)
-        .map(|i| {
-            let l = LAMBDA_MIN + i as f64;
-            let rgb = xyz_to_srgb(cmf_at(l));
-            [
-                rgb[0] / white[0],
-                rgb[1] / white[1],
-                rgb[2] / white[2],
-                d65_at(l) / d65_y,
-            ]
-        })
-        .collect()
-}
-
 /// What a sampled spectrum is beyond its first and last wavelengths.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Ends {
@@ -563,30 +545,6 @@ static NAMES: [&str; NAMED.len()] = {
 /// [`SpectrumUse::Illuminant`], luminance Y = 1; stdillum-D65 is (1, 1, 1)).
 pub fn named_spectrum_rgb(name: &str) -> Option<[f32; 3]> {
     NAMED.iter().find(|(n, _)| *n == name).map(|&(_, rgb)| rgb)
-}
-
-/// The index of refraction of a named glass over 360–830 nm (every 10 nm), for glasses
-/// whose dispersion Kiln knows: `glass-BK7` from Schott's Sellmeier coefficients for
-/// N-BK7 (n(λ)² = 1 + Σ Bᵢ λ² / (λ² − Cᵢ), λ in µm; 1.5185 at 550 nm). Other names: None
-/// (they refract by their index at 550 nm, without dispersion).
-pub fn glass_index(name: &str) -> Option<Vec<(f32, f32)>> {
-    let (b, c): ([f64; 3], [f64; 3]) = match name {
-        "glass-BK7" => (
-            [1.039_612_12, 0.231_792_344, 1.010_469_45],
-            [0.006_000_698_67, 0.020_017_914_4, 103.560_653],
-        ),
-        _ => return None,
-    };
-    Some(
-        (0..=47)
-            .map(|i| {
-                let lambda = 360.0 + 10.0 * i as f64;
-                let l2 = (lambda / 1000.0).powi(2);
-                let n2 = 1.0 + (0..3).map(|k| b[k] * l2 / (l2 - c[k])).sum::<f64>();
-                (lambda as f32, n2.sqrt() as f32)
-            })
-            .collect(),
-    )
 }
 
 /// All names named_spectrum_rgb knows, for error messages ("unknown spectrum 'x'; known: ...").
