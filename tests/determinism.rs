@@ -239,18 +239,27 @@ fn every_bvh_kernel_renders_the_same_bytes() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    for (name, spp) in [
-        ("molten-glass/scene.pbrt", "4"),
-        ("mis/scene.pbrt", "8"),
-        ("materials/scene.pbrt", "4"),
-        ("textures/scene.pbrt", "4"),
+    for (name, spp, mode) in [
+        ("molten-glass/scene.pbrt", "4", "--rgb"),
+        ("mis/scene.pbrt", "8", "--rgb"),
+        ("materials/scene.pbrt", "4", "--rgb"),
+        ("materials/scene.pbrt", "4", "--spectral"),
+        ("textures/scene.pbrt", "4", "--rgb"),
     ] {
-        let args = ["--spp", spp, "--resolution", "96x64", "--threads", "2"];
+        let args = [
+            "--spp",
+            spp,
+            "--resolution",
+            "96x64",
+            "--threads",
+            "2",
+            mode,
+        ];
         let images: Vec<Vec<u8>> = kernels
             .iter()
             .map(|k| {
                 let (kernel, said) = (k.name(), format!("{k:?}"));
-                let out = format!("{}-{kernel}", name.replace('/', "-"));
+                let out = format!("{}-{kernel}{mode}", name.replace('/', "-"));
                 let r = render_with_env(
                     &scene(name),
                     dir.path(),
@@ -265,7 +274,7 @@ fn every_bvh_kernel_renders_the_same_bytes() {
             .collect();
         assert!(
             images[0] == images[1],
-            "{name}: SSE and AVX2 give other bytes"
+            "{name} ({mode}): SSE and AVX2 give other bytes"
         );
     }
 }

@@ -37,6 +37,33 @@ fn farm_images_are_bit_identical_to_kiln_render() {
     }
 }
 
+/// A spectral render (the scene's Option, with a dispersive glass sphere added to the
+/// materials scene) through a farm of three workers merges the same bytes as `kiln render`.
+#[test]
+fn spectral_farm_images_are_bit_identical_to_kiln_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scene("materials/scene.pbrt")).unwrap();
+    let path = crate::util::write_scene(
+        dir.path(),
+        "spectral.pbrt",
+        &format!(
+            "Option \"kiln.spectral\" true\n{text}\nAttributeBegin\n  Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n  Translate 0 0.4 0\n  Shape \"sphere\" \"float radius\" 0.3\nAttributeEnd\n"
+        ),
+    );
+    let args = ["--spp", "4", "--resolution", "48x32", "--tile", "16"];
+    let direct = render(&path, dir.path(), "direct", &args).bytes;
+    let merged = farm(
+        &path,
+        dir.path(),
+        "farm",
+        &[&args[..], &["--workers", "3", "--threads-per-worker", "1"]].concat(),
+    );
+    assert!(
+        merged == direct,
+        "the spectral farm's image differs from kiln render's"
+    );
+}
+
 /// Photon maps are built by every worker from the same seeds: a farm of three workers
 /// merges the same bytes as `kiln render` for caustic maps (lens), a volume map (haze) and
 /// SPPM (ball: `kiln render` runs each iteration over every tile at once, a worker over

@@ -29,7 +29,7 @@ pub struct RenderArgs {
     noise_threshold: Option<f32>,
     /// Render spectrally: four wavelengths per camera sample, colours as spectra, as
     /// pbrt-v4 renders (default: the scene's Option "kiln.spectral", or RGB). Not yet for
-    /// media, VolumeLights, photon maps, SPPM, hair, measured materials or G-buffers.
+    /// grid media, VolumeLights, photon maps, SPPM, hair, measured materials or G-buffers.
     #[arg(long, conflicts_with = "rgb")]
     spectral: bool,
     /// Render in RGB even where the scene asks for spectral rendering.

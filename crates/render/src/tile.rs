@@ -90,8 +90,8 @@ fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static
     };
     if path.photons != kiln_scene::PhotonDesc::NONE {
         Some("photon maps")
-    } else if !scene.media.is_empty() {
-        Some("participating media and subsurface materials")
+    } else if !scene.media.iter().all(crate::media::Medium::is_spectral) {
+        Some("grid media (heterogeneous and emissive volumes)")
     } else if !scene.volumes.is_empty() {
         Some("VolumeLights")
     } else if settings.gbuffer.is_some() {

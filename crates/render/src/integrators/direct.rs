@@ -130,6 +130,7 @@ pub(super) fn sample_direct(
                 medium,
                 &mut rng,
                 work,
+                v.waves,
             )
         } else {
             (Color::ZERO, medium)
@@ -141,6 +142,7 @@ pub(super) fn sample_direct(
             medium,
             &mut rng,
             work,
+            v.waves,
         )
     };
     let (tr, end_medium) = tr;

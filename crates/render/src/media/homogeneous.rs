@@ -3,6 +3,7 @@
 use super::{MediumEvent, Phase};
 use crate::math::Color;
 use crate::sampling::TrackingRng;
+use crate::spectral::Wavelengths;
 
 /// Constant absorption and scattering per unit length, emission `le` (pbrt-v4's convention:
 /// the source term is sigma_a * le).
@@ -15,6 +16,21 @@ pub struct HomogeneousMedium {
 }
 
 impl HomogeneousMedium {
+    /// The medium as a spectral path at `waves` sees it: its coefficients unbounded spectra,
+    /// its emission light's.
+    pub fn at_wavelengths(&self, waves: &Wavelengths) -> HomogeneousMedium {
+        HomogeneousMedium {
+            sigma_a: waves.unbounded(self.sigma_a),
+            sigma_s: waves.unbounded(self.sigma_s),
+            le: if self.le == Color::ZERO {
+                Color::ZERO
+            } else {
+                waves.illuminant(self.le)
+            },
+            phase: self.phase,
+        }
+    }
+
     pub fn sigma_t(&self) -> Color {
         self.sigma_a + self.sigma_s
     }
@@ -36,7 +52,8 @@ impl HomogeneousMedium {
         }
         let st = self.sigma_t();
         let mut out = Color::ZERO;
-        for c in 0..3 {
+        // Every lane: an RGB colour's fourth repeats its second, a spectral path's is its own.
+        for c in 0..4 {
             out[c] = if st[c] > 0.0 {
                 // (1 - exp(-st t)) / st, written to stay accurate for small st t.
                 let x = st[c] * t.min(1e30);
@@ -48,32 +65,46 @@ impl HomogeneousMedium {
         out
     }
 
-    /// Free-flight sampling over (0, `t_max`), updating the throughput `beta`.
+    /// Free-flight sampling over (0, `t_max`), updating the throughput `beta`, over the
+    /// first `lanes` lanes of the colours (3 in RGB, 4 for a spectral path).
     pub fn sample_interaction(
         &self,
         t_max: f32,
         rng: &mut TrackingRng,
         beta: &mut Color,
+        lanes: usize,
     ) -> MediumEvent {
-        track(self.sigma_t(), self.sigma_s, t_max, rng, beta)
+        track(self.sigma_t(), self.sigma_s, t_max, rng, beta, lanes)
     }
 }
 
-/// Free-flight sampling in a homogeneous medium: a colour channel is chosen uniformly and
-/// the distance sampled by its extinction; the weights divide by the density averaged over
-/// channels (the one-sample balance heuristic, as pbrt-v3's homogeneous medium does), so
-/// they stay bounded even when the channels' extinctions differ.
+/// The mean of a colour's first `lanes` lanes: its three channels in RGB ((r + g) + b, as
+/// RGB always summed them), a spectral path's four wavelengths.
+fn lane_mean(c: Color, lanes: usize) -> f32 {
+    if lanes == 4 {
+        c.element_sum() / 4.0
+    } else {
+        crate::math::rgb_sum(c) / 3.0
+    }
+}
+
+/// Free-flight sampling in a homogeneous medium: a colour channel (a spectral path's
+/// wavelength) is chosen uniformly and the distance sampled by its extinction; the weights
+/// divide by the density averaged over channels (the one-sample balance heuristic, as
+/// pbrt-v3's homogeneous medium does), so they stay bounded even when the channels'
+/// extinctions differ.
 fn track(
     sigma_t: Color,
     sigma_s: Color,
     t_max: f32,
     rng: &mut TrackingRng,
     beta: &mut Color,
+    lanes: usize,
 ) -> MediumEvent {
     if sigma_t.max_element() <= 0.0 {
         return MediumEvent::Crossed;
     }
-    let channel = ((rng.next_f32() * 3.0) as usize).min(2);
+    let channel = ((rng.next_f32() * lanes as f32) as usize).min(lanes - 1);
     let st = sigma_t[channel];
     let t = if st > 0.0 {
         -libm::logf(1.0 - rng.next_f32()) / st
@@ -82,7 +113,7 @@ fn track(
     };
     if t < t_max {
         let tr = (-sigma_t * t).exp();
-        let density = crate::math::rgb_sum(sigma_t * tr) / 3.0;
+        let density = lane_mean(sigma_t * tr, lanes);
         if density <= 0.0 {
             return MediumEvent::Absorbed;
         }
@@ -96,7 +127,7 @@ fn track(
             return MediumEvent::Absorbed;
         }
         let tr = (-sigma_t * t_max).exp();
-        let p_cross = crate::math::rgb_sum(tr) / 3.0;
+        let p_cross = lane_mean(tr, lanes);
         if p_cross <= 0.0 {
             return MediumEvent::Absorbed;
         }

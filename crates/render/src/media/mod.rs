@@ -22,6 +22,7 @@ pub use voxel_grid::SampledGrid;
 
 use crate::math::{Color, Ray};
 use crate::sampling::TrackingRng;
+use crate::spectral::Wavelengths;
 use glam::Vec3A;
 
 /// A medium: what fills the space between surfaces.
@@ -84,37 +85,56 @@ impl Medium {
         }
     }
 
+    /// Whether a spectral path can cross the medium (grid media still compute in RGB).
+    pub fn is_spectral(&self) -> bool {
+        matches!(self, Medium::Homogeneous(_))
+    }
+
     /// Transmittance along the segment from `o` in unit direction `d` over (0, `t`); grid
     /// media estimate it by ratio tracking with numbers from `rng` (None if that walk was
-    /// cut off).
+    /// cut off). With `waves`, at a spectral path's wavelengths (a homogeneous medium; see
+    /// [`Medium::is_spectral`]).
     pub fn transmittance(
         &self,
         o: Vec3A,
         d: Vec3A,
         t: f32,
         rng: &mut TrackingRng,
+        waves: Option<&Wavelengths>,
     ) -> Option<Color> {
-        match self {
-            Medium::Homogeneous(h) => Some(h.transmittance(t)),
-            Medium::Grid(g) => g.transmittance(o, d, t, rng),
+        match (self, waves) {
+            (Medium::Homogeneous(h), None) => Some(h.transmittance(t)),
+            (Medium::Homogeneous(h), Some(w)) => Some(h.at_wavelengths(w).transmittance(t)),
+            (Medium::Grid(g), _) => g.transmittance(o, d, t, rng),
         }
     }
 
     /// Free-flight sampling along `ray` over (0, `t_max`), updating the throughput `beta`.
     /// Emission met on the way goes to `emitted` (see [`Emitted`]) before the event it
-    /// precedes is chosen. The path tracer and the photon tracer share this.
+    /// precedes is chosen. The path tracer and the photon tracer share this; with `waves`,
+    /// a spectral path at those wavelengths (a homogeneous medium; see
+    /// [`Medium::is_spectral`]).
     pub fn sample_interaction(
         &self,
         ray: &Ray,
         t_max: f32,
         rng: &mut TrackingRng,
         beta: &mut Color,
+        waves: Option<&Wavelengths>,
         mut emitted: impl FnMut(Emitted),
     ) -> MediumEvent {
         match self {
             Medium::Homogeneous(h) => {
+                let spectral;
+                let (h, lanes) = match waves {
+                    None => (h, 3),
+                    Some(w) => {
+                        spectral = h.at_wavelengths(w);
+                        (&spectral, 4)
+                    }
+                };
                 emitted(Emitted::Segment(*beta * h.segment_emission(t_max)));
-                h.sample_interaction(t_max, rng, beta)
+                h.sample_interaction(t_max, rng, beta, lanes)
             }
             Medium::Grid(g) => g.track(ray, t_max, rng, beta, |t, sigma_maj, radiance| {
                 emitted(Emitted::Collision {

@@ -177,6 +177,7 @@ impl Scene {
         mut medium: Option<u32>,
         rng: &mut TrackingRng,
         work: &mut Work,
+        waves: Option<&Wavelengths>,
     ) -> (Color, Option<u32>) {
         let Ray {
             origin, dir, time, ..
@@ -200,7 +201,7 @@ impl Scene {
                 .intersect(&Ray::at_time(o, dir, time), remaining);
             let seg = hit.as_ref().map_or(remaining, |h| h.t);
             if let Some(m) = medium {
-                let Some(t) = self.media[m as usize].transmittance(o, dir, seg, rng) else {
+                let Some(t) = self.media[m as usize].transmittance(o, dir, seg, rng, waves) else {
                     work.cut_walks += 1;
                     return (Color::ZERO, medium);
                 };

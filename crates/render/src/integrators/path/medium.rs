@@ -66,7 +66,8 @@ fn track(
     // caustic photons (the emissive media's photons counted it there).
     let counts = state.depth < settings.max_depth && !state.gather.after_caustic_gather();
     let l = &mut state.l;
-    med.sample_interaction(ray, t_max, &mut rng, &mut state.beta, |e| match e {
+    let waves = ctx.waves.as_ref();
+    med.sample_interaction(ray, t_max, &mut rng, &mut state.beta, waves, |e| match e {
         _ if !counts => {}
         Emitted::Segment(c) => *l += c,
         Emitted::Collision {

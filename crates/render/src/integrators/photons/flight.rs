@@ -98,7 +98,7 @@ impl Shooter<'_> {
         let t_max = found.map_or(f32::INFINITY, |h| h.t);
         // Photons carry no medium emission: the lights that are media shoot their own.
         let med = f.walk.medium(&scene.media, m);
-        let t = match med.sample_interaction(&f.ray, t_max, &mut f.rng, &mut f.beta, |_| {}) {
+        let t = match med.sample_interaction(&f.ray, t_max, &mut f.rng, &mut f.beta, None, |_| {}) {
             MediumEvent::Crossed => return Step::Surface,
             // A photon whose walk is cut off is lost (the camera paths report theirs).
             MediumEvent::Absorbed | MediumEvent::CutOff => return Step::Stop,
