@@ -283,3 +283,60 @@ fn coated_materials_match_pbrt_v4_spectrally() {
         }
     }
 }
+
+/// A near-specular coated gold (the killeroo's: interface roughness 0.02, conductor 0.002)
+/// lit by a small sphere light: Kiln's light sampling (which evaluates the layered BSDF's
+/// stochastic f) and its BSDF sampling (its random walk) give the same image, within 3% over
+/// the sphere's centre. pbrt-v4 (5f7a606, 1024 spp, two seeds: 0.3253-0.3273 in red) is 9%
+/// above both, while under a uniform sky, where BSDF sampling carries the image, it agrees
+/// with Kiln within 0.1% (`coated_materials_match_pbrt_v4_spectrally`). The likely cause:
+/// where pbrt-v4's `LayeredBxDF::f` weighs light that a reflection off the non-exit
+/// interface sends out through the exit interface, it takes the exit's transmission density
+/// as PDF(-w, wi), the reverse of the direction its other strategy samples (Kiln takes
+/// pdf(wi, -w)), so the two MIS weights need not sum to one. Kiln keeps its answer; this is
+/// the killeroo-coated-gold body's 4% (README, "Where it stands").
+#[test]
+fn a_near_specular_coated_gold_is_the_same_by_light_and_by_bsdf_sampling() {
+    let Some(scene) = crate::util::reference_scene("killeroo-coated-gold") else {
+        println!("SKIPPED: ../shared/reference-scenes is not here (the gold's .spd files)");
+        return;
+    };
+    let spds = scene.parent().unwrap().join("spds");
+    let dir = tempfile::tempdir().unwrap();
+    let mut means = Vec::new();
+    for strategy in ["light", "bsdf"] {
+        let text = format!(
+            "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 32 ]\n\
+             Sampler \"zsobol\" \"integer pixelsamples\" [ 1024 ]\n\
+             Integrator \"volpath\" \"integer maxdepth\" [ 50 ] \"string strategy\" \"{strategy}\"\n\
+             LookAt 0 0 5  0 0 0  0 1 0\n\
+             Camera \"perspective\" \"float fov\" [ 30 ]\n\
+             WorldBegin\n\
+             AttributeBegin\n\
+             AreaLightSource \"diffuse\" \"rgb L\" [ 30 30 30 ]\n\
+             Material \"diffuse\" \"rgb reflectance\" [ 0 0 0 ]\n\
+             Translate 0 0.9 5\n\
+             Shape \"sphere\" \"float radius\" 0.4\n\
+             AttributeEnd\n\
+             Material \"coatedconductor\" \"spectrum conductor.k\" [ \"{}\" ] \"spectrum conductor.eta\" [ \"{}\" ] \"float interface.roughness\" [ 0.02 ] \"float conductor.roughness\" [ 0.002 ]\n\
+             Shape \"sphere\" \"float radius\" 1\n",
+            spds.join("Au.k.spd").display(),
+            spds.join("Au.eta.spd").display()
+        );
+        let path = write_scene(dir.path(), &format!("{strategy}.pbrt"), &text);
+        let img = render(&path, dir.path(), strategy, &["--spectral"]).image;
+        means.push([0, 1, 2].map(|c| block_stats(&img, 11, 11, 10, 10, c).0));
+    }
+    println!(
+        "light sampling {:?}, BSDF sampling {:?}",
+        means[0], means[1]
+    );
+    for c in 0..3 {
+        assert!(
+            (means[0][c] / means[1][c] - 1.0).abs() < 0.03,
+            "channel {c}: light {:?} vs BSDF {:?}",
+            means[0],
+            means[1]
+        );
+    }
+}
