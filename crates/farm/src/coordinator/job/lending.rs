@@ -56,6 +56,11 @@ impl Lending {
         }
     }
 
+    /// Passes done by all the job's tiles together since it was planned or restored.
+    pub fn finished(&self) -> u64 {
+        self.finished
+    }
+
     /// The pass the slowest tile is on: every tile has done this many passes.
     pub fn frontier(&self) -> u32 {
         self.done.iter().copied().min().unwrap_or(0)

@@ -381,14 +381,21 @@ impl Job {
     /// So the job fails after [`MAX_TILE_ATTEMPTS`] expiries of the tile in a row while the
     /// rest of the job did nothing, or after [`MAX_TILE_EXPIRIES`] of them whatever it did
     /// (a scene that kills only on this tile). The worker is not blamed (a machine can die
-    /// under any scene). Returns whether the job failed.
+    /// under any scene). A tile that holds the job up, every other tile finished or a pass
+    /// ahead of it (waiting for it), once passes were done, has no rest of the job to
+    /// compare with (nothing else could be done, and renderers did finish this scene's
+    /// tiles): only the second limit applies to it. Returns whether the job failed.
     pub fn lease_expired(&mut self, tile: usize, lease: u64, worker: &str) -> bool {
         let Some(n) = self.lending.lease_expired(tile, lease, worker) else {
             return false;
         };
         let died = self.lending.expired_on(tile).join(", ");
         let t = self.tiles[tile];
-        let reason = if n.stalled >= MAX_TILE_ATTEMPTS {
+        let done = &self.lending.done;
+        let holds_up = self.lending.finished() > 0
+            && (0..self.tiles.len())
+                .all(|o| o == tile || self.is_finished(o) || done[o] > done[tile]);
+        let reason = if n.stalled >= MAX_TILE_ATTEMPTS && !holds_up {
             format!(
                 "{} renderers in a row died, hung or lost their link rendering tile {tile} ({}x{} at {},{}) while no tile of the job was done; leases of {died} expired on this pass, the last {worker}'s: a scene that crashes or hangs its renderer does this",
                 n.stalled, t.width, t.height, t.x0, t.y0

@@ -417,3 +417,31 @@ async fn renderers_that_die_while_the_job_goes_on_fail_it_only_past_the_expiry_l
         }
     }
 }
+
+/// The last tile left (or the slowest, the others a pass ahead and waiting for it), once the
+/// job's other tiles were done: renderers dying on it three times in a row do not fail the
+/// job, since nothing else could have been done meanwhile and renderers did finish this
+/// scene; only the limit of expiries whatever the job did applies. (A chaos test that kills
+/// workers failed a healthy job on its last tile.)
+#[tokio::test(start_paused = true)]
+async fn renderers_that_die_on_the_last_tile_fail_the_job_only_past_the_expiry_limit() {
+    let f = farm(None);
+    let job = submit(&f, 16, 8, 8).await;
+    let good = lease(&f.app, "good").await.unwrap();
+    let (status, _) = upload(&f.app, good.lease, exr(&tile_of(&good, (16, 8), 1.0))).await;
+    assert_eq!(status, StatusCode::OK);
+    for i in 0..crate::coordinator::MAX_TILE_EXPIRIES {
+        let doomed = lease(&f.app, &format!("dies-{i}")).await.unwrap();
+        assert_ne!(doomed.tile_index, good.tile_index);
+        tokio::time::advance(TTL + Duration::from_millis(1)).await;
+        f.c.expire_leases();
+        let s = job_status(&f.app, job).await;
+        if i + 1 < crate::coordinator::MAX_TILE_EXPIRIES {
+            assert_eq!((s.state, s.failures), (JobState::Running, i + 1), "{s:?}");
+        } else {
+            assert_eq!(s.state, JobState::Failed);
+            let error = s.error.unwrap();
+            assert!(error.starts_with("10 renderers died"), "{error}");
+        }
+    }
+}
