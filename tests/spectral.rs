@@ -5,6 +5,18 @@
 
 use crate::util::{block_stats, failing, max_z_score, render, scene, write_scene};
 
+/// Asserts that every channel of `image` averages 1 within `within` and four standard errors.
+fn assert_white(name: &str, image: &kiln_image::RgbBuffer, within: f64) {
+    for c in 0..3 {
+        let (mean, err) = block_stats(image, 0, 0, image.width, image.height, c);
+        println!("{name}, channel {c}: {mean:.5} ± {err:.5}");
+        assert!(
+            (mean - 1.0).abs() < within + 4.0 * err,
+            "{name} channel {c}: {mean} ± {err}"
+        );
+    }
+}
+
 /// A white furnace (a white diffuse sphere inside uniform white light) is white at every
 /// pixel's mean, on every channel, though each sample sees four wavelengths of a light whose
 /// spectrum (D65) is not flat.
@@ -17,15 +29,7 @@ fn a_white_furnace_stays_white_in_spectral_mode() {
         "furnace",
         &["--spectral", "--resolution", "48x32", "--spp", "64"],
     );
-    let (w, h) = (r.image.width, r.image.height);
-    for c in 0..3 {
-        let (mean, err) = block_stats(&r.image, 0, 0, w, h, c);
-        println!("channel {c}: {mean:.5} ± {err:.5}");
-        assert!(
-            (mean - 1.0).abs() < 3e-3 + 4.0 * err,
-            "channel {c}: {mean} ± {err}"
-        );
-    }
+    assert_white("furnace", &r.image, 3e-3);
 }
 
 /// A grey box (grey walls, a grey ball, a glass ball, white light, eight bounces).
@@ -184,15 +188,7 @@ fn dispersive_glass_in_a_white_furnace_stays_white() {
         );
         let path = write_scene(dir.path(), &format!("{name}.pbrt"), &text);
         let r = render(&path, dir.path(), name, &["--spectral", "--spp", "256"]);
-        let (w, h) = (r.image.width, r.image.height);
-        for c in 0..3 {
-            let (mean, err) = block_stats(&r.image, 0, 0, w, h, c);
-            println!("{name}, channel {c}: {mean:.5} ± {err:.5}");
-            assert!(
-                (mean - 1.0).abs() < 5e-3 + 4.0 * err,
-                "{name} channel {c}: {mean} ± {err}"
-            );
-        }
+        assert_white(name, &r.image, 5e-3);
     }
 }
 

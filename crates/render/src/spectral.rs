@@ -43,10 +43,16 @@ fn response() -> &'static [Vec4] {
 /// The response at `lambda` nm, linear between the nanometres.
 fn response_at(lambda: f32) -> Vec4 {
     let table = response();
-    let x = (lambda - LAMBDA_MIN).clamp(0.0, (table.len() - 1) as f32);
-    let i = (x as usize).min(table.len() - 2);
-    let u = x - i as f32;
+    let (i, u) = per_nm(lambda, table.len());
     table[i] * (1.0 - u) + table[i + 1] * u
+}
+
+/// Where `lambda` falls in a table of `len` entries, one per nanometre from 360 nm: the entry
+/// below it and the fraction of the way to the next (clamped to the table).
+fn per_nm(lambda: f32, len: usize) -> (usize, f32) {
+    let x = (lambda - LAMBDA_MIN).clamp(0.0, (len - 1) as f32);
+    let i = (x as usize).min(len - 2);
+    (i, x - i as f32)
 }
 
 /// Entries of each thread's memo of recent lookups.
@@ -189,30 +195,29 @@ impl Wavelengths {
 pub struct DenseSpectrum(Vec<f32>);
 
 impl DenseSpectrum {
-    /// From (wavelength nm, value) pairs in increasing wavelength (at least one).
+    /// From (wavelength nm, value) pairs in strictly increasing wavelength (at least one),
+    /// read as `kiln_scene::spectrum::spectrum_at` reads a scene's spectra.
     pub fn new(pairs: &[(f32, f32)]) -> DenseSpectrum {
         assert!(!pairs.is_empty(), "a spectrum needs a sample");
-        let at = |l: f32| {
-            let j = pairs.partition_point(|p| p.0 <= l);
-            if j == 0 {
-                return pairs[0].1;
-            }
-            if j == pairs.len() {
-                return pairs[j - 1].1;
-            }
-            let ((l0, v0), (l1, v1)) = (pairs[j - 1], pairs[j]);
-            v0 + (v1 - v0) * (l - l0) / (l1 - l0)
-        };
+        let pairs: Vec<(f64, f64)> = pairs
+            .iter()
+            .map(|&(l, v)| (f64::from(l), f64::from(v)))
+            .collect();
         let n = (LAMBDA_MAX - LAMBDA_MIN) as usize;
-        DenseSpectrum((0..=n).map(|i| at(LAMBDA_MIN + i as f32)).collect())
+        DenseSpectrum(
+            (0..=n)
+                .map(|i| {
+                    let lambda = f64::from(LAMBDA_MIN) + i as f64;
+                    kiln_scene::spectrum::spectrum_at(&pairs, lambda) as f32
+                })
+                .collect(),
+        )
     }
 
     /// The spectrum at `waves`' wavelengths.
     pub fn at(&self, waves: &Wavelengths) -> Vec4 {
         Vec4::from_array(waves.lambda.to_array().map(|l| {
-            let x = (l - LAMBDA_MIN).clamp(0.0, (self.0.len() - 1) as f32);
-            let i = (x as usize).min(self.0.len() - 2);
-            let u = x - i as f32;
+            let (i, u) = per_nm(l, self.0.len());
             self.0[i] * (1.0 - u) + self.0[i + 1] * u
         }))
     }

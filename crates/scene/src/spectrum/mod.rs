@@ -126,8 +126,9 @@ fn table_at(table: &[f64; TABLE_LEN], lambda: f64) -> f64 {
     table[i] * (1.0 - u) + table[i + 1] * u
 }
 
-/// A validated piecewise-linear spectrum evaluated at `lambda`; constant beyond its ends.
-pub(crate) fn spectrum_at(pairs: &[(f64, f64)], lambda: f64) -> f64 {
+/// A validated piecewise-linear spectrum (wavelengths strictly increasing) evaluated at
+/// `lambda`; constant beyond its ends.
+pub fn spectrum_at(pairs: &[(f64, f64)], lambda: f64) -> f64 {
     let (l_first, v_first) = pairs[0];
     let (l_last, v_last) = pairs[pairs.len() - 1];
     if lambda <= l_first {
