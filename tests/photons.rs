@@ -456,7 +456,7 @@ fn grid_emitted_power(medium: &kiln_render::media::Medium) -> f64 {
             for x in 0..n {
                 let f = glam::Vec3A::new(x as f32, y as f32, z as f32) + 0.5;
                 let p = lo + (hi - lo) * f / n as f32;
-                sum += kiln_render::math::luminance(g.source(g.to_box(p))) as f64;
+                sum += kiln_render::math::luminance(g.source_at(g.to_box(p), None)) as f64;
             }
         }
     }

@@ -61,7 +61,8 @@ AttributeEnd
 
 /// Grey scenes render as in RGB within noise: grey spectra are flat, so their products
 /// are too, and the white light is white: a grey box, and fog (a grey homogeneous medium
-/// that scatters and absorbs, lit by a spotlight). Block by block (4 x 3) and channel by channel,
+/// that scatters and absorbs, lit by a sphere light) and the same as a grid medium, and a
+/// VolumeLight whose interior glows and absorbs. Block by block (4 x 3) and channel by channel,
 /// independent renders (different seeds) differ by under 5 standard errors.
 #[test]
 fn a_grey_scene_renders_alike_in_spectral_and_rgb_modes() {
@@ -74,9 +75,25 @@ fn a_grey_scene_renders_alike_in_spectral_and_rgb_modes() {
         )
         .replace("\"rgb L\" [ 20 16 12 ]", "\"rgb L\" [ 16 16 16 ]");
     assert!(fog.contains("[ 0.3 0.3 0.3 ]") && fog.contains("[ 16 16 16 ]"));
+    // The same fog as a grid medium, denser towards +x and +y.
+    let smoke = fog.replace(
+        "\"homogeneous\" \"rgb sigma_a\" [ 0.06 0.06 0.06 ] \"rgb sigma_s\" [ 0.3 0.3 0.3 ]",
+        "\"uniformgrid\" \"point3 p0\" [ -3 0 -3 ] \"point3 p1\" [ 3 4 3 ] \"integer nx\" 2 \"integer ny\" 2 \"integer nz\" 1 \"float density\" [ 0.5 1 1.5 2 ] \"rgb sigma_a\" [ 0.04 0.04 0.04 ] \"rgb sigma_s\" [ 0.2 0.2 0.2 ]",
+    );
+    assert!(smoke.contains("uniformgrid"));
+    // A VolumeLight glowing grey through its glass, absorbing inside.
+    let glow = std::fs::read_to_string(scene("volume-light/glass-sphere.pbrt"))
+        .unwrap()
+        .replace(
+            "\"rgb Le\" [ 4 1.6 0.4 ]",
+            "\"rgb Le\" [ 2 2 2 ] \"rgb sigma_a\" [ 0.7 0.7 0.7 ]",
+        );
+    assert!(glow.contains("[ 0.7 0.7 0.7 ]"));
     for (name, text, spp) in [
         ("grey box", GREY_BOX, "128"),
         ("grey fog", fog.as_str(), "64"),
+        ("grey smoke (a grid medium)", smoke.as_str(), "64"),
+        ("grey VolumeLight", glow.as_str(), "64"),
     ] {
         let path = write_scene(dir.path(), "grey.pbrt", text);
         let args = |mode: &'static str, seed: &'static str| {
@@ -144,6 +161,23 @@ fn spectral_renders_are_deterministic_and_the_option_is_the_flag() {
         one.bytes == many.bytes,
         "tile split or threads changed the bytes"
     );
+    // And through a grid medium, a temperature grid's emission sampled as a light; and the
+    // headline frame's VolumeLight, seen through its glass.
+    for name in ["fire/scene.pbrt", "molten-glass/scene.pbrt"] {
+        let split = |tile: &'static str, threads: &'static str| {
+            render(
+                &scene(name),
+                dir.path(),
+                &format!("split-{tile}"),
+                &with(&["--spectral", "--tile", tile, "--threads", threads]),
+            )
+            .bytes
+        };
+        assert!(
+            split("40", "1") == split("8", "2"),
+            "tile split or threads changed {name}'s bytes"
+        );
+    }
     let text = std::fs::read_to_string(&materials).unwrap();
     let opted = write_scene(
         dir.path(),
@@ -198,15 +232,13 @@ fn dispersive_glass_in_a_white_furnace_stays_white() {
 fn what_is_not_spectral_yet_is_refused_clearly() {
     let (err, _dir) = failing(
         "Option \"kiln.spectral\" true\n\
-         Integrator \"volpath\"\n\
+         Integrator \"sppm\"\n\
          Film \"rgb\" \"integer xresolution\" 8 \"integer yresolution\" 8\n\
          Camera \"perspective\"\n\
          WorldBegin\n\
-         MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" \"integer nx\" 1 \"integer ny\" 1 \"integer nz\" 1 \"float density\" [ 1 ]\n\
-         MediumInterface \"smoke\" \"\"\n\
          Shape \"sphere\"\n",
     );
-    assert!(err.contains("grid media"), "{err}");
+    assert!(err.contains("'sppm'"), "{err}");
     assert!(err.contains("in RGB"), "{err}");
     assert!(err.contains("scene.pbrt"), "{err}");
 }

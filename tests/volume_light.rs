@@ -81,6 +81,23 @@ fn glass_volume_light_sphere_strategies_agree() {
     );
 }
 
+/// The same spectrally, with an interior that absorbs in colour: a VolumeLight's radiance at
+/// a spectral path's wavelengths is the same function for light sampling and for paths
+/// that reach its surface.
+#[test]
+fn glass_volume_light_sphere_strategies_agree_spectrally() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(crate::util::scene("volume-light/glass-sphere.pbrt"))
+        .unwrap()
+        .replace(
+            "\"rgb Le\" [ 4 1.6 0.4 ]",
+            "\"rgb Le\" [ 4 1.6 0.4 ] \"rgb sigma_a\" [ 0.2 0.9 1.5 ]",
+        );
+    assert!(text.contains("sigma_a"));
+    let path = write_scene(dir.path(), "absorbing.pbrt", &text);
+    glass_strategies_agree(&path, &["--spp", "128", "--spectral"]);
+}
+
 /// The same with a triangle mesh, where every face is its own light chosen by estimated power.
 #[test]
 fn glass_volume_light_mesh_strategies_agree() {

@@ -170,6 +170,33 @@ impl Wavelengths {
         self.unbounded(rgb) * self.d65()
     }
 
+    /// A spectrum made once ([`SigmoidSpectrum`]) at these wavelengths.
+    pub fn of(&self, s: &SigmoidSpectrum) -> Vec4 {
+        if s.scale == 0.0 {
+            return Vec4::ZERO;
+        }
+        self.sigmoid(s.c) * s.scale
+    }
+
+    /// A blackbody at `kelvin` divided by its value at its peak wavelength (pbrt-v4's
+    /// `BlackbodySpectrum`, which temperature grids emit), exactly: with r = λ_peak / λ it
+    /// is r⁵ (e^x − 1) / (e^{x·r} − 1), x = hc / (λ_peak k T). Zero for kelvin <= 0.
+    pub fn blackbody(&self, kelvin: f32) -> Vec4 {
+        if kelvin.is_nan() || kelvin <= 0.0 {
+            return Vec4::ZERO;
+        }
+        let peak = 2.897_772e6 / kelvin;
+        Vec4::from_array(self.lambda.to_array().map(|l| {
+            let r = peak / l;
+            if WIEN_X * r > 80.0 {
+                // Below 1e-28 of the peak (and r⁵ / (e^{x·r} − 1) would be ∞ / ∞).
+                return 0.0;
+            }
+            let r2 = r * r;
+            r2 * r2 * r * (libm::expm1f(WIEN_X) / libm::expm1f(WIEN_X * r))
+        }))
+    }
+
     /// D65 at these wavelengths, normalised to ∫ D65·ȳ = 1.
     pub fn d65(&self) -> Vec4 {
         self.d65
@@ -187,6 +214,67 @@ impl Wavelengths {
         Vec4::new(avg.x, avg.y, avg.z, avg.y)
     }
 }
+
+/// An RGB value made a spectrum once, where a scene is built: sigmoid coefficients and a
+/// scale, read at a path's wavelengths by [`Wavelengths::of`]. What [`Wavelengths::albedo`]
+/// and [`Wavelengths::unbounded`] compute per call, for values met at every step of a walk
+/// (a grid medium's coefficients, its voxels' colours).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SigmoidSpectrum {
+    c: Coefficients,
+    scale: f32,
+}
+
+impl SigmoidSpectrum {
+    /// Zero at every wavelength.
+    pub const ZERO: SigmoidSpectrum = SigmoidSpectrum {
+        c: [0.0; 3],
+        scale: 0.0,
+    };
+
+    /// An unbounded value's spectrum (or a light's before its white), as
+    /// [`Wavelengths::unbounded`] makes it.
+    pub fn unbounded(rgb: [f32; 3]) -> SigmoidSpectrum {
+        let m = rgb[0].max(rgb[1]).max(rgb[2]);
+        if m.is_nan() || m <= 0.0 {
+            return SigmoidSpectrum::ZERO;
+        }
+        let scale = 2.0 * m;
+        SigmoidSpectrum {
+            c: SigmoidTable::srgb().coefficients(rgb.map(|v| v / scale)),
+            scale,
+        }
+    }
+
+    /// The largest value over 360–830 nm, exactly: the sigmoid rises with its quadratic,
+    /// whose largest value on the range is at an end or at its vertex.
+    pub fn max_value(&self) -> f32 {
+        if self.scale == 0.0 {
+            return 0.0;
+        }
+        let [c0, c1, c2] = self.c;
+        if c0.is_infinite() {
+            return if c0 > 0.0 { self.scale } else { 0.0 };
+        }
+        let t = |l: f32| (l - 555.0) / 175.0;
+        let z = |t: f32| c0 + t * (c1 + t * c2);
+        let (t0, t1) = (t(LAMBDA_MIN), t(LAMBDA_MAX));
+        let mut z_max = z(t0).max(z(t1));
+        if c2 < 0.0 {
+            let vertex = -c1 / (2.0 * c2);
+            if (t0..=t1).contains(&vertex) {
+                z_max = z_max.max(z(vertex));
+            }
+        }
+        let s = 0.5 + z_max / (2.0 * (1.0 + z_max * z_max).sqrt());
+        // One part in a million above it: a majorant must not fall short by a rounding.
+        s * self.scale * (1.0 + 1e-6)
+    }
+}
+
+/// Planck's c₂/b: the exponent hc/(λkT) at the peak wavelength λ = b/T (Wien), the same
+/// for every temperature.
+const WIEN_X: f32 = 4.965_114;
 
 /// A spectrum tabulated every nanometre from 360 to 830 nm: a scene's piecewise-linear
 /// spectrum resampled (its end values held beyond its ends, as pbrt-v4 extends its named
@@ -220,6 +308,60 @@ impl DenseSpectrum {
             let (i, u) = per_nm(l, self.0.len());
             self.0[i] * (1.0 - u) + self.0[i + 1] * u
         }))
+    }
+}
+
+/// Emission given as a spectrum (a blackbody, a scene's pairs): its shape, and the linear
+/// sRGB the film records of it, so that the emission of RGB `c` (this shape's RGB times a
+/// brightness, as the scene built it) is the shape times that brightness at a path's
+/// wavelengths.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightSpectrum {
+    shape: DenseSpectrum,
+    /// The channel the brightness is read from (the shape's largest) and the shape's value
+    /// in it.
+    channel: usize,
+    film: f32,
+}
+
+impl LightSpectrum {
+    /// From a scene's pairs (zero beyond them, as the scene crate gives them); None for a
+    /// shape that the film sees as black.
+    pub fn new(pairs: &[(f32, f32)]) -> Option<LightSpectrum> {
+        let mut pairs = pairs.to_vec();
+        // Zero beyond the ends, where the range reaches further than the pairs.
+        if let (Some(&(first, _)), Some(&(last, _))) = (pairs.first(), pairs.last()) {
+            if first > LAMBDA_MIN {
+                pairs.insert(0, (first - 1.0, 0.0));
+            }
+            if last < LAMBDA_MAX {
+                pairs.push((last + 1.0, 0.0));
+            }
+        }
+        let shape = DenseSpectrum::new(&pairs);
+        // The film's RGB: the trapezoid rule over the nanometres.
+        let table = response();
+        let mut rgb = Vec4::ZERO;
+        for (i, r) in table.iter().enumerate() {
+            let w = if i == 0 || i == table.len() - 1 {
+                0.5
+            } else {
+                1.0
+            };
+            rgb += *r * (shape.0[i] * w);
+        }
+        let rgb = [rgb.x, rgb.y, rgb.z];
+        let channel = (0..3).fold(0, |m, c| if rgb[c] > rgb[m] { c } else { m });
+        (rgb[channel] > 0.0).then_some(LightSpectrum {
+            shape,
+            channel,
+            film: rgb[channel],
+        })
+    }
+
+    /// The emission whose RGB is `c` at `waves`' wavelengths.
+    pub fn at(&self, waves: &Wavelengths, c: Vec4) -> Vec4 {
+        self.shape.at(waves) * (c[self.channel] / self.film)
     }
 }
 
@@ -301,6 +443,92 @@ mod tests {
             close(film_mean(|w| w.illuminant(rgb(big))), big, 3e-2);
         }
         close(film_mean(|w| w.illuminant(rgb([1.0; 3]))), [1.0; 3], 2e-3);
+    }
+
+    /// A spectrum made once is the one made per call; its largest value bounds it at every
+    /// wavelength and is reached (within the sampling of the check).
+    #[test]
+    fn sigmoid_spectra_made_once_and_their_maxima() {
+        for c in [
+            [0.8, 0.4, 0.1],
+            [0.1, 0.7, 0.2],
+            [3.0, 0.2, 9.0],
+            [0.5, 0.5, 0.5],
+            [0.0, 1.0, 0.0],
+            [2.0, 0.0, 0.0],
+        ] {
+            let s = SigmoidSpectrum::unbounded(c);
+            let mut seen = 0.0f32;
+            for i in 0..=4700 {
+                let lambda = LAMBDA_MIN + i as f32 * 0.1;
+                let w = Wavelengths {
+                    lambda: Vec4::splat(lambda),
+                    t: Vec4::splat((lambda - 555.0) / 175.0),
+                    ..Wavelengths::sample(0.5)
+                };
+                let v = w.of(&s);
+                assert_eq!(v, w.unbounded(rgb(c)), "{c:?} at {lambda} nm");
+                seen = seen.max(v.x);
+            }
+            let max = s.max_value();
+            assert!(
+                max >= seen && max <= seen * 1.0001,
+                "{c:?}: max {max}, largest seen {seen}"
+            );
+        }
+        assert_eq!(SigmoidSpectrum::unbounded([0.0; 3]).max_value(), 0.0);
+    }
+
+    /// The exact blackbody, through the film, is the RGB of pbrt-v4's peak-normalised
+    /// blackbody that RGB rendering uses, where that RGB is in gamut; below about 1900 K its
+    /// blue is out of gamut, negative, and kept.
+    #[test]
+    fn the_exact_blackbody_gives_its_rgb() {
+        for kelvin in [2500.0, 4000.0, 6500.0, 12000.0] {
+            let want = kiln_scene::spectrum::blackbody_peak_rgb(kelvin);
+            let got = film_mean(|w| w.blackbody(kelvin));
+            for k in 0..3 {
+                assert!(
+                    (got[k] / want[k] as f64 - 1.0).abs() < 2e-3,
+                    "{kelvin} K: {got:?} vs {want:?}"
+                );
+            }
+        }
+        let cold = film_mean(|w| w.blackbody(1500.0));
+        let want = kiln_scene::spectrum::blackbody_peak_rgb(1500.0);
+        assert!((cold[0] / want[0] as f64 - 1.0).abs() < 2e-3, "{cold:?}");
+        assert!(cold[2] < 0.0 && want[2] == 0.0, "{cold:?}");
+        assert_eq!(Wavelengths::sample(0.3).blackbody(0.0), Vec4::ZERO);
+        assert_eq!(Wavelengths::sample(0.3).blackbody(5.0), Vec4::ZERO);
+    }
+
+    /// Emission given as a spectrum keeps its RGB brightness and colour through the film:
+    /// a blackbody whose RGB the scene crate computed, and a narrow band of a scene's pairs
+    /// (zero beyond them) whose film RGB is its own.
+    #[test]
+    fn light_spectra_give_back_their_rgb() {
+        let blackbody = kiln_scene::spectrum::blackbody_spectrum(3000.0);
+        let s = LightSpectrum::new(&blackbody).unwrap();
+        let c = kiln_scene::spectrum::blackbody_rgb(3000.0)
+            .unwrap()
+            .map(|v| 2.5 * v);
+        let got = film_mean(|w| s.at(w, rgb(c)));
+        for k in 0..3 {
+            assert!(
+                (got[k] / c[k] as f64 - 1.0).abs() < 3e-3,
+                "{got:?} vs {c:?}"
+            );
+        }
+        let band = LightSpectrum::new(&[(480.0, 0.0), (510.0, 2.0), (540.0, 0.0)]).unwrap();
+        let film = film_mean(|w| band.at(w, Vec4::splat(band.film)));
+        // Green's the band's largest channel; the film gives the shape's own RGB, whose
+        // red is negative (out of gamut).
+        assert_eq!(band.channel, 1);
+        assert!((film[1] / band.film as f64 - 1.0).abs() < 3e-3, "{film:?}");
+        assert!(film[0] < 0.0, "{film:?}");
+        let outside = Wavelengths::sample(0.0);
+        assert!(outside.lambda.x < 400.0 && band.at(&outside, Vec4::ONE).x == 0.0);
+        assert!(LightSpectrum::new(&[(500.0, 0.0), (510.0, 0.0)]).is_none());
     }
 
     /// Spectra are lane-wise: the four wavelengths' values are each a function of their

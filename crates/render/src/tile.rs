@@ -91,9 +91,7 @@ fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static
     if path.photons != kiln_scene::PhotonDesc::NONE {
         Some("photon maps")
     } else if !scene.media.iter().all(crate::media::Medium::is_spectral) {
-        Some("grid media (heterogeneous and emissive volumes)")
-    } else if !scene.volumes.is_empty() {
-        Some("VolumeLights")
+        Some("grid media built for RGB")
     } else if settings.gbuffer.is_some() {
         Some("a G-buffer film")
     } else if scene

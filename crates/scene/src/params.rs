@@ -363,6 +363,39 @@ impl ParamSet {
         }
     }
 
+    /// The shape of an emission parameter given as a spectrum (see
+    /// [`spectrum::EmissionSpectrum`]): a blackbody, or inline (wavelength, value) pairs (a
+    /// spectrum file's, once read). None when it is absent, given as RGB or a float, or named
+    /// (pbrt-v4's named illuminants reach spectral rendering through their RGB). Call it
+    /// after [`ParamSet::rgb`] has checked the value.
+    pub fn emission_spectrum(&self, name: &str) -> Option<spectrum::EmissionSpectrum> {
+        let p = self
+            .params
+            .iter()
+            .find(|p| p.name == name && matches!(p.ty.as_str(), "blackbody" | "spectrum"))?;
+        match (p.ty.as_str(), &p.values) {
+            ("blackbody", ParamValues::Numbers(v)) if v.len() == 1 && v[0] > 0.0 => {
+                Some(spectrum::blackbody_spectrum(v[0] as f32))
+            }
+            ("spectrum", ParamValues::Numbers(v)) if v.len() >= 2 && v.len() % 2 == 0 => {
+                let pairs: Vec<(f32, f32)> = v
+                    .chunks_exact(2)
+                    .map(|c| (c[0] as f32, c[1] as f32))
+                    .collect();
+                // Zero beyond its ends (as pbrt-v4 reads a scene's spectra): a nanometre out.
+                let (first, last) = (pairs[0].0, pairs[pairs.len() - 1].0);
+                let ordered = pairs.windows(2).all(|w| w[0].0 < w[1].0);
+                ordered.then(|| {
+                    std::iter::once((first - 1.0, 0.0))
+                        .chain(pairs)
+                        .chain(std::iter::once((last + 1.0, 0.0)))
+                        .collect()
+                })
+            }
+            _ => None,
+        }
+    }
+
     /// Every RGB triple of an `rgb` parameter (pbrt-v4's RGB arrays, such as an "rgbgrid"
     /// medium's), converted from the colour space in effect; None when it is absent.
     pub fn rgbs(&self, name: &str, usage: SpectrumUse) -> Result<Option<Vec<[f32; 3]>>> {

@@ -98,7 +98,7 @@ pub(super) fn sample_direct(
     if v.last && matches!(scene.lights[index], crate::lights::Light::Medium(_)) {
         return Color::ZERO;
     }
-    let (sample, traced) = scene.lights[index].sample(&scene.light_context(), v.p, u);
+    let (sample, traced) = scene.lights[index].sample(&scene.light_context_at(v.waves), v.p, u);
     work.rays += traced;
     let Some(ls) = sample else {
         return Color::ZERO;
@@ -154,10 +154,7 @@ pub(super) fn sample_direct(
         return Color::ZERO;
     }
     let light_pdf = pmf * ls.pdf;
-    let radiance = match v.waves {
-        None => ls.radiance,
-        Some(w) => w.illuminant(ls.radiance),
-    };
+    let radiance = scene.light_radiance(index as u32, ls.radiance, v.waves);
     if ls.delta {
         return f * tr * radiance / light_pdf;
     }

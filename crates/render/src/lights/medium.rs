@@ -27,7 +27,7 @@ impl MediumLight {
         let (q, pdf_volume) = g.sample_emission([u.x, u.y, rng.next_f32()], &mut rng)?;
         let d = q - p;
         let dist2 = d.length_squared();
-        let source = g.source(g.to_box(q));
+        let source = g.source_at(g.to_box(q), ctx.waves);
         if dist2 == 0.0 || source == Color::ZERO {
             return None;
         }
@@ -58,7 +58,7 @@ impl MediumLight {
         };
         let mut rng = TrackingRng::from_values(&[u[0].x, u[0].y, uc], 2);
         let (q, pdf_volume) = g.sample_emission([u[0].x, u[0].y, uc], &mut rng)?;
-        let source = g.source(g.to_box(q));
+        let source = g.source_at(g.to_box(q), None);
         (pdf_volume > 0.0 && source != Color::ZERO).then(|| super::EmittedRay {
             origin: q,
             dir: crate::sampling::uniform_sphere(u[1]),

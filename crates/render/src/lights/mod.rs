@@ -34,6 +34,7 @@ pub use volume::{VolumeInterior, VolumeQuadricLight, VolumeSphereLight, VolumeTr
 use crate::math::{Color, Frame, rgb};
 use crate::media::Medium;
 use crate::shapes::{Geometry, ShapeSample};
+use crate::spectral::Wavelengths;
 use glam::{Affine3A, Mat3A, Vec2, Vec3A};
 use kiln_scene::{EnvironmentLayout, LightKind};
 
@@ -44,6 +45,8 @@ pub struct LightContext<'a> {
     /// VolumeLight interiors, by `volume` index.
     pub volumes: &'a [VolumeInterior],
     pub media: &'a [Medium],
+    /// A spectral path's wavelengths, at which samples' radiance is then given.
+    pub waves: Option<&'a Wavelengths>,
 }
 
 #[derive(Debug, Clone)]
@@ -380,6 +383,11 @@ impl Light {
 
     /// Samples a point or direction on the light from `p`; returns the sample (None where
     /// the light sends nothing towards `p`) and the rays traced to find it.
+    /// Samples a point of the light seen from `p`: its radiance, and the rays traced to
+    /// find it. The radiance is RGB (see [`Scene::light_radiance`](crate::scene::Scene::light_radiance)),
+    /// except an emissive medium's and a VolumeLight's, at `ctx`'s wavelengths for a
+    /// spectral path (a temperature's blackbody is no RGB colour; a VolumeLight's interior
+    /// absorbs per wavelength).
     pub fn sample(&self, ctx: &LightContext, p: Vec3A, u: Vec2) -> (Option<LightSample>, u64) {
         match self {
             Light::Point(l) => (l.sample(p), 0),

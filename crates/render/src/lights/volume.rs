@@ -19,6 +19,7 @@ use crate::sampling::{
 use crate::shapes::Geometry;
 use crate::shapes::sphere::{sample_sphere, sphere_pdf};
 use crate::shapes::triangle::{sample_triangle, triangle_pdf};
+use crate::spectral::Wavelengths;
 use glam::{Affine3A, Vec2, Vec3A};
 use rayon::prelude::*;
 use std::f32::consts::PI;
@@ -197,28 +198,43 @@ pub struct VolumeInterior {
 }
 
 impl VolumeInterior {
-    /// Emission per unit length at a world-space point.
+    /// The emission and absorption per unit length: in RGB, or with `waves` at a spectral
+    /// path's wavelengths (light's spectrum and an unbounded one).
+    fn colours(&self, waves: Option<&Wavelengths>) -> (Color, Color) {
+        match waves {
+            None => (self.le, self.sigma_a),
+            Some(w) => (w.illuminant(self.le), w.unbounded(self.sigma_a)),
+        }
+    }
+
+    /// Emission per unit length at a world-space point, in RGB.
     pub fn emission_at(&self, p: Vec3A) -> Color {
+        self.le * self.field_at(p)
+    }
+
+    /// What the grid multiplies the emission by at a world-space point (1 without one).
+    fn field_at(&self, p: Vec3A) -> f32 {
         match &self.grid {
-            None => self.le,
-            Some(g) => self.le * g.lookup_clamped(self.world_to_grid.transform_point3a(p)),
+            None => 1.0,
+            Some(g) => g.lookup_clamped(self.world_to_grid.transform_point3a(p)),
         }
     }
 
     /// Emission gathered along `origin + dir * s` for s in [0, t], each point attenuated
-    /// by absorption over its distance from `origin`.
-    pub fn segment(&self, origin: Vec3A, dir: Vec3A, t: f32) -> Color {
+    /// by absorption over its distance from `origin`: in RGB, or at `waves`.
+    pub fn segment(&self, origin: Vec3A, dir: Vec3A, t: f32, waves: Option<&Wavelengths>) -> Color {
         if t <= 0.0 || !t.is_finite() {
             return Color::ZERO;
         }
-        let absorbs = self.sigma_a != Color::ZERO;
+        let (le, sigma_a) = self.colours(waves);
+        let absorbs = sigma_a != Color::ZERO;
         if self.grid.is_none() {
             // A uniform field integrates in closed form.
             return if absorbs {
-                let s = self.sigma_a.max(Color::splat(1e-12));
-                self.le * (Color::ONE - (-s * t).exp()) / s
+                let s = sigma_a.max(Color::splat(1e-12));
+                le * (Color::ONE - (-s * t).exp()) / s
             } else {
-                self.le * t
+                le * t
             };
         }
         // The midpoint rule, as the seed integrates the voxel grid.
@@ -226,22 +242,18 @@ impl VolumeInterior {
         let mut sum = Color::ZERO;
         for k in 0..self.steps {
             let s = (k as f32 + 0.5) * dt;
-            let e = self.emission_at(origin + dir * s);
-            sum += if absorbs {
-                e * (-self.sigma_a * s).exp()
-            } else {
-                e
-            };
+            let e = le * self.field_at(origin + dir * s);
+            sum += if absorbs { e * (-sigma_a * s).exp() } else { e };
         }
         sum * dt
     }
 
-    /// Absorption over a distance `t`.
-    pub fn transmittance(&self, t: f32) -> Color {
+    /// Absorption over a distance `t`: in RGB, or at `waves`.
+    pub fn transmittance(&self, t: f32, waves: Option<&Wavelengths>) -> Color {
         if self.sigma_a == Color::ZERO || !t.is_finite() {
             Color::ONE
         } else {
-            (-self.sigma_a * t).exp()
+            (-self.colours(waves).1 * t).exp()
         }
     }
 
@@ -273,7 +285,7 @@ pub fn volume_le(
     };
     let t = interior_length(ctx.geometry, p, ng, inward);
     (
-        interior.segment(p, inward, t) * interior.exit_factor(cos_o),
+        interior.segment(p, inward, t, ctx.waves) * interior.exit_factor(cos_o),
         1,
     )
 }
@@ -362,7 +374,7 @@ fn face_power(
         let (q, n) = point(s.get_2d());
         let dir = Frame::from_z(-n).to_world(cosine_hemisphere(s.get_2d()));
         let t = interior_length(ctx.geometry, q, n, dir);
-        sum += luminance(interior.segment(q, dir, t)) as f64;
+        sum += luminance(interior.segment(q, dir, t, None)) as f64;
     }
     (sum / samples.max(1) as f64) as f32 * area * PI
 }
@@ -384,14 +396,14 @@ mod tests {
             power_samples: 1,
         };
         assert_eq!(
-            e.segment(Vec3A::ZERO, Vec3A::X, 2.0),
+            e.segment(Vec3A::ZERO, Vec3A::X, 2.0, None),
             crate::math::rgb3(2.0, 4.0, 6.0)
         );
         let absorbing = VolumeInterior {
             sigma_a: Color::splat(0.5),
             ..e.clone()
         };
-        let s = absorbing.segment(Vec3A::ZERO, Vec3A::X, 2.0);
+        let s = absorbing.segment(Vec3A::ZERO, Vec3A::X, 2.0, None);
         assert!((s.x - (1.0 - libm::expf(-1.0f32)) / 0.5).abs() < 1e-5);
         // A grid of ones with many midpoint steps agrees with the closed form.
         let gridded = VolumeInterior {
@@ -399,7 +411,7 @@ mod tests {
             steps: 4000,
             ..absorbing.clone()
         };
-        let m = gridded.segment(Vec3A::ZERO, Vec3A::X, 2.0);
+        let m = gridded.segment(Vec3A::ZERO, Vec3A::X, 2.0, None);
         assert!((m - s).abs().max_element() < 1e-4, "{m} vs {s}");
     }
 }

@@ -3,7 +3,8 @@
 use super::{MediumEvent, Phase};
 use crate::math::Color;
 use crate::sampling::TrackingRng;
-use crate::spectral::Wavelengths;
+use crate::spectral::{LightSpectrum, Wavelengths};
+use std::sync::Arc;
 
 /// Constant absorption and scattering per unit length, emission `le` (pbrt-v4's convention:
 /// the source term is sigma_a * le).
@@ -12,6 +13,8 @@ pub struct HomogeneousMedium {
     pub sigma_a: Color,
     pub sigma_s: Color,
     pub le: Color,
+    /// For a spectral render, the spectrum of `le` where the scene gave it one.
+    pub le_spectrum: Option<Arc<LightSpectrum>>,
     pub phase: Phase,
 }
 
@@ -22,11 +25,12 @@ impl HomogeneousMedium {
         HomogeneousMedium {
             sigma_a: waves.unbounded(self.sigma_a),
             sigma_s: waves.unbounded(self.sigma_s),
-            le: if self.le == Color::ZERO {
-                Color::ZERO
-            } else {
-                waves.illuminant(self.le)
+            le: match &self.le_spectrum {
+                _ if self.le == Color::ZERO => Color::ZERO,
+                Some(s) => s.at(waves, self.le),
+                None => waves.illuminant(self.le),
             },
+            le_spectrum: None,
             phase: self.phase,
         }
     }
@@ -78,16 +82,6 @@ impl HomogeneousMedium {
     }
 }
 
-/// The mean of a colour's first `lanes` lanes: its three channels in RGB ((r + g) + b, as
-/// RGB always summed them), a spectral path's four wavelengths.
-fn lane_mean(c: Color, lanes: usize) -> f32 {
-    if lanes == 4 {
-        c.element_sum() / 4.0
-    } else {
-        crate::math::rgb_sum(c) / 3.0
-    }
-}
-
 /// Free-flight sampling in a homogeneous medium: a colour channel (a spectral path's
 /// wavelength) is chosen uniformly and the distance sampled by its extinction; the weights
 /// divide by the density averaged over channels (the one-sample balance heuristic, as
@@ -113,7 +107,7 @@ fn track(
     };
     if t < t_max {
         let tr = (-sigma_t * t).exp();
-        let density = lane_mean(sigma_t * tr, lanes);
+        let density = super::lane_mean(sigma_t * tr, lanes);
         if density <= 0.0 {
             return MediumEvent::Absorbed;
         }
@@ -127,7 +121,7 @@ fn track(
             return MediumEvent::Absorbed;
         }
         let tr = (-sigma_t * t_max).exp();
-        let p_cross = lane_mean(tr, lanes);
+        let p_cross = super::lane_mean(tr, lanes);
         if p_cross <= 0.0 {
             return MediumEvent::Absorbed;
         }
@@ -146,6 +140,7 @@ mod tests {
             sigma_a: Color::splat(2.0),
             sigma_s: Color::ZERO,
             le: Color::splat(3.0),
+            le_spectrum: None,
             phase: Phase::HenyeyGreenstein { g: 0.0 },
         };
         let e = m.segment_emission(0.5);

@@ -61,6 +61,21 @@ pub enum Emitted {
     },
 }
 
+/// The sum of a colour's first `lanes` lanes: its three channels in RGB ((r + g) + b, as
+/// RGB always summed them), a spectral path's four wavelengths.
+fn lane_sum(c: Color, lanes: usize) -> f32 {
+    if lanes == 4 {
+        c.element_sum()
+    } else {
+        crate::math::rgb_sum(c)
+    }
+}
+
+/// The mean of a colour's first `lanes` lanes (see [`lane_sum`]).
+fn lane_mean(c: Color, lanes: usize) -> f32 {
+    lane_sum(c, lanes) / lanes as f32
+}
+
 impl Medium {
     /// The box in world space outside which the medium has no density (None: unbounded).
     pub fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
@@ -85,15 +100,17 @@ impl Medium {
         }
     }
 
-    /// Whether a spectral path can cross the medium (grid media still compute in RGB).
+    /// Whether a spectral path can cross the medium (a grid medium built for one).
     pub fn is_spectral(&self) -> bool {
-        matches!(self, Medium::Homogeneous(_))
+        match self {
+            Medium::Homogeneous(_) => true,
+            Medium::Grid(g) => g.is_spectral(),
+        }
     }
 
     /// Transmittance along the segment from `o` in unit direction `d` over (0, `t`); grid
     /// media estimate it by ratio tracking with numbers from `rng` (None if that walk was
-    /// cut off). With `waves`, at a spectral path's wavelengths (a homogeneous medium; see
-    /// [`Medium::is_spectral`]).
+    /// cut off). With `waves`, at a spectral path's wavelengths (see [`Medium::is_spectral`]).
     pub fn transmittance(
         &self,
         o: Vec3A,
@@ -105,15 +122,14 @@ impl Medium {
         match (self, waves) {
             (Medium::Homogeneous(h), None) => Some(h.transmittance(t)),
             (Medium::Homogeneous(h), Some(w)) => Some(h.at_wavelengths(w).transmittance(t)),
-            (Medium::Grid(g), _) => g.transmittance(o, d, t, rng),
+            (Medium::Grid(g), w) => g.transmittance(o, d, t, rng, w),
         }
     }
 
     /// Free-flight sampling along `ray` over (0, `t_max`), updating the throughput `beta`.
     /// Emission met on the way goes to `emitted` (see [`Emitted`]) before the event it
     /// precedes is chosen. The path tracer and the photon tracer share this; with `waves`,
-    /// a spectral path at those wavelengths (a homogeneous medium; see
-    /// [`Medium::is_spectral`]).
+    /// a spectral path at those wavelengths (see [`Medium::is_spectral`]).
     pub fn sample_interaction(
         &self,
         ray: &Ray,
@@ -136,7 +152,7 @@ impl Medium {
                 emitted(Emitted::Segment(*beta * h.segment_emission(t_max)));
                 h.sample_interaction(t_max, rng, beta, lanes)
             }
-            Medium::Grid(g) => g.track(ray, t_max, rng, beta, |t, sigma_maj, radiance| {
+            Medium::Grid(g) => g.track(ray, t_max, rng, beta, waves, |t, sigma_maj, radiance| {
                 emitted(Emitted::Collision {
                     t,
                     sigma_maj,

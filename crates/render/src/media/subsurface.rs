@@ -26,6 +26,7 @@ pub fn subsurface_medium(
                 sigma_a: rgb(sigma_a),
                 sigma_s: rgb(sigma_s),
                 le: Color::ZERO,
+                le_spectrum: None,
                 phase,
             }),
             None,
@@ -118,6 +119,7 @@ fn reflectance_medium(reflectance: Color, mfp: Color, phase: Phase) -> Medium {
         sigma_a,
         sigma_s,
         le: Color::ZERO,
+        le_spectrum: None,
         phase,
     })
 }

@@ -4,7 +4,7 @@
 //! that choice is the caller's: [`SampledGrid::lookup`] (zero outside, pbrt-v4's
 //! `SampledGrid`) or [`SampledGrid::lookup_clamped`] (the nearest centre's value, seed 000's).
 
-use glam::{Affine3A, Vec3A};
+use glam::{Affine3A, Vec3A, Vec4};
 
 /// A scalar grid over the unit box: sample (i, j, k) at the centre of voxel (i, j, k),
 /// or where a lattice map puts it; trilinear in between.
@@ -77,6 +77,46 @@ impl SampledGrid {
         let c01 = lerp(d.x, self.at(x, y, z + 1), self.at(x + 1, y, z + 1));
         let c11 = lerp(d.x, self.at(x, y + 1, z + 1), self.at(x + 1, y + 1, z + 1));
         lerp(d.z, lerp(d.y, c00, c10), lerp(d.y, c01, c11))
+    }
+
+    /// The trilinear blend at `p` of per-sample values `value(index)` gives (an index into the
+    /// grid's samples), zero beyond the outermost samples as in [`SampledGrid::lookup`]: a
+    /// grid of spectra interpolates its eight samples' values at a path's wavelengths, as
+    /// pbrt-v4's `SampledGrid::Lookup` with a conversion does.
+    pub fn blend(&self, p: Vec3A, value: impl Fn(usize) -> Vec4) -> Vec4 {
+        let s = self.sample_coords(p);
+        let f = s.floor();
+        let d = s - f;
+        let (x, y, z) = (f.x as i64, f.y as i64, f.z as i64);
+        let [nx, ny, nz] = self.n.map(|v| v as i64);
+        let at = |x: i64, y: i64, z: i64| {
+            if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
+                Vec4::ZERO
+            } else {
+                value(((z * ny + y) * nx + x) as usize)
+            }
+        };
+        let lerp = |t: f32, a: Vec4, b: Vec4| a + (b - a) * t;
+        let c00 = lerp(d.x, at(x, y, z), at(x + 1, y, z));
+        let c10 = lerp(d.x, at(x, y + 1, z), at(x + 1, y + 1, z));
+        let c01 = lerp(d.x, at(x, y, z + 1), at(x + 1, y, z + 1));
+        let c11 = lerp(d.x, at(x, y + 1, z + 1), at(x + 1, y + 1, z + 1));
+        lerp(d.z, lerp(d.y, c00, c10), lerp(d.y, c01, c11))
+    }
+
+    /// The grid's samples, in x-fastest order.
+    pub(crate) fn values(&self) -> &[f32] {
+        &self.values
+    }
+
+    /// A grid on the same lattice holding `values` instead (as many as this one's).
+    pub(crate) fn with_values(&self, values: Vec<f32>) -> SampledGrid {
+        assert_eq!(values.len(), self.values.len());
+        SampledGrid {
+            n: self.n,
+            values,
+            to_samples: self.to_samples,
+        }
     }
 
     /// The value at `p` in the unit box; voxel centres hold their values exactly, points

@@ -20,10 +20,11 @@ use crate::media::subsurface::{TexturedInterior, Walk};
 use crate::nesting::{Crossing, NestedShape, Nesting};
 use crate::sampling::TrackingRng;
 use crate::shapes::{Geometry, SurfaceHit};
-use crate::spectral::Wavelengths;
+use crate::spectral::{LightSpectrum, Wavelengths};
 use crate::textures::TextureEvalContext;
 use crate::work::Work;
 use glam::Vec3A;
+use std::sync::Arc;
 
 /// A scene ready to trace.
 pub struct Scene {
@@ -55,6 +56,9 @@ pub struct Scene {
     /// The media on either side of each area light's surface (inside, outside), by light
     /// index; for photons leaving it.
     pub light_media: Vec<Option<[u32; 2]>>,
+    /// For a spectral render, the spectrum of each light whose emission was given as one (a
+    /// blackbody, a scene's spectrum), by light index; None: its RGB's illuminant spectrum.
+    pub light_spectra: Vec<Option<Arc<LightSpectrum>>>,
     /// Nested dielectric shapes, referred to by `SurfaceInfo::nest`.
     pub nested: Vec<NestedShape>,
     /// Media from this index on are the interiors of "subsurface" materials: random walks,
@@ -154,6 +158,39 @@ impl Scene {
             geometry: &self.geometry,
             volumes: &self.volumes,
             media: &self.media,
+            waves: None,
+        }
+    }
+
+    /// The emission of light `light` whose RGB is `rgb`, at a spectral path's `waves`: the
+    /// light's own spectrum where it was given one, otherwise its RGB's illuminant spectrum;
+    /// an emissive medium's and a VolumeLight's are spectral already (they were given the
+    /// wavelengths). `rgb` itself in RGB.
+    pub fn light_radiance(&self, light: u32, rgb: Color, waves: Option<&Wavelengths>) -> Color {
+        let Some(w) = waves else {
+            return rgb;
+        };
+        match (
+            &self.lights[light as usize],
+            &self.light_spectra[light as usize],
+        ) {
+            (
+                Light::Medium(_)
+                | Light::VolumeTriangle(_)
+                | Light::VolumeSphere(_)
+                | Light::VolumeQuadric(_),
+                _,
+            ) => rgb,
+            (_, Some(s)) => s.at(w, rgb),
+            (_, None) => w.illuminant(rgb),
+        }
+    }
+
+    /// [`Scene::light_context`] for a path at `waves` (None: RGB).
+    pub fn light_context_at<'a>(&'a self, waves: Option<&'a Wavelengths>) -> LightContext<'a> {
+        LightContext {
+            waves,
+            ..self.light_context()
         }
     }
 

@@ -18,6 +18,8 @@ pub enum AreaLightDesc {
         /// bilinearly interpolated, clamped at the edges.
         image: Option<Arc<crate::textures::TextureImage>>,
         two_sided: bool,
+        /// The shape of the radiance's spectrum, where "L" was one (not with an image).
+        spectrum: Option<crate::spectrum::EmissionSpectrum>,
         /// pbrt-v4's "power": the lumens each shape (each triangle of a mesh, as in
         /// pbrt-v4) emits; the radiance is then `radiance` · power / (π · area · sides ·
         /// the image's mean luminance, if any).
@@ -117,5 +119,8 @@ pub struct LightDesc {
     /// The outside medium current at the LightSource directive: where photons from the light
     /// start (pbrt-v4 records it the same way).
     pub medium: Option<MediumId>,
+    /// The shape of the light's spectrum, where its colour ("I" or "L") was given as one
+    /// (not for lights whose colour is an image's).
+    pub spectrum: Option<crate::spectrum::EmissionSpectrum>,
     pub loc: Loc,
 }

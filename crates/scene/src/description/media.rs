@@ -26,6 +26,8 @@ pub enum MediumKind {
         sigma_a: Rgb,
         sigma_s: Rgb,
         le: Rgb,
+        /// The shape of Le's spectrum, where it was given as one.
+        le_spectrum: Option<crate::spectrum::EmissionSpectrum>,
         phase: PhaseDesc,
     },
     /// pbrt-v4's "uniformgrid", "rgbgrid" and "cloud": coefficients varying over the box
@@ -103,6 +105,8 @@ pub enum GridEmission {
     /// as a 1x1x1 grid, pbrt's default).
     Constant {
         le: Rgb,
+        /// The shape of Le's spectrum, where it was given as one.
+        le_spectrum: Option<crate::spectrum::EmissionSpectrum>,
         scale: VoxelGrid,
     },
     /// The peak-normalised blackbody at (T − offset) · t_scale (none at or below 100 K),

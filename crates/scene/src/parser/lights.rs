@@ -105,9 +105,20 @@ impl Parser {
         };
         self.check_unused(params, &format!("LightSource '{ty}'"), &[])?;
         let medium = self.medium_id(&self.gs.media.1);
+        // The colour's spectrum, where the light's colour is that parameter alone.
+        let spectrum = match &kind {
+            LightKind::Point { .. } | LightKind::Spot { .. } | LightKind::Goniometric { .. } => {
+                params.emission_spectrum("I")
+            }
+            LightKind::Distant { .. }
+            | LightKind::UniformInfinite { .. }
+            | LightKind::Dome { .. } => params.emission_spectrum("L"),
+            LightKind::ImageInfinite { .. } | LightKind::Projection { .. } => None,
+        };
         self.lights.push(LightDesc {
             kind,
             medium,
+            spectrum,
             loc: loc.clone(),
         });
         Ok(())
@@ -344,12 +355,17 @@ impl Parser {
                 .unwrap_or([1.0; 3])
                 .map(|c| c * scale),
         };
+        let spectrum = match image {
+            Some(_) => None,
+            None => params.emission_spectrum("L"),
+        };
         let two_sided = params.bool("twosided", false)?;
         self.check_unused(params, "AreaLightSource 'diffuse'", &[])?;
         self.gs.area_light = Some(AreaLightDesc::Diffuse {
             radiance,
             image,
             two_sided,
+            spectrum,
             power,
             loc: loc.clone(),
         });

@@ -46,6 +46,7 @@ fn homogeneous_medium(
         sigma_a: c.sigma_a,
         sigma_s: c.sigma_s,
         le,
+        le_spectrum: params.emission_spectrum("Le"),
         phase: c.phase,
     })
 }
@@ -356,7 +357,11 @@ impl Parser {
                         format!("medium '{name}': Le must not be negative"),
                     ));
                 }
-                GridEmission::Constant { le, scale }
+                GridEmission::Constant {
+                    le,
+                    le_spectrum: params.emission_spectrum("Le"),
+                    scale,
+                }
             }
             (_, Some((temperature, _))) => {
                 let (offset, t_scale) = temperature_mapping(params)?;

@@ -69,6 +69,7 @@ impl Parser {
                 sigma_a: [0.0; 3],
                 sigma_s: [0.0; 3],
                 le: [0.0; 3],
+                le_spectrum: None,
                 phase: c.phase,
             });
         };

@@ -578,6 +578,21 @@ pub fn blackbody_rgb(kelvin: f32) -> Result<[f32; 3], String> {
     )
 }
 
+/// A scene's emission given as a spectrum rather than RGB (a blackbody, an inline or file
+/// spectrum), as (wavelength nm, value) pairs in increasing wavelength: its shape, for
+/// spectral rendering. Its brightness is the RGB it came with; the pairs are only the
+/// shape (any scale). Zero beyond the pairs' ends.
+pub type EmissionSpectrum = std::sync::Arc<[(f32, f32)]>;
+
+/// Planck's curve at `kelvin` (> 0) every nanometre over 360–830 nm, divided by its value
+/// at the peak wavelength: a blackbody's [`EmissionSpectrum`].
+pub fn blackbody_spectrum(kelvin: f32) -> EmissionSpectrum {
+    blackbody_samples(f64::from(kelvin), false)
+        .into_iter()
+        .map(|(l, v)| (l as f32, v as f32))
+        .collect()
+}
+
 /// Planck's curve at `kelvin` over the visible range, divided by its value at the peak
 /// wavelength (which may lie outside the range), or by its largest value in the range if
 /// `visible_peak`, sampled every 1 nm: far finer than the curve varies, and treated as

@@ -6,6 +6,7 @@ use super::PathState;
 use crate::math::Ray;
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
+use crate::spectral::Wavelengths;
 use glam::Vec3A;
 
 /// The VolumeLight whose interior the path is in, and whether its current segment emits.
@@ -50,6 +51,7 @@ impl PathState {
         scene: &Scene,
         ray: &Ray,
         found: Option<&SurfaceHit>,
+        waves: Option<&Wavelengths>,
     ) {
         let Some((volume, count)) = self.interior.inside else {
             return;
@@ -57,9 +59,9 @@ impl PathState {
         let interior = &scene.volumes[volume as usize];
         let t = found.map_or(0.0, |h| h.t);
         if count {
-            self.l += self.beta * interior.segment(ray.origin, ray.dir, t);
+            self.l += self.beta * interior.segment(ray.origin, ray.dir, t, waves);
         }
-        self.beta *= interior.transmittance(t);
+        self.beta *= interior.transmittance(t, waves);
         if found.is_none() {
             // Only rounding lets a ray out of a closed shape without a hit.
             self.interior.inside = None;

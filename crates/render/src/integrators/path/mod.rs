@@ -42,14 +42,11 @@ pub(super) struct PathContext<'a> {
 }
 
 impl PathContext<'_> {
-    /// Emission a light gave in RGB, as the path sees it: that RGB, or its illuminant
-    /// spectrum at the path's wavelengths.
+    /// Emission light `light` gave in RGB, as the path sees it (see
+    /// [`Scene::light_radiance`](crate::scene::Scene::light_radiance)).
     #[inline]
-    pub fn emitted(&self, rgb: Color) -> Color {
-        match &self.waves {
-            None => rgb,
-            Some(w) => w.illuminant(rgb),
-        }
+    pub fn emitted(&self, light: u32, rgb: Color) -> Color {
+        self.scene.light_radiance(light, rgb, self.waves.as_ref())
     }
 }
 
@@ -255,7 +252,7 @@ pub(super) fn path_li(
                 Next::Surface => {}
             }
         }
-        state.interior_segment(ctx.scene, &ray, found.as_ref());
+        state.interior_segment(ctx.scene, &ray, found.as_ref(), ctx.waves.as_ref());
         let Some(hit) = found else {
             escape(ctx, &mut state, &ray);
             break;
@@ -284,7 +281,7 @@ fn escape(ctx: &PathContext, state: &mut PathState, ray: &Ray) {
         if le != Color::ZERO {
             let prev = &state.prev;
             let w = prev.emission_weight(ctx, i, prev.pdf, ray.dir, Vec3A::ZERO, Vec3A::ZERO);
-            state.l += state.beta * ctx.emitted(le) * w;
+            state.l += state.beta * ctx.emitted(i, le) * w;
         }
     }
 }
@@ -307,11 +304,12 @@ fn surface_emission(
     if state.gather.after_caustic_gather() {
         return;
     }
-    let (le, traced) = light.le(&scene.light_context(), hit.p, hit.ng, hit.ns, -ray.dir);
+    let ctx_at = scene.light_context_at(ctx.waves.as_ref());
+    let (le, traced) = light.le(&ctx_at, hit.p, hit.ng, hit.ns, -ray.dir);
     work.rays += traced;
     if le != Color::ZERO {
         let prev = &state.prev;
         let w = prev.emission_weight(ctx, light_id, prev.pdf, ray.dir, hit.p, hit.ng);
-        state.l += state.beta * ctx.emitted(le) * w;
+        state.l += state.beta * ctx.emitted(light_id, le) * w;
     }
 }

@@ -64,9 +64,11 @@ impl Builder {
             image,
             two_sided,
             power,
+            spectrum,
             ..
         }) = &shape.area_light
         {
+            let spectrum = self.light_spectrum(spectrum);
             let image = image
                 .as_ref()
                 .map(|image| Arc::new(EmissionImage::new(image.clone())));
@@ -75,8 +77,7 @@ impl Builder {
                 let p = [0, 1, 2].map(|k| self.prims.positions[(placed.base + t[k]) as usize]);
                 let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
                 let n = self.face_normal(p, placed.flip, placed.has_normals, placed.face(t));
-                self.light_media.resize(self.lights.len(), None);
-                self.light_media.push(surface.media);
+                self.note_area_light(surface.media, &spectrum);
                 let uv = if placed.has_uvs {
                     [0, 1, 2].map(|k| self.prims.uvs[(placed.base + t[k]) as usize])
                 } else {

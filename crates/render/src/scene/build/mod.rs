@@ -25,10 +25,13 @@ use crate::shapes::cylinder::Cylinder;
 use crate::shapes::disk::Disk;
 use crate::shapes::sphere::PartialSphere;
 use crate::shapes::{Geometry, NO_MEDIUM, Primitives, QuadricShape, SurfaceInfo};
+use crate::spectral::LightSpectrum;
 use crate::textures::Textures;
 use glam::{DMat4, Vec2, Vec3A};
+use kiln_scene::spectrum::EmissionSpectrum;
 use kiln_scene::{AreaLightDesc, MaterialKind, MediumKind, SceneDescription, ShapeDesc, ShapeKind};
 use motion::Place;
+use std::sync::Arc;
 
 /// Why a description cannot be turned into a renderable scene.
 #[derive(Debug, thiserror::Error)]
@@ -82,6 +85,9 @@ struct Builder {
     use_media: bool,
     /// The media on either side of each area light's surface (by light index).
     light_media: Vec<Option<[u32; 2]>>,
+    /// For a spectral render, the spectrum of each area light's emission given as one.
+    light_spectra: Vec<Option<Arc<LightSpectrum>>>,
+    spectral: bool,
     textures: Textures,
     nested: Vec<NestedShape>,
     /// For each material, the medium (index into the scene's media) a "subsurface"
@@ -112,6 +118,8 @@ impl Builder {
             volumes: Vec::new(),
             use_media: media == MediaPolicy::Render,
             light_media: Vec::new(),
+            light_spectra: Vec::new(),
+            spectral: desc.spectral,
             textures,
             nested: Vec::new(),
             subsurface_media: desc
@@ -428,17 +436,45 @@ fn scene_media(desc: &SceneDescription, use_media: bool, walk_media: Vec<Medium>
                 sigma_a,
                 sigma_s,
                 le,
+                le_spectrum,
                 phase,
             } => Medium::Homogeneous(HomogeneousMedium {
                 sigma_a: rgb(*sigma_a),
                 sigma_s: rgb(*sigma_s),
                 le: rgb(*le),
+                le_spectrum: light_spectrum(desc.spectral, le_spectrum),
                 phase: Phase::new(*phase),
             }),
-            MediumKind::Grid(g) => Medium::Grid(Box::new(GridMedium::new(g))),
+            MediumKind::Grid(g) => Medium::Grid(Box::new(GridMedium::new(g, desc.spectral))),
         })
         .chain(walk_media)
         .collect()
+}
+
+impl Builder {
+    /// The spectrum of an emission given as one, for a spectral render.
+    fn light_spectrum(&self, s: &Option<EmissionSpectrum>) -> Option<Arc<LightSpectrum>> {
+        light_spectrum(self.spectral, s)
+    }
+
+    /// Notes the media around, and the spectrum of, the area light about to be pushed.
+    fn note_area_light(&mut self, media: Option<[u32; 2]>, spectrum: &Option<Arc<LightSpectrum>>) {
+        self.light_media.resize(self.lights.len(), None);
+        self.light_media.push(media);
+        self.light_spectra.resize(self.lights.len(), None);
+        self.light_spectra.push(spectrum.clone());
+    }
+}
+
+/// The spectrum of an emission given as one, for a spectral render (None in RGB).
+pub(super) fn light_spectrum(
+    spectral: bool,
+    s: &Option<EmissionSpectrum>,
+) -> Option<Arc<LightSpectrum>> {
+    s.as_deref()
+        .filter(|_| spectral)
+        .and_then(LightSpectrum::new)
+        .map(Arc::new)
 }
 
 impl Scene {
@@ -453,10 +489,13 @@ impl Scene {
         let mut lights = b.lights;
         let mut light_media = b.light_media;
         light_media.resize(lights.len(), None);
+        let mut light_spectra = b.light_spectra;
+        light_spectra.resize(lights.len(), None);
         for l in &desc.lights {
             lights.push(Light::from_description(&l.kind));
             // A light in space starts its photons in the medium it was declared in.
             light_media.push(l.medium.filter(|_| b.use_media).map(|m| [m.0, m.0]));
+            light_spectra.push(light_spectrum(desc.spectral, &l.spectrum));
         }
         let infinite_lights = lights
             .iter()
@@ -510,6 +549,7 @@ impl Scene {
             camera_medium: desc.camera_medium.filter(|_| b.use_media).map(|m| m.0),
             medium_lights: Vec::new(),
             light_media,
+            light_spectra,
             nested: b.nested,
             first_walk_medium: if b.use_media {
                 desc.media.len() as u32
@@ -521,6 +561,7 @@ impl Scene {
         };
         scene.light_media.resize(scene.lights.len(), None);
         scene.add_medium_lights();
+        scene.light_spectra.resize(scene.lights.len(), None);
         scene.sample_lights_by_power(desc.integrator.light_sampler);
         Ok(scene)
     }

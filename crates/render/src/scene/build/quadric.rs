@@ -80,12 +80,13 @@ impl Builder {
             image,
             two_sided,
             power,
+            spectrum,
             ..
         }) = &shape.area_light
         {
             debug_assert!(image.is_none(), "spheres with emission images are quadrics");
-            self.light_media.resize(self.lights.len(), None);
-            self.light_media.push(media);
+            let spectrum = self.light_spectrum(spectrum);
+            self.note_area_light(media, &spectrum);
             // pbrt-v4's "power" divides by the object-space area, whatever the transform.
             let area = 4.0 * std::f32::consts::PI * (radius * radius) as f32;
             self.lights.push(Light::Sphere(SphereLight {
@@ -235,13 +236,14 @@ impl Builder {
             image,
             two_sided,
             power,
+            spectrum,
             ..
         }) = &shape.area_light
         {
             let image = image.clone().map(|i| Arc::new(EmissionImage::new(i)));
             let luminance = image.as_ref().map_or(1.0, |i| i.mean_luminance());
-            self.light_media.resize(self.lights.len(), None);
-            self.light_media.push(surface.media);
+            let spectrum = self.light_spectrum(spectrum);
+            self.note_area_light(surface.media, &spectrum);
             self.lights.push(Light::Quadric(QuadricLight {
                 quadric: self.prims.quadrics.len() as u32,
                 // pbrt-v4's "power" divides by the object-space area, whatever the transform.

@@ -3,10 +3,13 @@
 //! and "nanovdb" (density and temperature grids from a NanoVDB file, on its lattice), tracked against a coarse majorant grid walked with a 3D DDA, and its
 //! emission distribution for sampling it as a light (seed 001).
 
+mod spectra;
+
 use super::cloud::Cloud;
 use super::{MediumEvent, Phase, SampledGrid};
 use crate::math::{Color, Ray};
 use crate::sampling::{Distribution3D, TrackingRng};
+use crate::spectral::Wavelengths;
 use crate::work::MAX_TRACKING_STEPS;
 use glam::{Affine3A, Vec3A};
 
@@ -30,6 +33,8 @@ enum Emission {
 /// tabulated: converting a spectrum per lookup would cost a thousand times more.
 #[derive(Debug, Clone)]
 struct BlackbodyTable {
+    /// What every entry is multiplied by.
+    scale: f32,
     t_max: f32,
     step: f32,
     rgb: Vec<Color>,
@@ -50,7 +55,12 @@ impl BlackbodyTable {
                 )) * scale
             })
             .collect();
-        BlackbodyTable { t_max, step, rgb }
+        BlackbodyTable {
+            scale,
+            t_max,
+            step,
+            rgb,
+        }
     }
 
     fn at(&self, kelvin: f32) -> Color {
@@ -132,6 +142,8 @@ pub struct GridMedium {
     box_volume: f32,
     /// The distribution of emitted luminance over voxels, for sampling it as a light.
     pub emission_distribution: Option<Distribution3D>,
+    /// Its RGB inputs as spectra, for a spectral render (None: built for RGB).
+    spectra: Option<Box<spectra::GridSpectra>>,
 }
 
 impl GridMedium {
@@ -140,7 +152,9 @@ impl GridMedium {
         crate::shapes::transformed_bounds(&self.box_to_world, Vec3A::ZERO, Vec3A::ONE)
     }
 
-    pub fn new(desc: &kiln_scene::GridMediumDesc) -> GridMedium {
+    /// The medium a description gives, for a spectral render if `spectral` (its majorants
+    /// then bound every wavelength's extinction).
+    pub fn new(desc: &kiln_scene::GridMediumDesc, spectral: bool) -> GridMedium {
         let p0 = Vec3A::from(desc.p0);
         let p1 = Vec3A::from(desc.p1);
         let medium_to_world = Affine3A::from_mat4(desc.medium_to_world.as_mat4());
@@ -177,7 +191,7 @@ impl GridMedium {
         };
         let emission = match &desc.emission {
             kiln_scene::GridEmission::None => None,
-            kiln_scene::GridEmission::Constant { le, scale } => {
+            kiln_scene::GridEmission::Constant { le, scale, .. } => {
                 Some((Emission::Constant(crate::math::rgb(*le)), Some(grid(scale))))
             }
             kiln_scene::GridEmission::Temperature {
@@ -210,24 +224,6 @@ impl GridMedium {
             kiln_scene::Lattice::Centred => MAJORANT_RES,
             kiln_scene::Lattice::Affine { .. } => MAJORANT_RES_NANOVDB,
         };
-        let mut majorant = vec![0.0; r * r * r];
-        for z in 0..r {
-            for y in 0..r {
-                for x in 0..r {
-                    let lo = Vec3A::new(x as f32, y as f32, z as f32) / r as f32;
-                    let hi = lo + Vec3A::splat(1.0 / r as f32);
-                    let max_t = match &field {
-                        Field::Scalar(g) => (sigma_a + sigma_s) * g.max_over(lo, hi),
-                        Field::Rgb { a, s } => {
-                            sigma_a * rgb_max_over(a, lo, hi) + sigma_s * rgb_max_over(s, lo, hi)
-                        }
-                        // The cloud's density is at most 1.
-                        Field::Cloud { .. } => sigma_a + sigma_s,
-                    };
-                    majorant[(z * r + y) * r + x] = max_t.max_element();
-                }
-            }
-        }
         let mut m = GridMedium {
             sigma_a,
             sigma_s,
@@ -237,12 +233,47 @@ impl GridMedium {
             world_to_box,
             box_to_world,
             res: r,
-            majorant,
+            majorant: Vec::new(),
             box_volume: box_to_world.matrix3.determinant().abs(),
             emission_distribution: None,
+            spectra: None,
         };
+        if spectral {
+            m.spectra = Some(Box::new(spectra::GridSpectra::new(&m, desc)));
+        }
+        m.majorant = m.majorants();
         m.emission_distribution = m.build_distribution();
         m
+    }
+
+    /// Per cell of the majorant grid, the largest sigma_t anywhere in it: of any channel,
+    /// and for a spectral render of any wavelength.
+    fn majorants(&self) -> Vec<f32> {
+        let r = self.res;
+        let (sigma_a, sigma_s) = (self.sigma_a, self.sigma_s);
+        let mut majorant = vec![0.0; r * r * r];
+        for z in 0..r {
+            for y in 0..r {
+                for x in 0..r {
+                    let lo = Vec3A::new(x as f32, y as f32, z as f32) / r as f32;
+                    let hi = lo + Vec3A::splat(1.0 / r as f32);
+                    let max_t = match &self.field {
+                        Field::Scalar(g) => (sigma_a + sigma_s) * g.max_over(lo, hi),
+                        Field::Rgb { a, s } => {
+                            sigma_a * rgb_max_over(a, lo, hi) + sigma_s * rgb_max_over(s, lo, hi)
+                        }
+                        // The cloud's density is at most 1.
+                        Field::Cloud { .. } => sigma_a + sigma_s,
+                    };
+                    let spectral = self
+                        .spectra
+                        .as_ref()
+                        .map_or(0.0, |sp| sp.majorant(&self.field, lo, hi));
+                    majorant[(z * r + y) * r + x] = max_t.max_element().max(spectral);
+                }
+            }
+        }
+        majorant
     }
 
     /// sigma_a and sigma_s at `p` in the unit box.
@@ -299,18 +330,6 @@ impl GridMedium {
                 table,
             } => table.at((grid.lookup(p) - offset) * t_scale) * s,
         }
-    }
-
-    /// The source term sigma_a * Le at `p` in the unit box.
-    pub fn source(&self, p: Vec3A) -> Color {
-        if self.emission.is_none() {
-            return Color::ZERO;
-        }
-        let (sigma_a, _) = self.coefficients(p);
-        if sigma_a == Color::ZERO {
-            return Color::ZERO;
-        }
-        sigma_a * self.le(p)
     }
 
     pub fn to_box(&self, world: Vec3A) -> Vec3A {
@@ -427,18 +446,20 @@ impl GridMedium {
     }
 
     /// Transmittance along the ray over (0, t_max) by ratio tracking, with Russian roulette
-    /// once it is small; None if the walk was cut off.
+    /// once it is small; None if the walk was cut off. With `waves`, at a spectral path's
+    /// wavelengths.
     pub fn transmittance(
         &self,
         o: Vec3A,
         d: Vec3A,
         t_max: f32,
         rng: &mut TrackingRng,
+        waves: Option<&Wavelengths>,
     ) -> Option<Color> {
         let mut tr = Color::ONE;
         let mut u = rng.split(0x5851_f42d_4c95_7f2d);
         let walk = self.walk(o, d, t_max, rng, |_, p, sigma_maj| {
-            let (a, s) = self.coefficients(p);
+            let (a, s) = self.coefficients_at(p, waves);
             let st = a + s;
             tr *= (Color::ONE - st / sigma_maj).max(Color::ZERO);
             if tr.max_element() < 0.05 {
@@ -455,33 +476,36 @@ impl GridMedium {
 
     /// Tracking against the majorants: at each tentative collision the emission is handed
     /// to `emission` (see [`Medium::sample_interaction`]), then absorption, scattering or a
-    /// null collision is chosen with probabilities from the channel-averaged coefficients.
-    /// The weights sigma_x / (sigma_maj P_x) keep the estimate unbiased for coloured media
-    /// (and are exactly 1 for grey ones: plain delta tracking).
+    /// null collision is chosen with probabilities from the coefficients averaged over the
+    /// channels (a spectral path's wavelengths, with `waves`). The weights
+    /// sigma_x / (sigma_maj P_x) keep the estimate unbiased for coloured media (and are
+    /// exactly 1 for grey ones: plain delta tracking).
     pub(super) fn track(
         &self,
         ray: &Ray,
         t_max: f32,
         rng: &mut TrackingRng,
         beta: &mut Color,
+        waves: Option<&Wavelengths>,
         mut emission: impl FnMut(f32, f32, Color),
     ) -> MediumEvent {
         let mut event = MediumEvent::Crossed;
         let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x6a09_e667_f3bc_c909);
         let emissive = self.is_emissive();
+        let lanes = if waves.is_some() { 4 } else { 3 };
         let walk = self.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
-            let (sigma_a, sigma_s) = self.coefficients(p);
+            let (sigma_a, sigma_s) = self.coefficients_at(p, waves);
             if sigma_a == Color::ZERO && sigma_s == Color::ZERO {
                 return true;
             }
             if emissive {
-                let le = self.le(p);
+                let le = self.le_at(p, waves);
                 if le != Color::ZERO {
                     emission(t, sigma_maj, *beta * sigma_a * le);
                 }
             }
-            let p_a = crate::math::rgb_sum(sigma_a) / (3.0 * sigma_maj);
-            let p_s = crate::math::rgb_sum(sigma_s) / (3.0 * sigma_maj);
+            let p_a = super::lane_sum(sigma_a, lanes) / (lanes as f32 * sigma_maj);
+            let p_s = super::lane_sum(sigma_s, lanes) / (lanes as f32 * sigma_maj);
             let xi = choice.next_f32();
             if xi < p_a {
                 event = MediumEvent::Absorbed;
@@ -520,7 +544,7 @@ impl GridMedium {
         }
         let [nx, ny, nz] = self.resolution();
         let size = Vec3A::new(nx as f32, ny as f32, nz as f32);
-        let lum = |p: Vec3A| crate::math::luminance(self.source(p)).max(0.0);
+        let lum = |p: Vec3A| crate::math::luminance(self.source_at(p, None)).max(0.0);
         let corner_index = |x: usize, y: usize, z: usize| (z * (ny + 1) + y) * (nx + 1) + x;
         let mut corners = vec![0.0f32; (nx + 1) * (ny + 1) * (nz + 1)];
         for z in 0..=nz {
@@ -591,17 +615,20 @@ mod tests {
     use crate::sampling::PixelSampler;
 
     fn medium(density: kiln_scene::VoxelGrid, emission: kiln_scene::GridEmission) -> GridMedium {
-        GridMedium::new(&kiln_scene::GridMediumDesc {
-            sigma_a: [0.5, 0.5, 0.5],
-            sigma_s: [1.5, 1.0, 0.5],
-            phase: kiln_scene::PhaseDesc::HenyeyGreenstein { g: 0.0 },
-            density: kiln_scene::GridDensity::Scalar(density),
-            emission,
-            p0: [-1.0, -1.0, -1.0],
-            p1: [1.0, 1.0, 3.0],
-            medium_to_world: glam::DMat4::from_rotation_y(0.3),
-            lattice: kiln_scene::Lattice::Centred,
-        })
+        GridMedium::new(
+            &kiln_scene::GridMediumDesc {
+                sigma_a: [0.5, 0.5, 0.5],
+                sigma_s: [1.5, 1.0, 0.5],
+                phase: kiln_scene::PhaseDesc::HenyeyGreenstein { g: 0.0 },
+                density: kiln_scene::GridDensity::Scalar(density),
+                emission,
+                p0: [-1.0, -1.0, -1.0],
+                p1: [1.0, 1.0, 3.0],
+                medium_to_world: glam::DMat4::from_rotation_y(0.3),
+                lattice: kiln_scene::Lattice::Centred,
+            },
+            false,
+        )
     }
 
     #[test]
@@ -624,7 +651,7 @@ mod tests {
         let mut sum = Color::ZERO;
         for i in 0..runs {
             let mut rng = TrackingRng::new(i);
-            sum += m.transmittance(o, d, 1.5, &mut rng).unwrap();
+            sum += m.transmittance(o, d, 1.5, &mut rng, None).unwrap();
         }
         let mean = sum / runs as f32;
         for c in 0..3 {
