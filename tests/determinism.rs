@@ -28,6 +28,19 @@ pub(crate) fn load(path: &Path, spp: u32, resolution: Option<(u32, u32)>) -> Ren
     Renderer::build(&desc).unwrap()
 }
 
+/// [`load`] for a spectral render.
+fn load_spectral(path: &Path, spp: u32, resolution: Option<(u32, u32)>) -> Renderer {
+    let mut desc = kiln_scene::load_file(path).unwrap();
+    desc.apply_overrides(&Overrides {
+        resolution,
+        spp: Some(spp),
+        spectral: Some(true),
+        ..Default::default()
+    })
+    .unwrap();
+    Renderer::build(&desc).unwrap()
+}
+
 /// The frame's pixels (as bits, row-major over the film's pixel bounds) rendered in
 /// `tile`-pixel tiles on a pool of `threads` threads, tiles taken in parallel.
 fn render_split(renderer: &Renderer, tile: u32, threads: usize) -> Vec<[u32; 3]> {
@@ -157,6 +170,18 @@ fn media_are_bit_identical_across_tiles_and_threads() {
     assert_same_bits_for_any_split("sppm", load(&scene("photons/ball.pbrt"), 4, Some((24, 24))));
     // A grid medium: delta and ratio tracking, and a flame sampled as a light.
     assert_same_bits_for_any_split("ember", load(&scene("media/ember.pbrt"), 4, Some((60, 40))));
+}
+
+/// Spectral renders keep every guarantee: SPPM (each iteration's wavelengths shared by its
+/// camera paths and photons), a grid medium with a flame sampled as a light, a VolumeLight.
+#[test]
+fn spectral_sppm_grid_media_and_volume_lights_are_bit_identical_across_tiles_and_threads() {
+    let sppm = load_spectral(&scene("photons/ball.pbrt"), 4, Some((24, 24)));
+    assert_same_bits_for_any_split("spectral sppm", sppm);
+    let ember = load_spectral(&scene("media/ember.pbrt"), 4, Some((60, 40)));
+    assert_same_bits_for_any_split("spectral ember", ember);
+    let glass = load_spectral(&scene("volume-light/glass-sphere.pbrt"), 4, Some((48, 32)));
+    assert_same_bits_for_any_split("spectral VolumeLight", glass);
 }
 
 /// The scene is built on every worker of a farm: building it twice (photon maps and
@@ -316,15 +341,18 @@ impl kiln_render::shared::SharedPrepass for MemoryShare {
 /// or pass is computed once, however many workers render.
 #[test]
 fn shared_photon_maps_and_sppm_passes_give_the_same_bits_computed_once() {
-    for (name, spp, resolution, published) in [
-        ("media/haze.pbrt", 2, (24, 24), 1),
-        ("photons/ball.pbrt", 6, (24, 24), 6),
+    for (name, spp, resolution, published, spectral) in [
+        ("media/haze.pbrt", 2, (24, 24), 1, false),
+        ("photons/ball.pbrt", 6, (24, 24), 6, false),
+        // Spectral photons carry four wavelengths through the bytes.
+        ("photons/ball.pbrt", 3, (24, 24), 3, true),
     ] {
         let mut desc = kiln_scene::load_file(&scene(name)).unwrap();
         desc.apply_overrides(&Overrides {
             resolution: Some(resolution),
             spp: Some(spp),
             seed: None,
+            spectral: Some(spectral),
             ..Default::default()
         })
         .unwrap();

@@ -113,6 +113,20 @@ fn water_means(img: &kiln_image::RgbBuffer) -> [f64; 3] {
 /// white light and grey walls SPPM agrees to 0.2% in every channel (the next test).
 #[test]
 fn water_caustic_sppm_matches_pbrt() {
+    water_caustic_sppm_against_pbrt(&[], [0.03, 0.03, 0.10], 0.05);
+}
+
+/// [`water_caustic_sppm_matches_pbrt`] rendered spectrally, as pbrt-v4 renders: each
+/// iteration's camera paths and photons share its wavelengths, and the orange light on red
+/// and green walls multiplies spectra. Every channel within 2%, every caustic block within 5%.
+#[test]
+fn water_caustic_sppm_matches_pbrt_spectrally() {
+    water_caustic_sppm_against_pbrt(&["--spectral"], [0.02; 3], 0.05);
+}
+
+/// The water caustic under SPPM against pbrt-v4's, rendered with `args`: each channel's
+/// mean within `within`, each caustic block's within `blocks`.
+fn water_caustic_sppm_against_pbrt(args: &[&str], within: [f64; 3], blocks: f64) {
     let Some(path) = reference_scene("water-caustic") else {
         return;
     };
@@ -121,13 +135,13 @@ fn water_caustic_sppm_matches_pbrt() {
         &path,
         dir.path(),
         "water",
-        &["--resolution", "160x160", "--spp", "128"],
+        &[&["--resolution", "160x160", "--spp", "128"], args].concat(),
     );
     let stderr = String::from_utf8_lossy(&r.output.stderr);
     assert!(stderr.contains("103487 triangles"), "{stderr}");
     let mean = water_means(&r.image);
-    eprintln!("water-caustic sppm: kiln {mean:.5?}, pbrt-v4 {WATER_SPPM_PBRT:?}");
-    for (c, tolerance) in [(0, 0.03), (1, 0.03), (2, 0.10)] {
+    eprintln!("water-caustic sppm {args:?}: kiln {mean:.5?}, pbrt-v4 {WATER_SPPM_PBRT:?}");
+    for (c, tolerance) in within.into_iter().enumerate() {
         let rel = mean[c] / WATER_SPPM_PBRT[c] - 1.0;
         assert!(
             rel.abs() < tolerance,
@@ -145,7 +159,7 @@ fn water_caustic_sppm_matches_pbrt() {
                 .sum::<f64>()
                 / 3.0;
             assert!(
-                (got / want - 1.0).abs() < 0.05,
+                (got / want - 1.0).abs() < blocks,
                 "caustic block at {x0}, {y0}: kiln {got} vs pbrt-v4 {want}"
             );
         }
@@ -414,6 +428,18 @@ Shape "trianglemesh" "point3 P" [ -1 -1 0  1 -1 0  1 1 0  -1 1 0 ] "integer indi
 /// (measured at 1024 spp: −0.5%, −0.4%, −0.6%), and the frame's mean too.
 #[test]
 fn a_hair_matches_pbrt_v4() {
+    hair_against_pbrt_v4(&[]);
+}
+
+/// [`a_hair_matches_pbrt_v4`] rendered spectrally, as pbrt-v4 renders: the melanin's
+/// absorption is an unbounded spectrum, and the lobes are chosen by their attenuation over
+/// the path's four wavelengths.
+#[test]
+fn a_hair_matches_pbrt_v4_spectrally() {
+    hair_against_pbrt_v4(&["--spectral"]);
+}
+
+fn hair_against_pbrt_v4(args: &[&str]) {
     let Some(path) = reference_scene("hair-curl") else {
         return;
     };
@@ -422,9 +448,14 @@ fn a_hair_matches_pbrt_v4() {
         &path,
         dir.path(),
         "hair",
-        &["--resolution", "192x160", "--spp", "256"],
+        &[&["--resolution", "192x160", "--spp", "256"], args].concat(),
     )
     .image;
+    eprintln!(
+        "hair-curl {args:?}: mean {:?}, strand {:?}",
+        img.mean(),
+        [0, 1, 2].map(|c| block_stats(&img, 150, 0, 42, 160, c).0)
+    );
     assert_matches_pbrt(
         "hair-curl",
         img.mean(),

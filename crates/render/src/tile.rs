@@ -84,12 +84,22 @@ impl RenderSettings {
 /// wrong rather than approximate.
 fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static str> {
     use crate::materials::Model;
-    let path = match &settings.integrator {
-        Integrator::Path(p) | Integrator::VolPath(p) => p,
-        Integrator::Sppm(_) => return Some("the 'sppm' integrator"),
+    let dispersive = || {
+        scene
+            .materials
+            .iter()
+            .any(|m| matches!(&m.model, Model::Dielectric(d) if d.dispersion.is_some()))
     };
-    if path.photons != kiln_scene::PhotonDesc::NONE {
+    let photons = match &settings.integrator {
+        Integrator::Path(p) | Integrator::VolPath(p) => p.photons != kiln_scene::PhotonDesc::NONE,
+        Integrator::Sppm(_) => false,
+    };
+    if photons {
         Some("photon maps")
+    } else if matches!(settings.integrator, Integrator::Sppm(_)) && dispersive() {
+        Some(
+            "dispersive glass under 'sppm' (a wavelength kept alone on a camera path and on a photon)",
+        )
     } else if !scene.media.iter().all(crate::media::Medium::is_spectral) {
         Some("grid media built for RGB")
     } else if settings.gbuffer.is_some() {
@@ -97,9 +107,9 @@ fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static
     } else if scene
         .materials
         .iter()
-        .any(|m| matches!(m.model, Model::Hair(_) | Model::Measured(_)))
+        .any(|m| matches!(m.model, Model::Measured(_)))
     {
-        Some("hair and measured materials")
+        Some("measured materials")
     } else {
         None
     }
@@ -469,6 +479,9 @@ fn render_sppm(
         if stop() {
             return None;
         }
+        let waves = settings
+            .spectral
+            .then(|| crate::integrators::sppm::pass_wavelengths(settings.seed, it));
         let vps: Vec<_> = pixels
             .par_iter()
             .zip(states.par_iter_mut())
@@ -481,12 +494,30 @@ fn render_sppm(
                 } = camera_sample(renderer, x, y, it);
                 let mut work = Work::default();
                 let (ray, weight) = ray.map_or((None, 0.0), |(r, w)| (Some(r), w * weight));
-                let vp = camera_pass(scene, sppm, ray, weight, &mut sampler, &mut work, state);
+                let vp = camera_pass(
+                    scene,
+                    sppm,
+                    ray,
+                    weight,
+                    &mut sampler,
+                    &mut work,
+                    state,
+                    waves.as_ref(),
+                );
                 *rays += work.rays;
                 vp
             })
             .collect();
-        let trace = |i: u32| photon_pass(scene, sppm, emitters.as_ref(), settings.seed, i);
+        let trace = |i: u32| {
+            photon_pass(
+                scene,
+                sppm,
+                emitters.as_ref(),
+                settings.seed,
+                i,
+                settings.spectral,
+            )
+        };
         let map = if keep {
             renderer.sppm_passes.get(
                 it,

@@ -33,6 +33,9 @@ pub struct HairBxdf {
     /// sin and cos of 2^k α, k = 0, 1, 2 (the cuticle tilt doubled per lobe).
     sin_2k_alpha: [f32; P_MAX],
     cos_2k_alpha: [f32; P_MAX],
+    /// The colour's lanes that lobes' attenuations are averaged over: 3 in RGB, a spectral
+    /// path's 4 wavelengths.
+    lanes: u8,
 }
 
 /// The geometry of a direction around the fibre: sin θ, cos θ, φ.
@@ -95,7 +98,14 @@ impl HairBxdf {
             s,
             sin_2k_alpha,
             cos_2k_alpha,
+            lanes: 3,
         }
+    }
+
+    /// The fibre for a spectral path: its absorption is given at the path's four
+    /// wavelengths, and lobes are chosen by their attenuation over all four.
+    pub fn spectral(self) -> HairBxdf {
+        HairBxdf { lanes: 4, ..self }
     }
 
     /// pbrt-v4's absorption from melanin concentrations (eumelanin, pheomelanin).
@@ -106,17 +116,14 @@ impl HairBxdf {
 
     /// The absorption that gives roughly the colour `c` after multiple scattering, for
     /// azimuthal roughness `beta_n` (Chiang et al.'s fit).
+    /// Lane by lane: a spectral path's reflectance spectrum gives its absorption spectrum.
     pub fn sigma_a_from_reflectance(c: Color, beta_n: f32) -> Color {
         let b = beta_n;
         let d = 5.969 - 0.215 * b + 2.532 * b * b - 10.73 * b.powi(3)
             + 5.574 * b.powi(4)
             + 0.245 * b.powi(5);
         let c = c.clamp(Color::splat(1e-4), Color::ONE);
-        crate::math::rgb3(
-            (libm::logf(c.x) / d).powi(2),
-            (libm::logf(c.y) / d).powi(2),
-            (libm::logf(c.z) / d).powi(2),
-        )
+        Color::from_array(c.to_array().map(|v| (libm::logf(v) / d).powi(2)))
     }
 
     fn outgoing(&self, wo: Vec3A) -> Outgoing {
@@ -142,22 +149,11 @@ impl HairBxdf {
         }
         let tf = transmittance * f;
         let rest = Color::ONE - tf;
-        ap[P_MAX] = crate::math::rgb3(
-            if rest.x > 0.0 {
-                ap[P_MAX - 1].x * tf.x / rest.x
-            } else {
-                0.0
-            },
-            if rest.y > 0.0 {
-                ap[P_MAX - 1].y * tf.y / rest.y
-            } else {
-                0.0
-            },
-            if rest.z > 0.0 {
-                ap[P_MAX - 1].z * tf.z / rest.z
-            } else {
-                0.0
-            },
+        // Lane by lane (an RGB colour's fourth lane repeats green's arithmetic).
+        ap[P_MAX] = Color::select(
+            rest.cmpgt(Color::ZERO),
+            ap[P_MAX - 1] * tf / rest,
+            Color::ZERO,
         );
         Outgoing {
             o,
@@ -189,8 +185,12 @@ impl HairBxdf {
     }
 
     /// The lobes' choice probabilities: their attenuations' averages, normalised.
-    fn lobe_pdf(ap: &[Color; P_MAX + 1]) -> [f32; P_MAX + 1] {
-        let avg = ap.map(|a| (a.x + a.y + a.z) / 3.0);
+    fn lobe_pdf(&self, ap: &[Color; P_MAX + 1]) -> [f32; P_MAX + 1] {
+        let avg = if self.lanes == 4 {
+            ap.map(|a| a.element_sum() / 4.0)
+        } else {
+            ap.map(|a| (a.x + a.y + a.z) / 3.0)
+        };
         let sum: f32 = avg.iter().sum();
         if sum > 0.0 {
             avg.map(|a| a / sum)
@@ -231,7 +231,7 @@ impl HairBxdf {
     }
 
     fn pdf_of(&self, out: &Outgoing, i: &Angles, dphi: f32) -> f32 {
-        let lobes = Self::lobe_pdf(&out.ap);
+        let lobes = self.lobe_pdf(&out.ap);
         let mut pdf = 0.0;
         for (p, &weight) in lobes.iter().enumerate().take(P_MAX) {
             let (sin_o, cos_o) = self.tilted(p, &out.o);
@@ -254,7 +254,7 @@ impl HairBxdf {
     pub fn sample(&self, wo: Vec3A, uc: f32, u: Vec2) -> Option<BsdfSample> {
         let out = self.outgoing(wo);
         // Choose a lobe with `uc`, and keep what is left of it for the azimuth.
-        let lobes = Self::lobe_pdf(&out.ap);
+        let lobes = self.lobe_pdf(&out.ap);
         let mut p = P_MAX;
         let mut acc = 0.0;
         let mut uc_rest = uc;

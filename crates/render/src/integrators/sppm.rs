@@ -12,6 +12,11 @@
 //! fixed batches: the image is the same for any tile split and thread count.
 //!
 //! As in pbrt-v4, SPPM renders surfaces only (participating media are ignored).
+//!
+//! Spectrally, as in pbrt-v4, an iteration's camera paths and photons share the iteration's
+//! four wavelengths ([`pass_wavelengths`]), so a photon's power and a visible point's
+//! throughput multiply wavelength by wavelength; each product goes through the film to RGB
+//! where it is added to a pixel.
 
 use super::direct::{Vertex, sample_direct};
 use super::photons::map::{decode, encode};
@@ -24,6 +29,7 @@ use crate::nesting::Nesting;
 use crate::sampling::{AliasTable, PixelSampler, TrackingRng};
 use crate::scene::Scene;
 use crate::shared::{Shared, SharedPrepass, shared_or_built};
+use crate::spectral::Wavelengths;
 use crate::work::Work;
 use glam::Vec3A;
 use kiln_scene::{LightStrategy, PhotonDesc};
@@ -89,6 +95,20 @@ impl PixelState {
     }
 }
 
+/// The four wavelengths iteration `iteration` of a spectral render carries, for its camera
+/// paths and its photons alike: the hero at the iteration's place in the base-2 radical
+/// inverse, turned by an offset the seed gives (so that seeds differ).
+pub fn pass_wavelengths(seed: u32, iteration: u32) -> Wavelengths {
+    let turn = (seed.wrapping_mul(0x9E37_79B9) >> 8) as f32 / (1u32 << 24) as f32;
+    let u = iteration.reverse_bits() as f32 / 4_294_967_296.0 + turn;
+    Wavelengths::sample(if u >= 1.0 { u - 1.0 } else { u })
+}
+
+/// What the film records of `l`: itself in RGB, through the observer at `waves`.
+fn film(l: Color, waves: Option<&Wavelengths>) -> Color {
+    waves.map_or(l, |w| w.to_rgb(l))
+}
+
 /// A camera path's first non-specular surface: where it gathers photons.
 struct VisiblePoint<'a> {
     p: Vec3A,
@@ -96,11 +116,15 @@ struct VisiblePoint<'a> {
     frame: Frame,
     bsdf: Bsdf<'a>,
     beta: Color,
+    /// The iteration's wavelengths, for a spectral render.
+    waves: Option<Wavelengths>,
 }
 
 /// The camera pass of one iteration for one pixel: its direct light (added to `state`) and
 /// its visible point. `ray` is the camera ray (None if the lens stopped it), `weight` the
-/// camera's and the filter's weight.
+/// camera's and the filter's weight; `waves` the iteration's wavelengths in a spectral
+/// render.
+#[allow(clippy::too_many_arguments)]
 pub fn camera_pass<'a>(
     scene: &'a Scene,
     settings: &SppmSettings,
@@ -109,6 +133,7 @@ pub fn camera_pass<'a>(
     sampler: &mut PixelSampler,
     work: &mut Work,
     state: &mut PixelState,
+    waves: Option<&Wavelengths>,
 ) -> Option<VisiblePointHandle<'a>> {
     let mut ray = ray?;
     let path = settings.camera_path();
@@ -123,24 +148,25 @@ pub fn camera_pass<'a>(
         let Some(hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
             if specular {
                 for &i in &scene.infinite_lights {
-                    state.ld += beta * scene.lights[i as usize].infinite_le(ray.origin, ray.dir);
+                    let le = scene.lights[i as usize].infinite_le(ray.origin, ray.dir);
+                    state.ld += film(beta * scene.light_radiance(i, le, waves), waves);
                 }
             }
             return None;
         };
         if specular && let Some(light) = hit.light {
             let (le, traced) = scene.lights[light as usize].le(
-                &scene.light_context(),
+                &scene.light_context_at(waves),
                 hit.p,
                 hit.ng,
                 hit.ns,
                 -ray.dir,
             );
             work.rays += traced;
-            state.ld += beta * le;
+            state.ld += film(beta * scene.light_radiance(light, le, waves), waves);
         }
         let mut shaded = hit;
-        let Some(bsdf) = scene.bsdf_nested(&mut shaded, 1.0, None, &nesting, ray.dir) else {
+        let Some(bsdf) = scene.bsdf_nested(&mut shaded, 1.0, waves, &nesting, ray.dir) else {
             // An interface: straight on, without counting a bounce.
             if !pass_through(
                 scene,
@@ -167,11 +193,12 @@ pub fn camera_pass<'a>(
                     medium,
                     time: ray.time,
                     last: false,
-                    waves: None,
+                    waves,
                 };
                 let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
                 let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
-                state.ld += beta * sample_direct(scene, &path, &v, f, pdf, sampler, work);
+                let ld = sample_direct(scene, &path, &v, f, pdf, sampler, work);
+                state.ld += film(beta * ld, waves);
             }
             return Some(VisiblePointHandle(VisiblePoint {
                 p: hit.p,
@@ -179,6 +206,7 @@ pub fn camera_pass<'a>(
                 frame,
                 bsdf,
                 beta,
+                waves: waves.copied(),
             }));
         }
         if bsdf.is_black() || depth + 1 >= settings.max_depth {
@@ -229,21 +257,24 @@ pub fn gather(map: &PhotonMap, vp: Option<&VisiblePointHandle>, state: &mut Pixe
     let n_new = state.n + GAMMA * m as f32;
     let r_new = state.radius * (n_new / (state.n + m as f32)).sqrt();
     let shrink = (r_new * r_new) / (state.radius * state.radius);
-    state.tau = (state.tau + vp.beta * phi) * shrink;
+    state.tau = (state.tau + film(vp.beta * phi, vp.waves.as_ref())) * shrink;
     state.n = n_new;
     state.radius = r_new;
 }
 
 /// Traces iteration `iteration`'s photons from `emitters` (None: no light emits) and returns
 /// them as a map for gathers within every pixel's radius (which only shrinks from the
-/// initial one).
+/// initial one). A spectral render's photons carry the iteration's wavelengths
+/// ([`pass_wavelengths`]).
 pub fn photon_pass(
     scene: &Scene,
     settings: &SppmSettings,
     emitters: Option<&Emitters>,
     seed: u32,
     iteration: u32,
+    spectral: bool,
 ) -> PhotonMap {
+    let waves = spectral.then(|| pass_wavelengths(seed, iteration));
     let Some(emitters) = emitters else {
         return PhotonMap::default();
     };
@@ -257,7 +288,15 @@ pub fn photon_pass(
                 let key = ((seed as u64) << 32 | iteration as u64)
                     .wrapping_mul(0xd605_bbb5_8c8a_bbb7)
                     ^ i.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-                trace_photon(scene, settings, table, sphere, key, &mut stored);
+                trace_photon(
+                    scene,
+                    settings,
+                    table,
+                    sphere,
+                    key,
+                    waves.as_ref(),
+                    &mut stored,
+                );
             }
             stored
         })
@@ -274,15 +313,20 @@ fn trace_photon(
     table: &AliasTable,
     sphere: SceneSphere,
     key: u64,
+    waves: Option<&Wavelengths>,
     stored: &mut Vec<Photon>,
 ) {
     let mut rng = TrackingRng::new(key);
     let Some(Launch {
-        mut beta, mut ray, ..
-    }) = launch(scene, table, sphere, 1, &mut rng)
+        beta,
+        mut ray,
+        light,
+        ..
+    }) = launch(scene, table, sphere, 1, &mut rng, waves)
     else {
         return;
     };
+    let mut beta = scene.light_radiance(light as u32, beta, waves);
     let mut depth = 0u32;
     let mut pass_throughs = 0u32;
     let mut nesting = Nesting::default();
@@ -290,7 +334,7 @@ fn trace_photon(
         let Some(mut hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
             return;
         };
-        let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, None, &nesting, ray.dir) else {
+        let Some(bsdf) = scene.bsdf_nested(&mut hit, 1.0, waves, &nesting, ray.dir) else {
             // SPPM renders no media: the medium an interface leads to is not followed.
             if !pass_through(
                 scene,

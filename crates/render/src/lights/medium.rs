@@ -58,7 +58,7 @@ impl MediumLight {
         };
         let mut rng = TrackingRng::from_values(&[u[0].x, u[0].y, uc], 2);
         let (q, pdf_volume) = g.sample_emission([u[0].x, u[0].y, uc], &mut rng)?;
-        let source = g.source_at(g.to_box(q), None);
+        let source = g.source_at(g.to_box(q), ctx.waves);
         (pdf_volume > 0.0 && source != Color::ZERO).then(|| super::EmittedRay {
             origin: q,
             dir: crate::sampling::uniform_sphere(u[1]),

@@ -31,24 +31,33 @@ impl HairMaterial {
         // pbrt-v4 keeps both roughnesses in [0.01, 1].
         let beta_m = self.beta_m.evaluate(ctx).clamp(1e-2, 1.0);
         let beta_n = self.beta_n.evaluate(ctx).clamp(1e-2, 1.0);
+        // Spectrally, as pbrt-v4: the absorption and the melanins' absorption are unbounded
+        // spectra, the colour a reflectance spectrum turned into absorption per wavelength.
         let sigma_a = match &self.absorption {
-            HairAbsorptionTexture::SigmaA(s) => s.evaluate(ctx).max(Color::ZERO),
+            HairAbsorptionTexture::SigmaA(s) => ctx.unbounded(s.evaluate(ctx).max(Color::ZERO)),
             HairAbsorptionTexture::Reflectance(c) => HairBxdf::sigma_a_from_reflectance(
-                c.evaluate(ctx).clamp(Color::ZERO, Color::ONE),
+                ctx.reflectance(c.evaluate(ctx).clamp(Color::ZERO, Color::ONE)),
                 beta_n,
             ),
             HairAbsorptionTexture::Melanin {
                 eumelanin,
                 pheomelanin,
-            } => HairBxdf::sigma_a_from_melanin(eumelanin.evaluate(ctx), pheomelanin.evaluate(ctx)),
+            } => ctx.unbounded(HairBxdf::sigma_a_from_melanin(
+                eumelanin.evaluate(ctx),
+                pheomelanin.evaluate(ctx),
+            )),
         };
-        Bsdf::Hair(HairBxdf::new(
+        let hair = HairBxdf::new(
             -1.0 + 2.0 * ctx.uv.y,
             self.eta.evaluate(ctx),
             sigma_a,
             beta_m,
             beta_n,
             self.alpha.evaluate(ctx),
-        ))
+        );
+        Bsdf::Hair(match ctx.waves {
+            Some(_) => hair.spectral(),
+            None => hair,
+        })
     }
 }

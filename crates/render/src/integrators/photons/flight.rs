@@ -52,7 +52,7 @@ impl Shooter<'_> {
             emitted,
             beta,
             ray,
-        }) = launch(scene, &self.table, self.sphere, count, &mut rng)
+        }) = launch(scene, &self.table, self.sphere, count, &mut rng, None)
         else {
             return;
         };

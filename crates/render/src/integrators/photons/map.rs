@@ -144,15 +144,19 @@ impl PhotonMap {
     }
 }
 
+/// Bytes per photon in [`encode`]'s lists.
+const PHOTON_BYTES: usize = 52;
+
 /// The first bytes of photon lists written by [`encode`].
-const MAGIC: &[u8; 8] = b"KILNPHO1";
+const MAGIC: &[u8; 8] = b"KILNPHO2";
 
 /// Photon lists as bytes, for passing a pre-pass between the workers of a farm: the magic,
-/// a u32 count of lists, then per list a u64 count of photons and each photon's twelve f32
-/// (position, direction, normal, power), little endian. Decoding gives back the same bits.
+/// a u32 count of lists, then per list a u64 count of photons and each photon's thirteen f32
+/// (position, direction, normal, and power's four lanes: a spectral photon's four
+/// wavelengths), little endian. Decoding gives back the same bits.
 pub fn encode(lists: &[&[Photon]]) -> Vec<u8> {
     let photons: usize = lists.iter().map(|l| l.len()).sum();
-    let mut out = Vec::with_capacity(12 + 8 * lists.len() + 48 * photons);
+    let mut out = Vec::with_capacity(12 + 8 * lists.len() + PHOTON_BYTES * photons);
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&(lists.len() as u32).to_le_bytes());
     for list in lists {
@@ -163,7 +167,7 @@ pub fn encode(lists: &[&[Photon]]) -> Vec<u8> {
                     out.extend_from_slice(&x.to_le_bytes());
                 }
             }
-            for x in crate::math::rgb_of(ph.power) {
+            for x in ph.power.to_array() {
                 out.extend_from_slice(&x.to_le_bytes());
             }
         }
@@ -183,15 +187,16 @@ pub fn decode(bytes: &[u8]) -> Result<Vec<Vec<Photon>>, String> {
         Ok(head)
     };
     if take(8)? != MAGIC {
-        return Err("not photon data (no KILNPHO1 header)".into());
+        return Err("not photon data (no KILNPHO2 header)".into());
     }
     let lists = u32::from_le_bytes(take(4)?.try_into().expect("4 bytes"));
     let mut out = Vec::new();
     for _ in 0..lists {
         let n = u64::from_le_bytes(take(8)?.try_into().expect("8 bytes"));
-        // Each photon is 48 bytes: a count that the bytes cannot hold is refused before
-        // anything is reserved for it.
-        let bytes_needed = n.checked_mul(48).filter(|b| *b <= bytes.len() as u64);
+        // A count that the bytes cannot hold is refused before anything is reserved for it.
+        let bytes_needed = n
+            .checked_mul(PHOTON_BYTES as u64)
+            .filter(|b| *b <= bytes.len() as u64);
         let Some(bytes_needed) = bytes_needed else {
             return Err(format!(
                 "photon data claims {n} photons in {} bytes",
@@ -202,13 +207,13 @@ pub fn decode(bytes: &[u8]) -> Result<Vec<Vec<Photon>>, String> {
         let f = |i: usize| f32::from_le_bytes(data[4 * i..4 * i + 4].try_into().expect("4 bytes"));
         let list = (0..n as usize)
             .map(|k| {
-                let b = 12 * k;
+                let b = 13 * k;
                 let v = |o: usize| Vec3A::new(f(b + o), f(b + o + 1), f(b + o + 2));
                 Photon {
                     p: v(0),
                     wi: v(3),
                     n: v(6),
-                    power: crate::math::rgb3(f(b + 9), f(b + 10), f(b + 11)),
+                    power: Color::new(f(b + 9), f(b + 10), f(b + 11), f(b + 12)),
                 }
             })
             .collect();
@@ -232,7 +237,8 @@ mod tests {
                 p: Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()),
                 wi: Vec3A::Z,
                 n: Vec3A::ZERO,
-                power: Color::splat(i as f32),
+                // Four different lanes, as a spectral photon's are.
+                power: Color::new(i as f32, 0.5, 2.0 * i as f32, 0.25),
             })
             .collect()
     }
@@ -246,7 +252,9 @@ mod tests {
         let back = decode(&bytes).unwrap();
         assert_eq!(back, vec![a, Vec::new(), b]);
         assert!(decode(&bytes[..bytes.len() - 1]).is_err());
-        assert!(decode(b"KILNPHO1").is_err());
+        assert!(decode(b"KILNPHO2").is_err());
+        // The first format (three lanes) is not read as this one.
+        assert!(decode(&[b"KILNPHO1".as_slice(), &[0; 4]].concat()).is_err());
         let mut huge = encode(&[]);
         huge[8..12].copy_from_slice(&1u32.to_le_bytes());
         huge.extend_from_slice(&u64::MAX.to_le_bytes());

@@ -34,6 +34,7 @@ use crate::math::{Color, Frame, Ray, luminance, offset_origin};
 use crate::sampling::{AliasTable, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::NO_MEDIUM;
+use crate::spectral::Wavelengths;
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
 use std::f32::consts::PI;
@@ -247,7 +248,8 @@ pub(super) struct Launch {
     /// The light's index.
     pub light: usize,
     pub emitted: EmittedRay,
-    /// Its flux over the light's probability and the photon count.
+    /// Its flux over the light's probability and the photon count: RGB, as
+    /// [`Scene::light_radiance`] takes it.
     pub beta: Color,
     /// Its first ray, at an instant of the shutter, off the light's surface.
     pub ray: Ray,
@@ -261,6 +263,7 @@ pub(super) fn launch(
     sphere: SceneSphere,
     count: u64,
     rng: &mut TrackingRng,
+    waves: Option<&Wavelengths>,
 ) -> Option<Launch> {
     let (light, pmf) = table.sample(rng.next_f32())?;
     let u = [
@@ -268,7 +271,7 @@ pub(super) fn launch(
         Vec2::new(rng.next_f32(), rng.next_f32()),
     ];
     let uc = rng.next_f32();
-    let (emitted, _) = scene.lights[light].emit(&scene.light_context(), sphere, u, uc);
+    let (emitted, _) = scene.lights[light].emit(&scene.light_context_at(waves), sphere, u, uc);
     let emitted = emitted?;
     let beta = emitted.flux / (pmf * count as f32);
     if !(luminance(beta) > 0.0 && beta.is_finite()) {
