@@ -60,23 +60,37 @@ AttributeEnd
 
 /// Channel means against pbrt-v4's (5f7a606, the same file at the same 64 spp: a pixel
 /// whose samples all miss has position 0 in both, so the comparison needs equal rates).
-/// Albedo differs by up to 2.2%: pbrt-v4 turns reflectance into a spectrum and back; the
-/// variances are left out: pbrt-v4 takes them of its sensor's values (X, Y, Z for the
+/// Albedo differs by up to 2.2% (in spectral mode too, so not by pbrt-v4's spectral round
+/// trip; not yet explained); the variances are left out: pbrt-v4 takes them of its sensor's values (X, Y, Z for the
 /// default sensor) under the names R, G, B, Kiln of the R, G, B it writes.
 #[test]
 fn gbuffer_channels_match_pbrt_v4() {
+    gbuffer_against_pbrt_v4(&[], 0.03);
+}
+
+/// [`gbuffer_channels_match_pbrt_v4`] rendered spectrally, as pbrt-v4 renders: the albedo
+/// is a spectrum recorded through the film under the colour space's white, as pbrt-v4's
+/// G-buffer records it. It comes out as RGB's does (measured +1.0%, +1.1%, +2.0% against
+/// pbrt-v4 in both modes), so that difference is not the spectral round trip.
+#[test]
+fn gbuffer_channels_match_pbrt_v4_spectrally() {
+    gbuffer_against_pbrt_v4(&["--spectral"], 0.03);
+}
+
+/// The G-buffer scene against pbrt-v4, rendered with `args`; albedo within `albedo`.
+fn gbuffer_against_pbrt_v4(args: &[&str], albedo: f64) {
     let dir = tempfile::tempdir().unwrap();
     let path = write_scene(dir.path(), "gb.pbrt", SCENE);
-    let image = render(&path, dir.path(), "gb", &[]).image;
+    let image = render(&path, dir.path(), "gb", args).image;
     assert_eq!(image.aovs.names.len(), 22);
     // (channel, pbrt-v4's mean, relative tolerance, absolute tolerance)
     let pbrt = [
         ("R", 0.331383f64, 0.02, 0.0),
         ("G", 0.274619, 0.02, 0.0),
         ("B", 0.211309, 0.02, 0.0),
-        ("Albedo.R", 0.389427, 0.03, 0.0),
-        ("Albedo.G", 0.272366, 0.03, 0.0),
-        ("Albedo.B", 0.142114, 0.03, 0.0),
+        ("Albedo.R", 0.389427, albedo, 0.0),
+        ("Albedo.G", 0.272366, albedo, 0.0),
+        ("Albedo.B", 0.142114, albedo, 0.0),
         ("P.X", 0.017009, 0.0, 0.01),
         ("P.Y", -0.144989, 0.0, 0.01),
         ("P.Z", 2.705507, 0.015, 0.0),
@@ -91,6 +105,7 @@ fn gbuffer_channels_match_pbrt_v4() {
     ];
     for (name, want, rel, abs) in pbrt {
         let got = channel_mean(&image, name);
+        eprintln!("{args:?} {name}: Kiln {got}, pbrt-v4 {want}");
         let limit = abs + rel * want.abs();
         assert!(
             (got - want).abs() <= limit,

@@ -768,6 +768,34 @@ Sampler "sobol" "integer pixelsamples" [ 256 ]"#;
             "channel {c}: measured {measured:?} vs diffuse {diffuse:?}"
         );
     }
+    // Spectrally, from the file's spectra at each wavelength: the grey table as the diffuse
+    // sphere, and a table whose reflectance ramps from 0.2 at 360 nm to 0.8 at 830 nm as
+    // its RGB render (one bounce under a white sky, where the film gives a reflectance's RGB
+    // back).
+    std::fs::write(
+        dir.path().join("ramp.bsdf"),
+        kiln_scene::files::measured::lambertian_ramp_bsdf_file(0.2, 0.8, 16, 32),
+    )
+    .unwrap();
+    let spectral = format!("Option \"kiln.spectral\" true\n{settings}");
+    let spectral_ball = |material: &str| ball_under_sky(dir.path(), &spectral, 24, material);
+    let ramp = r#"Material "measured" "string filename" "ramp.bsdf""#;
+    let pairs = [
+        (
+            spectral_ball(r#"Material "measured" "string filename" "lambert.bsdf""#),
+            diffuse,
+        ),
+        (spectral_ball(ramp), ball(ramp)),
+    ];
+    for (spectral, rgb) in pairs {
+        for c in 0..3 {
+            assert!(
+                (spectral[c] / rgb[c] - 1.0).abs() < 0.015,
+                "channel {c}: spectral {spectral:?} vs RGB {rgb:?}"
+            );
+        }
+    }
+    assert!(pairs[1].0[0] > 1.5 * pairs[1].0[2], "{:?}", pairs[1].0);
 
     std::fs::write(dir.path().join("short.bsdf"), b"tensor_file\0\x01\x00").unwrap();
     let scene = |body: &str| format!("WorldBegin\n{body}\nShape \"sphere\"\n");

@@ -102,14 +102,6 @@ fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static
         )
     } else if !scene.media.iter().all(crate::media::Medium::is_spectral) {
         Some("grid media built for RGB")
-    } else if settings.gbuffer.is_some() {
-        Some("a G-buffer film")
-    } else if scene
-        .materials
-        .iter()
-        .any(|m| matches!(m.model, Model::Measured(_)))
-    {
-        Some("measured materials")
     } else {
         None
     }

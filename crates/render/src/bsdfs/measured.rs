@@ -1,5 +1,7 @@
 //! Measured BRDFs in the RGL format (Dupuy & Jakob 2018), as pbrt-v4's `MeasuredBxDF`
-//! evaluates and samples them, in RGB.
+//! evaluates and samples them: in RGB from the spectra projected to linear sRGB, or at a
+//! spectral path's wavelengths from the file's spectra, interpolated between its
+//! wavelengths as pbrt-v4 does.
 //!
 //! The data are tabulated over a warped square: the half vector `wm` maps to
 //! u_wm = (√(θ_m·2/π), φ_m/2π + ½) (φ relative to the viewing azimuth when isotropic), the
@@ -11,7 +13,7 @@
 use super::{BsdfSample, reflect, same_hemisphere, upper};
 use crate::math::Color;
 use crate::sampling::Warp2D;
-use glam::{Vec2, Vec3A};
+use glam::{Vec2, Vec3A, Vec4};
 use kiln_scene::files::measured::{Grid2, MeasuredBrdf};
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -22,6 +24,8 @@ pub struct MeasuredTables {
     vndf: Warp2D,
     luminance: Warp2D,
     rgb: Warp2D,
+    /// Reflectance per wavelength (the file's), for spectral paths.
+    spectra: Warp2D,
     isotropic: bool,
 }
 
@@ -33,12 +37,15 @@ impl MeasuredTables {
         };
         let mut by_channel = dir.clone();
         by_channel.push(vec![0.0, 1.0, 2.0]);
+        let mut by_wavelength = dir.clone();
+        by_wavelength.push(brdf.wavelengths.clone());
         Ok(MeasuredTables {
             ndf: warp(&brdf.ndf, vec![], false)?,
             sigma: warp(&brdf.sigma, vec![], false)?,
             vndf: warp(&brdf.vndf, dir.clone(), true)?,
             luminance: warp(&brdf.luminance, dir, true)?,
             rgb: warp(&brdf.rgb, by_channel, false)?,
+            spectra: warp(&brdf.spectra, by_wavelength, false)?,
             isotropic: brdf.isotropic,
         })
     }
@@ -78,13 +85,26 @@ fn spherical(w: Vec3A) -> (f32, f32) {
 #[derive(Debug, Clone, Copy)]
 pub struct MeasuredBxdf<'a> {
     pub tables: &'a MeasuredTables,
+    /// A spectral path's four wavelengths (nm); None in RGB.
+    pub lambda: Option<Vec4>,
 }
 
 impl MeasuredBxdf<'_> {
-    /// The reflectance table at sample point `u` seen from (phi_o, theta_o).
+    /// The reflectance table at sample point `u` seen from (phi_o, theta_o): RGB, or the
+    /// spectra at the path's wavelengths.
     fn reflectance(&self, u: Vec2, phi_o: f32, theta_o: f32) -> Color {
-        let c = |k: f32| self.tables.rgb.evaluate(u, &[phi_o, theta_o, k]).max(0.0);
-        crate::math::rgb3(c(0.0), c(1.0), c(2.0))
+        match self.lambda {
+            None => {
+                let c = |k: f32| self.tables.rgb.evaluate(u, &[phi_o, theta_o, k]).max(0.0);
+                crate::math::rgb3(c(0.0), c(1.0), c(2.0))
+            }
+            Some(lambda) => Color::from_array(lambda.to_array().map(|l| {
+                self.tables
+                    .spectra
+                    .evaluate(u, &[phi_o, theta_o, l])
+                    .max(0.0)
+            })),
+        }
     }
 
     /// The half vector's point on the warped square, seen from `wo` (upper hemisphere).

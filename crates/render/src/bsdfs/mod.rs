@@ -279,7 +279,10 @@ mod tests {
         let brdf = kiln_scene::files::measured::parse_measured(&bytes).unwrap();
         assert!(brdf.isotropic);
         let tables = MeasuredTables::new(&brdf).unwrap();
-        let b = Bsdf::Measured(MeasuredBxdf { tables: &tables });
+        let b = Bsdf::Measured(MeasuredBxdf {
+            tables: &tables,
+            lambda: None,
+        });
         for cos in [0.95, 0.7, 0.4, 0.15, -0.6] {
             check_consistency(b, wo_at(cos));
             let (sampled, uniform) = albedo_both_ways(b, wo_at(cos), 1 << 16);
@@ -292,6 +295,41 @@ mod tests {
         let (fa, fc) = (b.f(a, c).x, b.f(c, a).x);
         assert!((fa - fc).abs() < 0.02 * fa, "{fa} vs {fc}");
         assert!((fa - 0.6 / PI).abs() < 0.02 * fa, "{fa}");
+    }
+
+    /// At a spectral path's wavelengths a measured BRDF reads the file's spectra, each
+    /// wavelength interpolated between the file's (and held beyond them): a Lambertian whose
+    /// reflectance ramps from 0.2 at 360 nm to 0.8 at 830 nm reflects ρ(λ)/π at each.
+    #[test]
+    fn a_measured_brdf_reflects_each_wavelength_by_its_spectrum() {
+        let bytes = kiln_scene::files::measured::lambertian_ramp_bsdf_file(0.2, 0.8, 16, 32);
+        let brdf = kiln_scene::files::measured::parse_measured(&bytes).unwrap();
+        let tables = MeasuredTables::new(&brdf).unwrap();
+        let lambda = glam::Vec4::new(400.0, 500.0, 650.0, 800.0);
+        let b = Bsdf::Measured(MeasuredBxdf {
+            tables: &tables,
+            lambda: Some(lambda),
+        });
+        let (wo, wi) = (wo_at(0.8), Vec3A::new(-0.3, 0.5, 0.81).normalize());
+        let f = b.f(wo, wi);
+        for l in 0..4 {
+            let rho = 0.2 + 0.6 * (lambda[l] - 360.0) / 470.0;
+            assert!(
+                (f[l] - rho / PI).abs() < 0.02 * f[l],
+                "{} nm: {} vs {}",
+                lambda[l],
+                f[l],
+                rho / PI
+            );
+        }
+        check_consistency(b, wo);
+        // Below the file's first wavelength, its first value.
+        let held = Bsdf::Measured(MeasuredBxdf {
+            tables: &tables,
+            lambda: Some(glam::Vec4::new(300.0, 360.0, 830.0, 900.0)),
+        })
+        .f(wo, wi);
+        assert!((held[0] - held[1]).abs() < 1e-6 && (held[2] - held[3]).abs() < 1e-6);
     }
 
     fn layered(bottom: Base, albedo: f32, roughness: f32, max_depth: u32) -> LayeredBxdf {

@@ -1,6 +1,7 @@
 //! pbrt-v4's "measured" material: a BRDF tabulated in the RGL format.
 
 use crate::bsdfs::{Bsdf, MeasuredBxdf, MeasuredTables};
+use crate::spectral::Wavelengths;
 use std::sync::Arc;
 
 #[derive(Debug, Clone)]
@@ -9,9 +10,11 @@ pub struct MeasuredMaterial {
 }
 
 impl MeasuredMaterial {
-    pub fn bsdf(&self) -> Bsdf<'_> {
+    /// The BRDF, at a spectral path's `waves` if given.
+    pub fn bsdf(&self, waves: Option<&Wavelengths>) -> Bsdf<'_> {
         Bsdf::Measured(MeasuredBxdf {
             tables: &self.tables,
+            lambda: waves.map(|w| w.lambda),
         })
     }
 }

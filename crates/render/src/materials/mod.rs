@@ -219,7 +219,7 @@ impl Model {
             Model::ThinDielectric(m) => Some(m.bsdf()),
             Model::CoatedDiffuse(m) => Some(m.bsdf(ctx)),
             Model::CoatedConductor(m) => Some(m.bsdf(ctx)),
-            Model::Measured(m) => Some(m.bsdf()),
+            Model::Measured(m) => Some(m.bsdf(ctx.waves.as_ref())),
             Model::Hair(m) => Some(m.bsdf(ctx)),
             Model::Interface => None,
         }

@@ -36,6 +36,10 @@ pub struct MeasuredBrdf {
     pub luminance: Grid2,
     /// Reflectance (linear sRGB) over the sample square, per incident direction and channel.
     pub rgb: Grid2,
+    /// The file's wavelengths (nm, increasing) and its reflectance over the sample square
+    /// per incident direction and wavelength, for spectral rendering.
+    pub wavelengths: Vec<f32>,
+    pub spectra: Grid2,
     /// One or two phi_i values: the data do not depend on the azimuth.
     pub isotropic: bool,
     /// The file's description text.
@@ -155,6 +159,8 @@ pub fn parse_measured(bytes: &[u8]) -> std::result::Result<MeasuredBrdf, String>
         vndf,
         luminance,
         rgb,
+        wavelengths,
+        spectra,
         isotropic,
         description,
     })
@@ -252,6 +258,13 @@ pub fn write_measured(
 /// missing. Its luminance table follows the reflectance, so sampling is importance
 /// sampling.
 pub fn lambertian_bsdf_file(rho: f32, nt: usize, n: usize) -> Vec<u8> {
+    lambertian_ramp_bsdf_file(rho, rho, nt, n)
+}
+
+/// [`lambertian_bsdf_file`] of a reflectance that is `rho_360` at 360 nm and `rho_830` at
+/// 830 nm, linear in between (the file's two wavelengths).
+pub fn lambertian_ramp_bsdf_file(rho_360: f32, rho_830: f32, nt: usize, n: usize) -> Vec<u8> {
+    let rho = 1.0;
     use std::f32::consts::{FRAC_PI_2, PI};
     let theta_i: Vec<f32> = (0..nt)
         .map(|k| {
@@ -286,17 +299,17 @@ pub fn lambertian_bsdf_file(rho: f32, nt: usize, n: usize) -> Vec<u8> {
     let luminance = Grid2 {
         nx: n,
         ny: n,
-        values: r.iter().map(|v| v + 0.05).collect(),
+        values: r
+            .iter()
+            .map(|v| v * 0.5 * (rho_360 + rho_830) + 0.05)
+            .collect(),
     };
-    // The same reflectance at both ends of the visible range: grey.
+    // The reflectance at each end of the visible range (grey where they are equal).
     let spectra: Vec<f32> = r
         .chunks_exact(n * n)
         .flat_map(|slice| {
-            slice
-                .iter()
-                .chain(slice.iter())
-                .copied()
-                .collect::<Vec<_>>()
+            let at = |rho: f32| slice.iter().map(move |v| v * rho);
+            at(rho_360).chain(at(rho_830)).collect::<Vec<_>>()
         })
         .collect();
     write_measured(

@@ -10,6 +10,7 @@ use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
 use crate::math::{Color, Frame, Ray, offset_origin};
 use crate::sampling::PixelSampler;
 use crate::shapes::SurfaceHit;
+use crate::spectral::Wavelengths;
 use crate::work::Work;
 use glam::Vec3A;
 use kiln_scene::LightStrategy;
@@ -49,7 +50,7 @@ pub(super) fn surface_step(
         state.keep_hero_only();
     }
     if state.depth == 0 && state.want_visible {
-        state.visible = Some(visible_surface(hit, &bsdf, -ray.dir));
+        state.visible = Some(visible_surface(hit, &bsdf, -ray.dir, ctx.waves.as_ref()));
     }
     // Met from inside a subsurface walk, the surface is one of the walk's events.
     let in_walk = state.travel.in_walk(scene);
@@ -137,7 +138,14 @@ fn scatter(
 
 /// The first surface a camera ray reached, for a G-buffer: its normals turned toward the
 /// camera and its reflectance toward it estimated as pbrt-v4 does, from fixed BSDF samples.
-fn visible_surface(hit: &SurfaceHit, bsdf: &Bsdf, toward_camera: Vec3A) -> VisibleSurface {
+/// A spectral path's reflectance is recorded as pbrt-v4's G-buffer records it: its colour
+/// under the colour space's white (D65), through the film.
+fn visible_surface(
+    hit: &SurfaceHit,
+    bsdf: &Bsdf,
+    toward_camera: Vec3A,
+    waves: Option<&Wavelengths>,
+) -> VisibleSurface {
     let frame = Frame::new(hit.ns, hit.dpdu);
     let wo = frame.to_local(toward_camera);
     let mut albedo = Color::ZERO;
@@ -156,7 +164,10 @@ fn visible_surface(hit: &SurfaceHit, bsdf: &Bsdf, toward_camera: Vec3A) -> Visib
         ng: facing(hit.ng),
         ns: facing(hit.ns),
         uv: hit.uv,
-        albedo: albedo / RHO_SAMPLES as f32,
+        albedo: match waves {
+            None => albedo / RHO_SAMPLES as f32,
+            Some(w) => w.to_rgb(albedo / RHO_SAMPLES as f32 * w.d65()),
+        },
         dpdx: Vec3A::ZERO,
         dpdy: Vec3A::ZERO,
     }
