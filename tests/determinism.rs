@@ -173,9 +173,14 @@ fn media_are_bit_identical_across_tiles_and_threads() {
 }
 
 /// Spectral renders keep every guarantee: SPPM (each iteration's wavelengths shared by its
-/// camera paths and photons), a grid medium with a flame sampled as a light, a VolumeLight.
+/// camera paths and photons), caustic and volume photon maps (photons at wavelengths of
+/// their own), a grid medium with a flame sampled as a light, a VolumeLight.
 #[test]
 fn spectral_sppm_grid_media_and_volume_lights_are_bit_identical_across_tiles_and_threads() {
+    let lens = load_spectral(&scene("media/lens.pbrt"), 4, Some((40, 40)));
+    assert_same_bits_for_any_split("spectral caustic map", lens);
+    let haze = load_spectral(&scene("media/haze.pbrt"), 4, Some((40, 40)));
+    assert_same_bits_for_any_split("spectral volume map", haze);
     let sppm = load_spectral(&scene("photons/ball.pbrt"), 4, Some((24, 24)));
     assert_same_bits_for_any_split("spectral sppm", sppm);
     let ember = load_spectral(&scene("media/ember.pbrt"), 4, Some((60, 40)));
@@ -346,6 +351,7 @@ fn shared_photon_maps_and_sppm_passes_give_the_same_bits_computed_once() {
         ("photons/ball.pbrt", 6, (24, 24), 6, false),
         // Spectral photons carry four wavelengths through the bytes.
         ("photons/ball.pbrt", 3, (24, 24), 3, true),
+        ("media/haze.pbrt", 2, (24, 24), 1, true),
     ] {
         let mut desc = kiln_scene::load_file(&scene(name)).unwrap();
         desc.apply_overrides(&Overrides {

@@ -232,13 +232,14 @@ fn dispersive_glass_in_a_white_furnace_stays_white() {
 fn what_is_not_spectral_yet_is_refused_clearly() {
     let (err, _dir) = failing(
         "Option \"kiln.spectral\" true\n\
-         Integrator \"volpath\" \"integer causticphotons\" 1000\n\
+         Integrator \"sppm\"\n\
          Film \"rgb\" \"integer xresolution\" 8 \"integer yresolution\" 8\n\
          Camera \"perspective\"\n\
          WorldBegin\n\
+         Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n\
          Shape \"sphere\"\n",
     );
-    assert!(err.contains("photon maps"), "{err}");
+    assert!(err.contains("dispersive glass under 'sppm'"), "{err}");
     assert!(err.contains("in RGB"), "{err}");
     assert!(err.contains("scene.pbrt"), "{err}");
 }

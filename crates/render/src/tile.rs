@@ -90,13 +90,7 @@ fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static
             .iter()
             .any(|m| matches!(&m.model, Model::Dielectric(d) if d.dispersion.is_some()))
     };
-    let photons = match &settings.integrator {
-        Integrator::Path(p) | Integrator::VolPath(p) => p.photons != kiln_scene::PhotonDesc::NONE,
-        Integrator::Sppm(_) => false,
-    };
-    if photons {
-        Some("photon maps")
-    } else if matches!(settings.integrator, Integrator::Sppm(_)) && dispersive() {
+    if matches!(settings.integrator, Integrator::Sppm(_)) && dispersive() {
         Some(
             "dispersive glass under 'sppm' (a wavelength kept alone on a camera path and on a photon)",
         )
@@ -180,9 +174,10 @@ impl Renderer {
         settings: RenderSettings,
         shared: Option<Arc<dyn SharedPrepass>>,
     ) -> Renderer {
-        let prepass = settings
-            .integrator
-            .prepare_sharing(&scene, shared.as_deref());
+        let prepass =
+            settings
+                .integrator
+                .prepare_sharing(&scene, shared.as_deref(), settings.spectral);
         Renderer {
             scene,
             settings,

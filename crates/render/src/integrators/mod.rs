@@ -134,21 +134,24 @@ impl Integrator {
         }
     }
 
-    /// Runs the pre-passes this integrator needs on `scene`.
+    /// Runs the pre-passes this integrator needs on `scene` (for an RGB render).
     pub fn prepare(&self, scene: &Scene) -> Prepass {
-        self.prepare_sharing(scene, None)
+        self.prepare_sharing(scene, None, false)
     }
 
     /// [`Integrator::prepare`], taking the photon maps from `shared` when another worker
     /// of the job has built them (and publishing them when this one builds them).
+    /// `spectral`: photons fly at wavelengths of their own (see [`PhotonSettings::spectral`]).
     pub fn prepare_sharing(
         &self,
         scene: &Scene,
         shared: Option<&dyn crate::shared::SharedPrepass>,
+        spectral: bool,
     ) -> Prepass {
-        let Some(settings) = self.photon_settings(scene) else {
+        let Some(mut settings) = self.photon_settings(scene) else {
             return Prepass::default();
         };
+        settings.spectral = spectral;
         let build = || PhotonMaps::build(scene, &settings);
         let maps = match shared {
             None => build(),
@@ -202,6 +205,7 @@ impl Integrator {
             } else {
                 Roulette::Off
             },
+            spectral: false,
         })
     }
 

@@ -92,11 +92,13 @@ impl Medium {
         }
     }
 
-    /// The scattering coefficient at world point `p`.
-    pub fn sigma_s_at(&self, p: Vec3A) -> Color {
-        match self {
-            Medium::Homogeneous(h) => h.sigma_s,
-            Medium::Grid(g) => g.coefficients(g.to_box(p)).1,
+    /// The scattering coefficient at world point `p`: in RGB, or at a spectral path's
+    /// `waves`.
+    pub fn sigma_s_at(&self, p: Vec3A, waves: Option<&Wavelengths>) -> Color {
+        match (self, waves) {
+            (Medium::Homogeneous(h), None) => h.sigma_s,
+            (Medium::Homogeneous(h), Some(w)) => w.unbounded(h.sigma_s),
+            (Medium::Grid(g), w) => g.coefficients_at(g.to_box(p), w).1,
         }
     }
 

@@ -482,9 +482,9 @@ pub fn sampled_to_rgb_with(
 ///   Ag eta (0.128 0.124 0.151) k (4.065 3.286 2.392); Al eta (1.407 0.927 0.584)
 ///   k (7.740 6.602 5.360); Au eta (0.080 0.405 1.561) k (3.390 2.504 1.771);
 ///   Cu eta (0.105 0.978 1.205) k (3.273 2.593 2.369).
-/// * `glass-*`: the IOR at 550 nm (near the peak of ȳ) in all three channels. Kiln's
-///   dielectrics take one IOR, and per-channel dispersion in an RGB renderer gives
-///   channel-quantised fringes instead of a spectrum.
+/// * `glass-*`: the IOR at 550 nm (near the peak of ȳ) in all three channels, for RGB
+///   rendering: per-channel dispersion in an RGB renderer gives channel-quantised fringes
+///   instead of a spectrum. Spectral rendering disperses by [`glass_index`].
 /// * `stdillum-*`, `illum-acesD60`: [`SpectrumUse::Illuminant`], luminance Y = 1, as pbrt-v4
 ///   normalises them. acesD60 is the CIE daylight spectrum for CCT 6000·1.4388/1.4380 K, as in
 ///   pbrt-v4.

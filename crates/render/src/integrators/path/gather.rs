@@ -49,8 +49,9 @@ impl Gather {
         }
         // Light scattered here from the photons; the throughput already holds sigma_s, the
         // estimate divides it out.
-        let sigma_s = med.sigma_s_at(p);
-        let lv = maps.medium_radiance(p, wo, |a, b| phase.p(a, b));
+        let waves = ctx.waves.as_ref();
+        let sigma_s = med.sigma_s_at(p, waves);
+        let lv = maps.medium_radiance(p, wo, |a, b| phase.p(a, b), waves);
         let inv = Color::select(
             sigma_s.cmpgt(Color::ZERO),
             Color::ONE / sigma_s,
@@ -88,6 +89,7 @@ impl Gather {
         };
         self.specular_since_gather = Some(0);
         let wo = frame.to_local(-dir);
-        Some(beta * maps.surface_radiance(hit.p, side, |wi| bsdf.f(wo, frame.to_local(wi))))
+        let f = |wi| bsdf.f(wo, frame.to_local(wi));
+        Some(beta * maps.surface_radiance(hit.p, side, f, ctx.waves.as_ref()))
     }
 }

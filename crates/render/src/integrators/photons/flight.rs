@@ -8,6 +8,7 @@ use crate::media::subsurface::Walk;
 use crate::nesting::Nesting;
 use crate::sampling::TrackingRng;
 use crate::shapes::SurfaceHit;
+use crate::spectral::Wavelengths;
 use glam::{Vec2, Vec3A};
 
 /// A photon in flight.
@@ -26,6 +27,29 @@ struct Flight {
     nesting: Nesting,
     /// The subsurface walk the photon is on.
     walk: Walk,
+    /// A spectral photon's own four wavelengths, and whether a dispersive refraction left
+    /// it the hero alone.
+    waves: Option<Wavelengths>,
+    hero_only: bool,
+}
+
+impl Flight {
+    /// What weight-aware roulette compares: the luminance of the power, or of the RGB the
+    /// film would record of a spectral photon's.
+    fn brightness(&self, beta: Color) -> f32 {
+        match &self.waves {
+            None => luminance(beta),
+            Some(w) => luminance(w.to_rgb(beta)),
+        }
+    }
+
+    /// The power a photon stored here carries: RGB, as the film records a spectral one's.
+    fn stored_power(&self) -> Color {
+        match &self.waves {
+            None => self.beta,
+            Some(w) => w.to_rgb(self.beta),
+        }
+    }
 }
 
 /// What the photon does after a step.
@@ -47,19 +71,28 @@ impl Shooter<'_> {
             Pass::Volume => 0x5ca7_7e12,
         };
         let mut rng = TrackingRng::new(index.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ salt);
+        let waves = self.spectral.then(|| Wavelengths::sample(rng.next_f32()));
         let Some(Launch {
             light,
             emitted,
             beta,
             ray,
-        }) = launch(scene, &self.table, self.sphere, count, &mut rng, None)
+        }) = launch(
+            scene,
+            &self.table,
+            self.sphere,
+            count,
+            &mut rng,
+            waves.as_ref(),
+        )
         else {
             return;
         };
+        let beta = scene.light_radiance(light as u32, beta, waves.as_ref());
         let mut f = Flight {
             ray,
             beta,
-            start: luminance(beta),
+            start: 0.0,
             rng,
             medium: self.start_medium(light, &emitted),
             events: 0,
@@ -67,7 +100,10 @@ impl Shooter<'_> {
             pass_throughs: 0,
             nesting: Nesting::default(),
             walk: Walk::default(),
+            waves,
+            hero_only: false,
         };
+        f.start = f.brightness(f.beta);
         loop {
             let found = scene.geometry.intersect(&f.ray, f32::INFINITY);
             if let Some(m) = f.medium {
@@ -98,7 +134,15 @@ impl Shooter<'_> {
         let t_max = found.map_or(f32::INFINITY, |h| h.t);
         // Photons carry no medium emission: the lights that are media shoot their own.
         let med = f.walk.medium(&scene.media, m);
-        let t = match med.sample_interaction(&f.ray, t_max, &mut f.rng, &mut f.beta, None, |_| {}) {
+        let waves = f.waves;
+        let t = match med.sample_interaction(
+            &f.ray,
+            t_max,
+            &mut f.rng,
+            &mut f.beta,
+            waves.as_ref(),
+            |_| {},
+        ) {
             MediumEvent::Crossed => return Step::Surface,
             // A photon whose walk is cut off is lost (the camera paths report theirs).
             MediumEvent::Absorbed | MediumEvent::CutOff => return Step::Stop,
@@ -109,7 +153,7 @@ impl Shooter<'_> {
             p,
             wi: -f.ray.dir,
             n: Vec3A::ZERO,
-            power: f.beta,
+            power: f.stored_power(),
         };
         // Inside a subsurface material the photon walks on, stored nowhere: camera paths
         // walk there themselves (and a walk ends a caustic).
@@ -139,7 +183,7 @@ impl Shooter<'_> {
         // Phase functions are sampled exactly: the throughput is unchanged.
         let (wi, _) = phase.sample(-f.ray.dir, Vec2::new(f.rng.next_f32(), f.rng.next_f32()));
         f.only_specular = false;
-        if !self.survives(&mut f.beta, f.start, &mut f.rng) {
+        if !self.survives(f) {
             return Step::Stop;
         }
         f.ray = f.ray.spawn(p, wi);
@@ -156,7 +200,8 @@ impl Shooter<'_> {
         stored: &mut Stored,
     ) -> Step {
         let scene = self.scene;
-        let Some(bsdf) = scene.bsdf_nested(hit, 1.0, None, &f.nesting, f.ray.dir) else {
+        let waves = f.waves;
+        let Some(bsdf) = scene.bsdf_nested(hit, 1.0, waves.as_ref(), &f.nesting, f.ray.dir) else {
             // An interface: straight on, into the medium on the other side.
             let before = f.medium;
             if !super::super::pass_through(
@@ -187,7 +232,7 @@ impl Shooter<'_> {
                     p: hit.p,
                     wi: -f.ray.dir,
                     n,
-                    power: f.beta,
+                    power: f.stored_power(),
                 });
             }
             return Step::Stop;
@@ -201,6 +246,15 @@ impl Shooter<'_> {
         } else if f.events >= self.max_depth {
             return Step::Stop;
         }
+        // A dispersive refraction keeps a spectral photon's hero wavelength alone (its
+        // weight four times over), as camera paths keep theirs.
+        if let crate::bsdfs::Bsdf::Dielectric(d) = &bsdf
+            && d.dispersive
+            && !f.hero_only
+        {
+            f.hero_only = true;
+            f.beta = Color::new(4.0 * f.beta.x, 0.0, 0.0, 0.0);
+        }
         let Some(bounce) = scatter(&bsdf, hit, f.ray.dir, &mut f.rng) else {
             return Step::Stop;
         };
@@ -213,7 +267,7 @@ impl Shooter<'_> {
             f.events += 1;
         }
         f.only_specular &= bounce.specular;
-        if !self.survives(&mut f.beta, f.start, &mut f.rng) {
+        if !self.survives(f) {
             return Step::Stop;
         }
         let before = f.medium;
@@ -230,15 +284,15 @@ impl Shooter<'_> {
 
     /// Russian roulette after an event: with weight-aware roulette a photon survives with
     /// probability min(1, throughput / starting power) and carries its power divided by it.
-    fn survives(&self, beta: &mut Color, start: f32, rng: &mut TrackingRng) -> bool {
+    fn survives(&self, f: &mut Flight) -> bool {
         if self.roulette == Roulette::Off {
             return true;
         }
-        let q = (luminance(*beta) / start).min(1.0);
-        if q <= 0.0 || rng.next_f32() >= q {
+        let q = (f.brightness(f.beta) / f.start).min(1.0);
+        if q <= 0.0 || f.rng.next_f32() >= q {
             return false;
         }
-        *beta /= q;
+        f.beta /= q;
         true
     }
 }

@@ -136,10 +136,10 @@ impl PhotonMap {
         }
     }
 
-    /// The sum of `weight(photon) * power` over the photons gathered at `p`, and the radius.
-    pub fn sum(&self, p: Vec3A, weight: impl Fn(&Photon) -> Color) -> (Color, f32) {
+    /// The sum of `contribution(photon)` over the photons gathered at `p`, and the radius.
+    pub fn sum(&self, p: Vec3A, contribution: impl Fn(&Photon) -> Color) -> (Color, f32) {
         let mut sum = Color::ZERO;
-        let r = self.gather(p, |ph| sum += ph.power * weight(ph));
+        let r = self.gather(p, |ph| sum += contribution(ph));
         (sum, r)
     }
 }

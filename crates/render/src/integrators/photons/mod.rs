@@ -63,6 +63,9 @@ pub struct PhotonSettings {
     /// The most events of one subsurface walk.
     pub walk_depth: u32,
     pub roulette: Roulette,
+    /// For a spectral render: each photon flies at four wavelengths of its own, and is
+    /// stored with the linear sRGB the film would record of its power.
+    pub spectral: bool,
 }
 
 /// The photon maps of a scene.
@@ -158,11 +161,18 @@ impl PhotonMaps {
 
     /// Caustic radiance leaving surface point `p` (normal `n` on the side looked at) towards
     /// the viewer, given the BSDF for each photon's direction (`f(wi)`; the photon's flux
-    /// already holds its cosine).
-    pub fn surface_radiance(&self, p: Vec3A, n: Vec3A, f: impl Fn(Vec3A) -> Color) -> Color {
+    /// already holds its cosine); at a spectral path's `waves`, each photon's recorded RGB
+    /// taken as light of that colour.
+    pub fn surface_radiance(
+        &self,
+        p: Vec3A,
+        n: Vec3A,
+        f: impl Fn(Vec3A) -> Color,
+        waves: Option<&Wavelengths>,
+    ) -> Color {
         let (sum, r) = self.caustic_surface.sum(p, |ph| {
             if ph.n.dot(n) > 0.9 {
-                f(ph.wi)
+                power_at(ph, waves) * f(ph.wi)
             } else {
                 Color::ZERO
             }
@@ -179,13 +189,14 @@ impl PhotonMaps {
         p: Vec3A,
         wo: Vec3A,
         phase: impl Fn(Vec3A, Vec3A) -> f32,
+        waves: Option<&Wavelengths>,
     ) -> Color {
         let map = if self.volume_pass {
             &self.volume
         } else {
             &self.caustic_volume
         };
-        let (sum, r) = map.sum(p, |ph| Color::splat(phase(wo, ph.wi)));
+        let (sum, r) = map.sum(p, |ph| power_at(ph, waves) * phase(wo, ph.wi));
         if r > 0.0 {
             sum / (4.0 / 3.0 * PI * r * r * r)
         } else {
@@ -197,6 +208,17 @@ impl PhotonMaps {
     /// the path there).
     pub fn has_volume_map(&self) -> bool {
         self.volume_pass
+    }
+}
+
+/// A stored photon's power as a path sees it: its RGB, or at a spectral path's `waves` the
+/// spectrum of light of that colour. (A spectral photon flew at wavelengths of its own,
+/// which a path gathering it does not share: what it brings is the colour the film would
+/// record of it, met by the gathering surface's spectrum.)
+fn power_at(ph: &Photon, waves: Option<&Wavelengths>) -> Color {
+    match waves {
+        None => ph.power,
+        Some(w) => w.illuminant(ph.power),
     }
 }
 
@@ -339,6 +361,7 @@ struct Shooter<'a> {
     max_depth: u32,
     walk_depth: u32,
     roulette: Roulette,
+    spectral: bool,
 }
 
 impl<'a> Shooter<'a> {
@@ -351,6 +374,7 @@ impl<'a> Shooter<'a> {
             max_depth: settings.max_depth,
             walk_depth: settings.walk_depth,
             roulette: settings.roulette,
+            spectral: settings.spectral,
         })
     }
 
