@@ -79,28 +79,6 @@ impl RenderSettings {
     }
 }
 
-/// What a scene or its settings hold that spectral rendering does not render yet, if
-/// anything: those parts still compute in RGB, and a spectral path through them would be
-/// wrong rather than approximate.
-fn not_yet_spectral(scene: &Scene, settings: &RenderSettings) -> Option<&'static str> {
-    use crate::materials::Model;
-    let dispersive = || {
-        scene
-            .materials
-            .iter()
-            .any(|m| matches!(&m.model, Model::Dielectric(d) if d.dispersion.is_some()))
-    };
-    if matches!(settings.integrator, Integrator::Sppm(_)) && dispersive() {
-        Some(
-            "dispersive glass under 'sppm' (a wavelength kept alone on a camera path and on a photon)",
-        )
-    } else if !scene.media.iter().all(crate::media::Medium::is_spectral) {
-        Some("grid media built for RGB")
-    } else {
-        None
-    }
-}
-
 /// The texture filter's footprint, in pixels, for a render of `spp` samples per pixel
 /// ([`RenderSettings::footprint`]): the same for every count from 64 up, so a render of 64
 /// or more samples can be extended to more with the same samples.
@@ -147,16 +125,6 @@ impl Renderer {
             });
         }
         let scene = Scene::build(desc, media)?;
-        if settings.spectral
-            && let Some(what) = not_yet_spectral(&scene, &settings)
-        {
-            return Err(BuildError::Unsupported {
-                loc: desc.integrator.loc.clone(),
-                message: format!(
-                    "spectral rendering does not handle {what} yet; render this scene in RGB (without --spectral or Option \"kiln.spectral\")"
-                ),
-            });
-        }
         Ok(Renderer::new_sharing(scene, settings, shared))
     }
 

@@ -95,6 +95,18 @@ impl PixelState {
     }
 }
 
+/// After a dispersive refraction a spectral path (or photon) keeps its hero wavelength alone,
+/// its weight four times over, as pbrt-v4's do (once).
+fn keep_hero_only(bsdf: &Bsdf, beta: &mut Color, hero_only: &mut bool) {
+    if let Bsdf::Dielectric(d) = bsdf
+        && d.dispersive
+        && !*hero_only
+    {
+        *hero_only = true;
+        *beta = Color::new(4.0 * beta.x, 0.0, 0.0, 0.0);
+    }
+}
+
 /// The four wavelengths iteration `iteration` of a spectral render carries, for its camera
 /// paths and its photons alike: the hero at the iteration's place in the base-2 radical
 /// inverse, turned by an offset the seed gives (so that seeds differ).
@@ -118,6 +130,8 @@ struct VisiblePoint<'a> {
     beta: Color,
     /// The iteration's wavelengths, for a spectral render.
     waves: Option<Wavelengths>,
+    /// A dispersive refraction left the camera path the hero wavelength alone.
+    hero_only: bool,
 }
 
 /// The camera pass of one iteration for one pixel: its direct light (added to `state`) and
@@ -143,6 +157,7 @@ pub fn camera_pass<'a>(
     let mut nesting = Nesting::default();
     let mut depth = 0u32;
     let mut pass_throughs = 0u32;
+    let mut hero_only = false;
     while depth < settings.max_depth {
         work.rays += 1;
         let Some(hit) = scene.geometry.intersect(&ray, f32::INFINITY) else {
@@ -207,11 +222,13 @@ pub fn camera_pass<'a>(
                 bsdf,
                 beta,
                 waves: waves.copied(),
+                hero_only,
             }));
         }
         if bsdf.is_black() || depth + 1 >= settings.max_depth {
             return None;
         }
+        keep_hero_only(&bsdf, &mut beta, &mut hero_only);
         sampler.set_dimension(CAMERA_DIMENSIONS + DIMENSIONS_PER_BOUNCE * depth + 3);
         let uc = sampler.get_1d();
         let u = sampler.get_2d();
@@ -237,19 +254,57 @@ pub fn camera_pass<'a>(
 /// A visible point, opaque outside this module.
 pub struct VisiblePointHandle<'a>(VisiblePoint<'a>);
 
+/// An iteration's photons: those that kept all four wavelengths, and (in a spectral render)
+/// those a dispersive refraction left with the hero alone, its power four times over. A
+/// visible point that kept its hero alone too weighs the second kind once, not twice (pbrt-v4
+/// terminates a wavelength once, whichever path did it).
+#[derive(Default)]
+pub struct Pass {
+    full: PhotonMap,
+    hero: PhotonMap,
+}
+
+impl Pass {
+    fn bytes(&self) -> usize {
+        self.full.bytes() + self.hero.bytes()
+    }
+
+    fn encode(&self) -> Vec<u8> {
+        encode(&[self.full.photons(), self.hero.photons()])
+    }
+
+    fn decode(bytes: &[u8], gather: Gather) -> Result<Pass, String> {
+        let [full, hero]: [Vec<Photon>; 2] = decode(bytes)?
+            .try_into()
+            .map_err(|_| "not two photon lists".to_string())?;
+        Ok(Pass {
+            full: PhotonMap::new(full, gather),
+            hero: PhotonMap::new(hero, gather),
+        })
+    }
+}
+
 /// Adds the photons of `map` within the pixel's radius of its visible point and shrinks the
 /// radius as pbrt-v4 does: N' = N + 2/3 M, R' = R sqrt(N' / (N + M)), tau' = (tau + Phi)
 /// R'^2 / R^2.
-pub fn gather(map: &PhotonMap, vp: Option<&VisiblePointHandle>, state: &mut PixelState) {
+pub fn gather(pass: &Pass, vp: Option<&VisiblePointHandle>, state: &mut PixelState) {
     let Some(VisiblePointHandle(vp)) = vp else {
         return;
     };
     let mut phi = Color::ZERO;
     let mut m = 0u32;
-    map.gather_within(vp.p, state.radius, |ph| {
+    pass.full.gather_within(vp.p, state.radius, |ph| {
         phi += ph.power * vp.bsdf.f(vp.wo, vp.frame.to_local(ph.wi));
         m += 1;
     });
+    let mut hero = Color::ZERO;
+    pass.hero.gather_within(vp.p, state.radius, |ph| {
+        hero += ph.power * vp.bsdf.f(vp.wo, vp.frame.to_local(ph.wi));
+        m += 1;
+    });
+    if hero != Color::ZERO {
+        phi += if vp.hero_only { hero * 0.25 } else { hero };
+    }
     if m == 0 {
         return;
     }
@@ -273,17 +328,17 @@ pub fn photon_pass(
     seed: u32,
     iteration: u32,
     spectral: bool,
-) -> PhotonMap {
+) -> Pass {
     let waves = spectral.then(|| pass_wavelengths(seed, iteration));
     let Some(emitters) = emitters else {
-        return PhotonMap::default();
+        return Pass::default();
     };
     let (table, sphere) = (&emitters.table, emitters.sphere);
     let n = settings.photons_per_iteration;
-    let batches: Vec<Vec<Photon>> = (0..n.div_ceil(BATCH))
+    let batches: Vec<Stored> = (0..n.div_ceil(BATCH))
         .into_par_iter()
         .map(|b| {
-            let mut stored = Vec::new();
+            let mut stored = Stored::default();
             for i in b * BATCH..((b + 1) * BATCH).min(n) {
                 let key = ((seed as u64) << 32 | iteration as u64)
                     .wrapping_mul(0xd605_bbb5_8c8a_bbb7)
@@ -301,8 +356,23 @@ pub fn photon_pass(
             stored
         })
         .collect();
-    let photons: Vec<Photon> = batches.into_iter().flatten().collect();
-    PhotonMap::new(photons, Gather::Radius(settings.radius))
+    let (mut full, mut hero) = (Vec::new(), Vec::new());
+    for b in batches {
+        full.extend(b.full);
+        hero.extend(b.hero);
+    }
+    let gather = Gather::Radius(settings.radius);
+    Pass {
+        full: PhotonMap::new(full, gather),
+        hero: PhotonMap::new(hero, gather),
+    }
+}
+
+/// A batch's stored photons, by whether they kept all four wavelengths (see [`Pass`]).
+#[derive(Default)]
+struct Stored {
+    full: Vec<Photon>,
+    hero: Vec<Photon>,
 }
 
 /// One SPPM photon: stored at every non-specular surface after its first bounce, ended by
@@ -314,9 +384,10 @@ fn trace_photon(
     sphere: SceneSphere,
     key: u64,
     waves: Option<&Wavelengths>,
-    stored: &mut Vec<Photon>,
+    stored: &mut Stored,
 ) {
     let mut rng = TrackingRng::new(key);
+    let mut hero_only = false;
     let Some(Launch {
         beta,
         mut ray,
@@ -349,13 +420,18 @@ fn trace_photon(
             continue;
         };
         if depth > 0 && !bsdf.is_specular() {
-            stored.push(Photon {
+            let photon = Photon {
                 p: hit.p,
                 wi: -ray.dir,
                 n: hit.ns,
                 power: beta,
-            });
+            };
+            match hero_only {
+                false => stored.full.push(photon),
+                true => stored.hero.push(photon),
+            }
         }
+        keep_hero_only(&bsdf, &mut beta, &mut hero_only);
         let Some(bounce) = scatter(&bsdf, &hit, ray.dir, &mut rng) else {
             return;
         };
@@ -383,7 +459,7 @@ fn trace_photon(
 #[derive(Default)]
 pub struct PassCache {
     /// The bytes kept, and the passes by iteration.
-    kept: Mutex<(usize, HashMap<u32, Arc<PhotonMap>>)>,
+    kept: Mutex<(usize, HashMap<u32, Arc<Pass>>)>,
     /// Passes this renderer has claimed in the shared store and is tracing. Another thread
     /// of the same renderer must not wait for one: rayon may have run that thread's tile
     /// inside the very trace it would wait for (a thread waiting for its own stack).
@@ -405,10 +481,10 @@ impl PassCache {
         iteration: u32,
         iterations: u32,
         shared: Option<&dyn SharedPrepass>,
-        trace: &(dyn Fn(u32) -> PhotonMap + Sync),
+        trace: &(dyn Fn(u32) -> Pass + Sync),
         gather: Gather,
         stop: &dyn Fn() -> bool,
-    ) -> Option<Arc<PhotonMap>> {
+    ) -> Option<Arc<Pass>> {
         if let Some(map) = self.lock().1.get(&iteration) {
             return Some(map.clone());
         }
@@ -416,12 +492,7 @@ impl PassCache {
             return Some(self.keep(iteration, trace(iteration)));
         };
         let name = |it: u32| format!("sppm-pass-{it}");
-        let decode_pass = |b: &[u8]| -> Result<PhotonMap, String> {
-            let [photons]: [Vec<_>; 1] = decode(b)?
-                .try_into()
-                .map_err(|_| "not one photon list".to_string())?;
-            Ok(PhotonMap::new(photons, gather))
-        };
+        let decode_pass = |b: &[u8]| Pass::decode(b, gather);
         // Traces a pass this renderer holds the claim to (its other threads trace it again
         // rather than wait for it: rayon may have run their tile inside this very trace).
         let trace_claimed = |it: u32| {
@@ -448,7 +519,7 @@ impl PassCache {
                     }
                     Shared::Yours => {
                         let map = trace_claimed(it);
-                        shared.publish(&name(it), &encode(&[map.photons()]));
+                        shared.publish(&name(it), &map.encode());
                         self.keep(it, map);
                         return true;
                     }
@@ -463,7 +534,7 @@ impl PassCache {
             shared,
             &name(iteration),
             || trace_claimed(iteration),
-            |m: &PhotonMap| encode(&[m.photons()]),
+            |m: &Pass| m.encode(),
             decode_pass,
             &mut ahead,
             stop,
@@ -476,7 +547,7 @@ impl PassCache {
     }
 
     /// Keeps pass `iteration` if it fits in the budget.
-    fn keep(&self, iteration: u32, map: PhotonMap) -> Arc<PhotonMap> {
+    fn keep(&self, iteration: u32, map: Pass) -> Arc<Pass> {
         let map = Arc::new(map);
         let mut kept = self.lock();
         if kept.0 + map.bytes() <= Self::BUDGET {
@@ -486,7 +557,7 @@ impl PassCache {
         map
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, (usize, HashMap<u32, Arc<PhotonMap>>)> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, (usize, HashMap<u32, Arc<Pass>>)> {
         // A panic elsewhere cannot leave the cache half-written: entries go in whole.
         self.kept.lock().unwrap_or_else(|e| e.into_inner())
     }

@@ -102,17 +102,9 @@ impl Medium {
         }
     }
 
-    /// Whether a spectral path can cross the medium (a grid medium built for one).
-    pub fn is_spectral(&self) -> bool {
-        match self {
-            Medium::Homogeneous(_) => true,
-            Medium::Grid(g) => g.is_spectral(),
-        }
-    }
-
     /// Transmittance along the segment from `o` in unit direction `d` over (0, `t`); grid
     /// media estimate it by ratio tracking with numbers from `rng` (None if that walk was
-    /// cut off). With `waves`, at a spectral path's wavelengths (see [`Medium::is_spectral`]).
+    /// cut off). With `waves`, at a spectral path's wavelengths.
     pub fn transmittance(
         &self,
         o: Vec3A,
@@ -131,7 +123,7 @@ impl Medium {
     /// Free-flight sampling along `ray` over (0, `t_max`), updating the throughput `beta`.
     /// Emission met on the way goes to `emitted` (see [`Emitted`]) before the event it
     /// precedes is chosen. The path tracer and the photon tracer share this; with `waves`,
-    /// a spectral path at those wavelengths (see [`Medium::is_spectral`]).
+    /// a spectral path at those wavelengths.
     pub fn sample_interaction(
         &self,
         ray: &Ray,

@@ -113,24 +113,17 @@ impl GridSpectra {
 }
 
 impl GridMedium {
-    /// Whether the medium was built for spectral paths.
-    pub fn is_spectral(&self) -> bool {
-        self.spectra.is_some()
-    }
-
-    fn spectra(&self) -> &GridSpectra {
-        self.spectra
-            .as_deref()
-            .expect("a spectral path met a grid medium built for RGB")
-    }
-
     /// sigma_a and sigma_s at `p` in the unit box: in RGB, or with `waves` at a spectral
     /// path's wavelengths.
     pub fn coefficients_at(&self, p: Vec3A, waves: Option<&Wavelengths>) -> (Color, Color) {
         let Some(w) = waves else {
             return self.coefficients(p);
         };
-        let sp = self.spectra();
+        let Some(sp) = self.spectra.as_deref() else {
+            // Built for RGB (a scene built apart from its settings): the RGB's spectra.
+            let (a, s) = self.coefficients(p);
+            return (w.unbounded(a), w.unbounded(s));
+        };
         let (a, s) = (w.of(&sp.sigma_a), w.of(&sp.sigma_s));
         match &self.field {
             Field::Scalar(g) => {
@@ -157,11 +150,14 @@ impl GridMedium {
         let Some((emission, scale)) = &self.emission else {
             return Color::ZERO;
         };
+        let Some(spectra) = self.spectra.as_deref() else {
+            return w.illuminant(self.le(p));
+        };
         let s = scale.as_ref().map_or(1.0, |g| g.lookup(p));
         if s <= 0.0 {
             return Color::ZERO;
         }
-        match (emission, &self.spectra().le) {
+        match (emission, &spectra.le) {
             (
                 Emission::Temperature {
                     grid,
