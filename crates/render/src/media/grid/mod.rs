@@ -458,8 +458,9 @@ impl GridMedium {
     ) -> Option<Color> {
         let mut tr = Color::ONE;
         let mut u = rng.split(0x5851_f42d_4c95_7f2d);
+        let lanes = self.lanes(waves);
         let walk = self.walk(o, d, t_max, rng, |_, p, sigma_maj| {
-            let (a, s) = self.coefficients_at(p, waves);
+            let (a, s) = self.coefficients_in(p, &lanes);
             let st = a + s;
             tr *= (Color::ONE - st / sigma_maj).max(Color::ZERO);
             if tr.max_element() < 0.05 {
@@ -492,9 +493,10 @@ impl GridMedium {
         let mut event = MediumEvent::Crossed;
         let mut choice = TrackingRng::new(rng.next_f32().to_bits() as u64 ^ 0x6a09_e667_f3bc_c909);
         let emissive = self.is_emissive();
+        let coefficients = self.lanes(waves);
         let lanes = if waves.is_some() { 4 } else { 3 };
         let walk = self.walk(ray.origin, ray.dir, t_max, rng, |t, p, sigma_maj| {
-            let (sigma_a, sigma_s) = self.coefficients_at(p, waves);
+            let (sigma_a, sigma_s) = self.coefficients_in(p, &coefficients);
             if sigma_a == Color::ZERO && sigma_s == Color::ZERO {
                 return true;
             }

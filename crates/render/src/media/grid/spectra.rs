@@ -112,19 +112,58 @@ impl GridSpectra {
     }
 }
 
+/// How a walk reads a grid medium's coefficients: in RGB, or at a spectral path's
+/// wavelengths, with the coefficients per unit density (an rgbgrid's scale) evaluated once
+/// per walk rather than at every tentative collision.
+pub(super) enum Lanes<'a> {
+    Rgb,
+    /// A medium built for RGB, met by a spectral path.
+    FromRgb(&'a Wavelengths),
+    Spectral {
+        waves: &'a Wavelengths,
+        spectra: &'a GridSpectra,
+        a: Vec4,
+        s: Vec4,
+    },
+}
+
 impl GridMedium {
     /// sigma_a and sigma_s at `p` in the unit box: in RGB, or with `waves` at a spectral
     /// path's wavelengths.
     pub fn coefficients_at(&self, p: Vec3A, waves: Option<&Wavelengths>) -> (Color, Color) {
-        let Some(w) = waves else {
-            return self.coefficients(p);
-        };
-        let Some(sp) = self.spectra.as_deref() else {
+        self.coefficients_in(p, &self.lanes(waves))
+    }
+
+    /// What a walk reads once rather than at every collision (see [`Lanes`]).
+    pub(super) fn lanes<'a>(&'a self, waves: Option<&'a Wavelengths>) -> Lanes<'a> {
+        match (waves, self.spectra.as_deref()) {
+            (None, _) => Lanes::Rgb,
             // Built for RGB (a scene built apart from its settings): the RGB's spectra.
-            let (a, s) = self.coefficients(p);
-            return (w.unbounded(a), w.unbounded(s));
+            (Some(w), None) => Lanes::FromRgb(w),
+            (Some(w), Some(spectra)) => Lanes::Spectral {
+                waves: w,
+                spectra,
+                a: w.of(&spectra.sigma_a),
+                s: w.of(&spectra.sigma_s),
+            },
+        }
+    }
+
+    /// [`GridMedium::coefficients_at`] with the path's [`Lanes`] made already.
+    pub(super) fn coefficients_in(&self, p: Vec3A, lanes: &Lanes) -> (Color, Color) {
+        let (w, spectra, a, s) = match *lanes {
+            Lanes::Rgb => return self.coefficients(p),
+            Lanes::FromRgb(w) => {
+                let (a, s) = self.coefficients(p);
+                return (w.unbounded(a), w.unbounded(s));
+            }
+            Lanes::Spectral {
+                waves,
+                spectra,
+                a,
+                s,
+            } => (waves, spectra, a, s),
         };
-        let (a, s) = (w.of(&sp.sigma_a), w.of(&sp.sigma_s));
         match &self.field {
             Field::Scalar(g) => {
                 let d = g.lookup(p);
@@ -132,7 +171,7 @@ impl GridMedium {
             }
             Field::Rgb { .. } => {
                 let grid = |g: &Option<SpectrumGrid>| g.as_ref().map_or(Vec4::ONE, |g| g.at(p, w));
-                (a * grid(&sp.a), s * grid(&sp.s))
+                (a * grid(&spectra.a), s * grid(&spectra.s))
             }
             Field::Cloud { cloud, p0, size } => {
                 let d = cloud.density_at(*p0 + p * *size);
