@@ -22,7 +22,7 @@ printf 'KILN_TOKEN=%s\nKILN_LEASE_TTL=4\n' "$KILN_TOKEN" > "$KILN_ENV_FILE"
 compose() { docker-compose -p "$project" -f docker-compose.yml "$@"; }
 cleanup() {
     compose down -v --remove-orphans >/dev/null 2>&1 || true
-    rm -rf "$work"
+    rm -rf "$work" 2>/dev/null || echo "$NAME: could not remove $work (left behind)"
 }
 trap cleanup EXIT
 

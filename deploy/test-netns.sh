@@ -31,7 +31,7 @@ cleanup() {
     wait 2>/dev/null || true
     for h in "${hosts[@]}"; do ip netns del "$tag-$h" 2>/dev/null || true; done
     ip netns del "$sw" 2>/dev/null || true
-    rm -rf "$work"
+    rm -rf "$work" 2>/dev/null || echo "$NAME: could not remove $work (left behind)"
 }
 trap cleanup EXIT
 

@@ -31,7 +31,21 @@ cleanup() {
     pkill -f "slurmd -f $work" 2>/dev/null || true
     [ -n "${started_munge:-}" ] && pkill -x munged 2>/dev/null || true
     wait 2>/dev/null || true
-    if [ -n "${KEEP:-}" ]; then echo "test-slurm: kept $work"; else rm -rf "$work"; fi
+    # slurmctld and slurmd are daemons, not this shell's children: `wait` does not
+    # wait for them, and slurmctld writes its state files into $work/ctld as it shuts
+    # down. Removing the folder under it raced ("Directory not empty") and failed a
+    # passed test; wait for them to be gone first, and never let tidying fail the run.
+    for _ in $(seq 50); do
+        pgrep -f -- "slurm(ctld|d) -f $work" >/dev/null 2>&1 || break
+        sleep 0.2
+    done
+    pkill -KILL -f -- "slurm(ctld|d) -f $work" 2>/dev/null || true
+    if [ -n "${KEEP:-}" ]; then
+        echo "test-slurm: kept $work"
+    else
+        rm -rf "$work" 2>/dev/null || { sleep 1; rm -rf "$work" 2>/dev/null; } ||
+            echo "test-slurm: could not remove $work (left behind)"
+    fi
 }
 trap cleanup EXIT
 
