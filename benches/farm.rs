@@ -103,6 +103,7 @@ fn scale(workers: usize) {
         verify: None,
         priority: 0,
         webhook: None,
+        spectral: None,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let total = rt.block_on(client.status(id)).unwrap().tiles_total;

@@ -50,8 +50,10 @@ fn flame(n: usize) -> (VoxelGrid, VoxelGrid) {
 }
 
 fn scene_text(strategy: &str, res: u32, spp: u32) -> String {
+    // In RGB, as the recorded figures were measured.
     format!(
-        "Integrator \"volpath\" \"integer maxdepth\" [ 5 ] \"string strategy\" \"{strategy}\"
+        "Option \"kiln.spectral\" false
+        Integrator \"volpath\" \"integer maxdepth\" [ 5 ] \"string strategy\" \"{strategy}\"
         Sampler \"zsobol\" \"integer pixelsamples\" [ {spp} ]
         Film \"rgb\" \"integer xresolution\" [ {res} ] \"integer yresolution\" [ {res} ]
         LookAt 0 1.2 4.5  0 0.5 0  0 1 0

@@ -74,8 +74,10 @@ fn scene_text(kind: Kind, res: u32, spp: u32) -> String {
         Kind::Images => image.to_string(),
         Kind::Constant => constant.to_string(),
     };
+    // In RGB, as the recorded figures were measured.
     format!(
-        r#"Integrator "path" "integer maxdepth" [ 5 ]
+        r#"Option "kiln.spectral" false
+Integrator "path" "integer maxdepth" [ 5 ]
 Sampler "zsobol" "integer pixelsamples" [ {spp} ]
 Film "rgb" "integer xresolution" [ {res} ] "integer yresolution" [ {res} ]
 LookAt 0 1.5 5  0 0.5 0  0 1 0

@@ -12,8 +12,10 @@ use kiln_render::{Renderer, TileStats};
 use std::time::Instant;
 
 fn scene_text(light: &str, material: &str, res: u32, spp: u32) -> String {
+    // In RGB, as the recorded figures were measured.
     format!(
-        "Integrator \"path\" \"integer maxdepth\" [ 5 ]
+        "Option \"kiln.spectral\" false
+        Integrator \"path\" \"integer maxdepth\" [ 5 ]
         Sampler \"zsobol\" \"integer pixelsamples\" [ {spp} ]
         Film \"rgb\" \"integer xresolution\" [ {res} ] \"integer yresolution\" [ {res} ]
         LookAt 0 2 5  0 0.6 0  0 1 0

@@ -58,6 +58,7 @@ fn the_dashboard_works_in_a_real_browser() {
         verify: None,
         priority,
         webhook: None,
+        spectral: None,
     };
     // A job of four passes to watch, one below it in priority to stop after its first
     // pass, and one below that to cancel.

@@ -337,7 +337,7 @@ AttributeEnd"#,
         &write_scene(dir.path(), "point.pbrt", &point),
         dir.path(),
         "point",
-        &["--spp", "256"],
+        &["--spp", "256", "--rgb"],
     )
     .image;
     let pt = render(
@@ -346,7 +346,7 @@ AttributeEnd"#,
         "sphere",
         // Path tracing's error here is its rare fireflies: it takes this many samples for
         // its mean to settle (at 8192 it was 5% low in the caustic, 2.1 standard errors).
-        &["--spp", "32768", "--seed", "2"],
+        &["--spp", "32768", "--seed", "2", "--rgb"],
     )
     .image;
     assert_eq!((pm.width, pm.height), (16, 14));
@@ -377,7 +377,7 @@ AttributeEnd"#,
         ),
         dir.path(),
         "bare",
-        &["--spp", "16"],
+        &["--spp", "16", "--rgb"],
     )
     .image;
     let (dark, _) = crate::util::block_stats(&bare, 3, 2, 10, 8, 1);

@@ -178,22 +178,51 @@ fn spectral_renders_are_deterministic_and_the_option_is_the_flag() {
             "tile split or threads changed {name}'s bytes"
         );
     }
+    // Kiln's own scene asks for RGB; without that line it is a pbrt-v4 user's scene, which
+    // renders spectrally by default.
     let text = std::fs::read_to_string(&materials).unwrap();
+    let option = "Option \"kiln.spectral\" false";
+    assert!(
+        text.contains(option),
+        "scenes/materials no longer asks for RGB"
+    );
+    let unmarked: String = text
+        .lines()
+        .filter(|l| !l.starts_with(option))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let users = write_scene(dir.path(), "users.pbrt", &unmarked);
     let opted = write_scene(
         dir.path(),
         "opted.pbrt",
-        &format!("Option \"kiln.spectral\" true\n{text}"),
+        &format!("Option \"kiln.spectral\" true\n{unmarked}"),
     );
+    let by_default = render(&users, dir.path(), "default", &base);
     let by_option = render(&opted, dir.path(), "option", &base);
     let rgb_anyway = render(&opted, dir.path(), "rgb", &with(&["--rgb"]));
-    let rgb = render(&materials, dir.path(), "plain", &base);
+    let rgb_flag = render(&users, dir.path(), "rgb-flag", &with(&["--rgb"]));
+    let rgb = render(&materials, dir.path(), "own", &base);
+    let spectral_anyway = render(
+        &materials,
+        dir.path(),
+        "own-spectral",
+        &with(&["--spectral"]),
+    );
+    assert!(
+        by_default.bytes == one.bytes,
+        "a scene without the option is not spectral by default"
+    );
     assert!(
         by_option.bytes == one.bytes,
         "the option differs from --spectral"
     );
     assert!(
-        rgb_anyway.bytes == rgb.bytes,
-        "--rgb did not override the option"
+        spectral_anyway.bytes == one.bytes,
+        "--spectral did not override the option"
+    );
+    assert!(
+        rgb_anyway.bytes == rgb.bytes && rgb_flag.bytes == rgb.bytes,
+        "--rgb did not override the option or the default"
     );
     assert!(rgb.bytes != one.bytes);
 }

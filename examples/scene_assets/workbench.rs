@@ -189,6 +189,7 @@ pub fn scene(p: &WorkbenchParams) -> String {
 # (examples/scene_assets/workbench.rs) from parameters a reader can change there.
 # The snail (snail.ply, one closed surface) is one VolumeLight under a dielectric surface;
 # snail-grid.csv is the heat of its glass, hottest at the foot and where it is thick.
+Option "kiln.spectral" false  # Kiln's own scene, measured in RGB; --spectral renders it as pbrt-v4 would
 Integrator "volpath" "integer maxdepth" [ 8 ] "string lightsampler" [ "power" ]
 Sampler "zsobol" "integer pixelsamples" [ {spp} ] "float noisethreshold" [ 0.01 ] "integer minsamples" [ 256 ]
 PixelFilter "gaussian"

@@ -37,30 +37,42 @@ fn farm_images_are_bit_identical_to_kiln_render() {
     }
 }
 
-/// A spectral render (the scene's Option, with a dispersive glass sphere added to the
-/// materials scene) through a farm of three workers merges the same bytes as `kiln render`.
+/// A spectral render (a pbrt-v4 user's scene, spectral by default: the materials scene
+/// without its RGB option, with a dispersive glass sphere added) through a farm of three
+/// workers merges the same bytes as `kiln render`; so does the same job asked for in RGB
+/// (`--rgb`, which the job carries to its workers).
 #[test]
 fn spectral_farm_images_are_bit_identical_to_kiln_render() {
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(scene("materials/scene.pbrt")).unwrap();
+    let text = text.replace("Option \"kiln.spectral\" false", "");
     let path = crate::util::write_scene(
         dir.path(),
         "spectral.pbrt",
         &format!(
-            "Option \"kiln.spectral\" true\n{text}\nAttributeBegin\n  Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n  Translate 0 0.4 0\n  Shape \"sphere\" \"float radius\" 0.3\nAttributeEnd\n"
+            "{text}\nAttributeBegin\n  Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n  Translate 0 0.4 0\n  Shape \"sphere\" \"float radius\" 0.3\nAttributeEnd\n"
         ),
     );
     let args = ["--spp", "4", "--resolution", "48x32", "--tile", "16"];
+    let workers = ["--workers", "3", "--threads-per-worker", "1"];
     let direct = render(&path, dir.path(), "direct", &args).bytes;
-    let merged = farm(
-        &path,
-        dir.path(),
-        "farm",
-        &[&args[..], &["--workers", "3", "--threads-per-worker", "1"]].concat(),
-    );
+    let merged = farm(&path, dir.path(), "farm", &[&args[..], &workers].concat());
     assert!(
         merged == direct,
         "the spectral farm's image differs from kiln render's"
+    );
+    let rgb_args = [&args[..], &["--rgb"]].concat();
+    let rgb = render(&path, dir.path(), "direct-rgb", &rgb_args).bytes;
+    assert!(rgb != direct, "--rgb changed nothing");
+    let merged = farm(
+        &path,
+        dir.path(),
+        "farm-rgb",
+        &[&rgb_args[..], &workers].concat(),
+    );
+    assert!(
+        merged == rgb,
+        "the farm's job in RGB differs from kiln render --rgb"
     );
 }
 

@@ -348,6 +348,7 @@ impl Farm {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         }
     }
 

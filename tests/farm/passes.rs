@@ -145,6 +145,7 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         };
         let id = rt.block_on(client.create_job(&spec, None)).unwrap();
         if stop_at_once {

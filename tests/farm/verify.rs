@@ -26,6 +26,7 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
         verify: Some(1.0),
         priority: 0,
         webhook: None,
+        spectral: None,
     };
     let workers = |rt: &tokio::runtime::Runtime| -> Vec<kiln_farm::api::WorkerStatus> {
         let http = reqwest::Client::new();

@@ -77,6 +77,7 @@ fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
         verify: None,
         priority: 0,
         webhook: Some(format!("{base}/{hook}")),
+        spectral: None,
     };
     let bad = JobSpec {
         webhook: Some("ftp://x/".into()),

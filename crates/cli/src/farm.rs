@@ -250,6 +250,24 @@ pub struct JobArgs {
     /// answers 2xx).
     #[arg(long)]
     webhook: Option<String>,
+    /// Render spectrally, as pbrt-v4 does (the default unless the scene says
+    /// Option "kiln.spectral" false).
+    #[arg(long, conflicts_with = "rgb")]
+    spectral: bool,
+    /// Render in RGB.
+    #[arg(long)]
+    rgb: bool,
+}
+
+impl JobArgs {
+    /// The job's colour mode: given, or the scene's.
+    fn spectral(&self) -> Option<bool> {
+        match (self.spectral, self.rgb) {
+            (true, _) => Some(true),
+            (_, true) => Some(false),
+            _ => None,
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -285,6 +303,7 @@ async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> 
         verify: job.verify,
         priority: job.priority,
         webhook: job.webhook.clone(),
+        spectral: job.spectral(),
     };
     // The same scene and settings submitted twice (a retry) make one job.
     let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);

@@ -28,11 +28,12 @@ pub struct RenderArgs {
     #[arg(long, allow_hyphen_values = true)]
     noise_threshold: Option<f32>,
     /// Render spectrally: four wavelengths per camera sample, colours as spectra, as
-    /// pbrt-v4 renders (default: the scene's Option "kiln.spectral", or RGB). Not yet for
-    /// grid media, VolumeLights, photon maps, SPPM, hair, measured materials or G-buffers.
+    /// pbrt-v4 renders. This is the default unless the scene says
+    /// Option "kiln.spectral" false (as Kiln's own scenes do).
     #[arg(long, conflicts_with = "rgb")]
     spectral: bool,
-    /// Render in RGB even where the scene asks for spectral rendering.
+    /// Render in RGB (three colour channels per sample): faster, but off where light
+    /// bounces many times through colour.
     #[arg(long)]
     rgb: bool,
     /// Resolution as WIDTHxHEIGHT (default: the scene's Film).

@@ -35,6 +35,10 @@ pub struct JobSpec {
     /// cancelled. Retried with backoff until it answers 2xx.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub webhook: Option<String>,
+    /// Spectral (true) or RGB (false) rendering; absent: the scene's choice (spectral
+    /// unless it says `Option "kiln.spectral" false`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectral: Option<bool>,
 }
 
 fn is_zero(v: &i32) -> bool {
@@ -56,7 +60,7 @@ impl JobSpec {
                 .or_else(|| self.passes.as_ref().and_then(|p| p.last().copied())),
             seed: self.seed,
             noise_threshold: None,
-            spectral: None,
+            spectral: self.spectral,
         }
     }
 }

@@ -9,6 +9,7 @@
 //! ```
 //! use kiln_render::{Renderer, TileRect, render_tile};
 //! let text = r#"
+//!     Option "kiln.spectral" false
 //!     Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
 //!     Sampler "sobol" "integer pixelsamples" [ 4 ]
 //!     Camera "perspective" "float fov" [ 60 ]
@@ -18,7 +19,8 @@
 //! let desc = kiln_scene::load_str(text, "doc.pbrt".as_ref(), ".".as_ref()).unwrap();
 //! let renderer = Renderer::build(&desc).unwrap();
 //! let tile = render_tile(&renderer, TileRect { x0: 0, y0: 0, width: 8, height: 8 });
-//! // An empty scene under a uniform sky of radiance 1 is 1 everywhere.
+//! // An empty scene under a uniform sky of radiance 1 is 1 everywhere (in RGB exactly; a
+//! // spectral render's four wavelengths per sample only estimate the white).
 //! assert!(tile.pixels.iter().all(|p| p.iter().all(|&c| (c - 1.0).abs() < 1e-6)));
 //! ```
 //!

@@ -128,6 +128,7 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         };
         let (job, _) = c.create_job(spec, None).await.unwrap();
         let schedule = passes.unwrap_or(vec![1]);

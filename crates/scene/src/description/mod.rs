@@ -30,8 +30,8 @@ pub use crate::spectrum::Rgb;
 /// A whole scene: camera and film settings, materials, shapes and lights.
 #[derive(Debug, Clone)]
 pub struct SceneDescription {
-    /// Render spectrally (four wavelengths per camera sample) rather than in RGB: Kiln's
-    /// `Option "kiln.spectral" true`, or `kiln render --spectral`.
+    /// Render spectrally (four wavelengths per camera sample), as pbrt-v4 does and Kiln does
+    /// by default, rather than in RGB (Kiln's `Option "kiln.spectral" false`, or `--rgb`).
     pub spectral: bool,
     pub camera: CameraDesc,
     pub film: FilmDesc,

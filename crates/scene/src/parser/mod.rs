@@ -165,7 +165,7 @@ impl Parser {
             warned_transform_begin: false,
             transform_times: [0.0, 1.0],
             option_seed: None,
-            option_spectral: false,
+            option_spectral: true,
             sampler_seed_given: false,
             named_coordinate_systems: HashMap::new(),
             in_world: false,

@@ -171,12 +171,13 @@ impl Parser {
                     ));
                 }
             },
-            // pbrt-v4's spectral film writes radiance in wavelength buckets: an RGB renderer
-            // cannot make them, and an RGB film in their place would be a different file.
+            // pbrt-v4's spectral film writes radiance in wavelength buckets beside RGB. Kiln
+            // renders spectra but its films hold RGB sums only, and an RGB film in their place
+            // would be a different file.
             "spectral" => {
                 return Err(SceneError::at(
                     loc,
-                    "Film 'spectral' (radiance in wavelength buckets) needs spectral rendering, which Kiln does not do: it renders RGB; use Film \"rgb\"",
+                    "Film 'spectral' (radiance in wavelength buckets) is not written by Kiln, whose films hold RGB (rendered from spectra by default); use Film \"rgb\"",
                 ));
             }
             other => {
@@ -771,13 +772,29 @@ mod tests {
         assert_eq!(s.integrator.max_depth, 9);
     }
 
-    /// A spectral film cannot be made by an RGB renderer: an error, as is an unknown film;
+    /// A scene renders spectrally, as in pbrt-v4, unless Kiln's option asks for RGB; the
+    /// option takes only true or false.
+    #[test]
+    fn scenes_are_spectral_unless_the_option_says_rgb() {
+        assert!(load("WorldBegin").spectral);
+        assert!(!load("Option \"kiln.spectral\" false\nWorldBegin").spectral);
+        assert!(load("Option \"kiln.spectral\" true\nWorldBegin").spectral);
+        let err = load_err("Option \"kiln.spectral\" \"rgb\"\nWorldBegin");
+        assert!(
+            err.contains("t.pbrt:1") && err.contains("true or false"),
+            "{err}"
+        );
+    }
+
+    /// A spectral film (wavelength buckets) is not one Kiln writes: an error, as is an unknown film;
     /// a gbuffer film asks for its channels in camera space unless told otherwise.
     #[test]
     fn spectral_and_unknown_films_are_errors() {
         let err = load_err("\nFilm \"spectral\"\nWorldBegin");
         assert!(
-            err.contains("t.pbrt:2") && err.contains("spectral rendering"),
+            err.contains("t.pbrt:2")
+                && err.contains("wavelength buckets")
+                && err.contains("Film \"rgb\""),
             "{err}"
         );
         let err = load_err("Film \"hdr\"\nWorldBegin");

@@ -166,6 +166,7 @@ impl Job {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         });
         let state = if state == JobState::Running {
             JobState::Failed

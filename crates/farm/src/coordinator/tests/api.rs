@@ -160,6 +160,7 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -229,6 +230,7 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
                 verify: None,
                 priority: 0,
                 webhook: None,
+                spectral: None,
             };
             let key = key.clone();
             tokio::spawn(async move {
@@ -280,6 +282,7 @@ async fn a_job_scene_must_be_a_digest() {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -352,6 +355,7 @@ async fn a_job_of_too_many_tiles_is_refused_before_it_is_planned() {
         verify: None,
         priority: 0,
         webhook: None,
+        spectral: None,
     };
     let start = std::time::Instant::now();
     let (status, body) = call(
@@ -413,6 +417,7 @@ async fn submissions_plan_a_few_at_a_time_and_the_rest_wait() {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         };
         let app = f.app.clone();
         tokio::spawn(async move {

@@ -119,6 +119,7 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
             verify: None,
             priority: 0,
             webhook: None,
+            spectral: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

@@ -152,6 +152,7 @@ async fn submit_with(
         verify: None,
         priority: 0,
         webhook: None,
+        spectral: None,
     };
     edit(&mut spec);
     let (status, body) = call(

@@ -18,6 +18,7 @@ fn spec(scene: &str) -> JobSpec {
         verify: Some(0.5),
         priority: 2,
         webhook: Some("http://127.0.0.1:9/hook".into()),
+        spectral: Some(false),
     }
 }
 
