@@ -205,10 +205,19 @@ impl Wavelengths {
     /// What the film records of radiance `l` at these wavelengths: linear sRGB (as an RGB
     /// `Color`), negative lanes kept.
     pub fn to_rgb(&self, l: Vec4) -> Vec4 {
+        self.through(l, response())
+    }
+
+    /// What a sensor whose responses are `curves` (three per nanometre from 360 nm, the
+    /// fourth lane ignored) records of radiance `l` at these wavelengths: each lane's value
+    /// over its density times the curves there, averaged over the lanes, as an RGB `Color`
+    /// (the fourth lane repeating the second).
+    pub fn through(&self, l: Vec4, curves: &[Vec4]) -> Vec4 {
         let weighted = l * self.inv_pdf;
         let mut sum = Vec4::ZERO;
         for (i, v) in weighted.to_array().into_iter().enumerate() {
-            sum += response_at(self.lambda[i]) * v;
+            let (j, u) = per_nm(self.lambda[i], curves.len());
+            sum += (curves[j] * (1.0 - u) + curves[j + 1] * u) * v;
         }
         let avg = sum * 0.25;
         Vec4::new(avg.x, avg.y, avg.z, avg.y)

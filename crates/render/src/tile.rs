@@ -487,7 +487,7 @@ fn render_sppm(
         };
         vps.par_iter()
             .zip(states.par_iter_mut())
-            .for_each(|(vp, (state, _))| gather(&map, vp.as_ref(), state));
+            .for_each(|(vp, (state, _))| gather(&scene.sensor, &map, vp.as_ref(), state));
         progress();
     }
     let mut results = Vec::with_capacity(rects.len());
@@ -509,7 +509,7 @@ fn render_sppm(
                     }
                     l = Color::ZERO;
                 }
-                crate::math::rgb_of(scene.sensor.respond(l))
+                crate::math::rgb_of(scene.sensor.respond(l, settings.spectral))
             })
             .collect();
         results.push(TileResult {
@@ -697,9 +697,9 @@ fn render_sample_seeing(
         }
         None => Color::ZERO,
     };
-    // The film records a spectral sample as linear sRGB.
+    // The film records a spectral sample as linear sRGB, or as a named camera's raw RGB.
     if let Some(w) = &waves {
-        l = w.to_rgb(l);
+        l = scene.sensor.sample(l, w);
     }
     stats.samples += 1;
     stats.rays += work.rays;
@@ -722,7 +722,7 @@ fn render_sample_seeing(
             l *= settings.max_radiance / m;
         }
     }
-    (scene.sensor.respond(l), weight, seen)
+    (scene.sensor.respond(l, waves.is_some()), weight, seen)
 }
 
 /// A visible surface with its screen-space derivatives, in the G-buffer's space. The

@@ -9,11 +9,15 @@
 //! the CIE observer sees them. So a white lit by that daylight comes out white, and other
 //! colours come out with the camera's own errors: a camera is not a colorimeter.
 //!
-//! Kiln's radiance has no spectrum, so it gives each sample the spectrum pbrt-v4 gives an
+//! A spectral render's sample is recorded as pbrt-v4 records it: its raw RGB is the
+//! camera's curves ([`CameraResponse::per_nm`]) at the sample's wavelengths times its
+//! radiance there, over each wavelength's density. An RGB render's radiance has no
+//! spectrum, so it gives each sample the spectrum pbrt-v4 gives an
 //! RGB light of that colour: twice its largest component times the smooth spectrum
 //! (`rgb_spectrum`) of the colour scaled to a largest component of ½, times D65. The camera's
 //! raw RGB of those spectra is tabulated once per camera ([`RawTable`]) and interpolated per
-//! sample. The fitted matrix then takes raw RGB to XYZ, and XYZ goes to linear sRGB.
+//! sample. Either way the fitted matrix then takes raw RGB to XYZ, and XYZ goes to linear
+//! sRGB.
 //!
 //! The training reflectances are Kiln's own: 125 smooth spectra of the same sigmoid form,
 //! spanning greys, pastels and saturated colours. pbrt-v4 trains on the 24 patches of a
@@ -23,7 +27,8 @@
 use crate::files::sensor_curves::SensorCurves;
 use crate::rgb_spectrum::{Upsampler, grid};
 use crate::spectrum::{
-    XYZ_TO_SRGB, cmf_at, d65_at, daylight_samples, det3, inverse3, mul3, spectrum_at,
+    LAMBDA_MAX, LAMBDA_MIN, XYZ_TO_SRGB, cmf_at, d65_at, daylight_samples, det3, inverse3, mul3,
+    spectrum_at,
 };
 
 /// A camera's colour response and white balance.
@@ -35,6 +40,10 @@ pub struct CameraResponse {
     pub raw: RawTable,
     /// Raw RGB to the image's linear sRGB, white balanced.
     pub raw_to_srgb: [[f64; 3]; 3],
+    /// The camera's red, green and blue responses every nanometre from 360 to 830 nm, for
+    /// spectral rendering: a sample's raw RGB is ∫ L·(r̄, ḡ, b̄) dλ over them, in the units
+    /// of [`RawTable::raw`] (radiance whose ∫ D65·ȳ is 1 for the sRGB white).
+    pub per_nm: Vec<[f32; 3]>,
 }
 
 /// Lattice points along each side of a face of the [`RawTable`].
@@ -247,6 +256,9 @@ pub fn camera_response(
         name: name.to_string(),
         raw: raw_table(&up, &sums),
         raw_to_srgb,
+        per_nm: (0..=(LAMBDA_MAX - LAMBDA_MIN) as u32)
+            .map(|i| curves_at(&curves.samples, LAMBDA_MIN + f64::from(i)).map(|v| v as f32))
+            .collect(),
     })
 }
 

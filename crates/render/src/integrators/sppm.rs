@@ -28,6 +28,7 @@ use crate::math::{Color, Frame, Ray, offset_origin};
 use crate::nesting::Nesting;
 use crate::sampling::{AliasTable, PixelSampler, TrackingRng};
 use crate::scene::Scene;
+use crate::sensor::Sensor;
 use crate::shared::{Shared, SharedPrepass, shared_or_built};
 use crate::spectral::Wavelengths;
 use crate::work::Work;
@@ -116,9 +117,10 @@ pub fn pass_wavelengths(seed: u32, iteration: u32) -> Wavelengths {
     Wavelengths::sample(if u >= 1.0 { u - 1.0 } else { u })
 }
 
-/// What the film records of `l`: itself in RGB, through the observer at `waves`.
-fn film(l: Color, waves: Option<&Wavelengths>) -> Color {
-    waves.map_or(l, |w| w.to_rgb(l))
+/// What the film records of `l`: itself in RGB, through the sensor (the observer, or a named
+/// camera's curves) at `waves`.
+fn film(sensor: &Sensor, l: Color, waves: Option<&Wavelengths>) -> Color {
+    waves.map_or(l, |w| sensor.sample(l, w))
 }
 
 /// A camera path's first non-specular surface: where it gathers photons.
@@ -164,7 +166,11 @@ pub fn camera_pass<'a>(
             if specular {
                 for &i in &scene.infinite_lights {
                     let le = scene.lights[i as usize].infinite_le(ray.origin, ray.dir);
-                    state.ld += film(beta * scene.light_radiance(i, le, waves), waves);
+                    state.ld += film(
+                        &scene.sensor,
+                        beta * scene.light_radiance(i, le, waves),
+                        waves,
+                    );
                 }
             }
             return None;
@@ -178,7 +184,11 @@ pub fn camera_pass<'a>(
                 -ray.dir,
             );
             work.rays += traced;
-            state.ld += film(beta * scene.light_radiance(light, le, waves), waves);
+            state.ld += film(
+                &scene.sensor,
+                beta * scene.light_radiance(light, le, waves),
+                waves,
+            );
         }
         let mut shaded = hit;
         let Some(bsdf) = scene.bsdf_nested(&mut shaded, 1.0, waves, &nesting, ray.dir) else {
@@ -213,7 +223,7 @@ pub fn camera_pass<'a>(
                 let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
                 let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
                 let ld = sample_direct(scene, &path, &v, f, pdf, sampler, work);
-                state.ld += film(beta * ld, waves);
+                state.ld += film(&scene.sensor, beta * ld, waves);
             }
             return Some(VisiblePointHandle(VisiblePoint {
                 p: hit.p,
@@ -287,7 +297,12 @@ impl Pass {
 /// Adds the photons of `map` within the pixel's radius of its visible point and shrinks the
 /// radius as pbrt-v4 does: N' = N + 2/3 M, R' = R sqrt(N' / (N + M)), tau' = (tau + Phi)
 /// R'^2 / R^2.
-pub fn gather(pass: &Pass, vp: Option<&VisiblePointHandle>, state: &mut PixelState) {
+pub fn gather(
+    sensor: &Sensor,
+    pass: &Pass,
+    vp: Option<&VisiblePointHandle>,
+    state: &mut PixelState,
+) {
     let Some(VisiblePointHandle(vp)) = vp else {
         return;
     };
@@ -312,7 +327,7 @@ pub fn gather(pass: &Pass, vp: Option<&VisiblePointHandle>, state: &mut PixelSta
     let n_new = state.n + GAMMA * m as f32;
     let r_new = state.radius * (n_new / (state.n + m as f32)).sqrt();
     let shrink = (r_new * r_new) / (state.radius * state.radius);
-    state.tau = (state.tau + film(vp.beta * phi, vp.waves.as_ref())) * shrink;
+    state.tau = (state.tau + film(sensor, vp.beta * phi, vp.waves.as_ref())) * shrink;
     state.n = n_new;
     state.radius = r_new;
 }
