@@ -170,6 +170,18 @@ impl Wavelengths {
         self.unbounded(rgb) * self.d65()
     }
 
+    /// Light of RGB colour `rgb` that may lie outside the gamut (a film's estimate from four
+    /// wavelengths, such as a stored photon's power): the light of its positive components
+    /// less the light of its negative ones, so that the film records `rgb` back (a negative
+    /// component made 0 instead would add light in that channel on average).
+    pub fn signed_illuminant(&self, rgb: Vec4) -> Vec4 {
+        let negative = (-rgb).max(Vec4::ZERO);
+        if negative.x == 0.0 && negative.y == 0.0 && negative.z == 0.0 {
+            return self.illuminant(rgb);
+        }
+        self.illuminant(rgb.max(Vec4::ZERO)) - self.illuminant(negative)
+    }
+
     /// A spectrum made once ([`SigmoidSpectrum`]) at these wavelengths.
     pub fn of(&self, s: &SigmoidSpectrum) -> Vec4 {
         if s.scale == 0.0 {
@@ -452,6 +464,19 @@ mod tests {
             close(film_mean(|w| w.illuminant(rgb(big))), big, 3e-2);
         }
         close(film_mean(|w| w.illuminant(rgb([1.0; 3]))), [1.0; 3], 2e-3);
+        // Out of gamut: the film gives back the negative component too (made 0, the light
+        // of [0.6, 0.3, 0] would come back), and in gamut it is the illuminant.
+        let outside = [0.6, 0.3, -0.08];
+        close(
+            film_mean(|w| w.signed_illuminant(rgb(outside))),
+            outside,
+            4e-3,
+        );
+        let w = Wavelengths::sample(0.37);
+        assert_eq!(
+            w.signed_illuminant(rgb([0.8, 0.4, 0.1])),
+            w.illuminant(rgb([0.8, 0.4, 0.1]))
+        );
     }
 
     /// A spectrum made once is the one made per call; its largest value bounds it at every

@@ -69,17 +69,71 @@ impl HomogeneousMedium {
         out
     }
 
-    /// Free-flight sampling over (0, `t_max`), updating the throughput `beta`, over the
-    /// first `lanes` lanes of the colours (3 in RGB, 4 for a spectral path).
+    /// Free-flight sampling over (0, `t_max`), updating the throughput `beta`: in RGB over
+    /// the three channels at each event ([`track`]), for a spectral path by its hero
+    /// wavelength with the path's `lane_pdfs` ([`track_hero`]).
     pub fn sample_interaction(
         &self,
         t_max: f32,
         rng: &mut TrackingRng,
         beta: &mut Color,
-        lanes: usize,
+        lane_pdfs: Option<&mut Color>,
     ) -> MediumEvent {
-        track(self.sigma_t(), self.sigma_s, t_max, rng, beta, lanes)
+        match lane_pdfs {
+            None => track(self.sigma_t(), self.sigma_s, t_max, rng, beta, 3),
+            Some(r) => track_hero(self.sigma_t(), self.sigma_s, t_max, rng, beta, r),
+        }
     }
+}
+
+/// Free-flight sampling for a spectral path, as pbrt-v4 does it (hero wavelength spectral
+/// sampling, Wilkie et al. 2014): the distance by the hero's extinction (lane 0), the
+/// weight by the balance heuristic over the whole path's four ways of being sampled (each
+/// lane as the hero). `lane_pdfs` holds each lane's density of the path so far relative to
+/// the others, normalised to a mean of 1 (pbrt-v4's r_u); one event's densities multiply
+/// it, and the throughput is divided by their weighted mean. Weighing each event alone
+/// (as [`track`] does, and this did before) is unbiased too, but over a long subsurface
+/// walk of chromatic coefficients its weights multiply into a heavy tail.
+fn track_hero(
+    sigma_t: Color,
+    sigma_s: Color,
+    t_max: f32,
+    rng: &mut TrackingRng,
+    beta: &mut Color,
+    lane_pdfs: &mut Color,
+) -> MediumEvent {
+    if sigma_t.max_element() <= 0.0 {
+        return MediumEvent::Crossed;
+    }
+    let st = sigma_t.x;
+    let t = if st > 0.0 {
+        -libm::logf(1.0 - rng.next_f32()) / st
+    } else {
+        f32::INFINITY
+    };
+    // Each lane's density of what happened (a collision at t, or none before t_max), and
+    // the weight that goes with it.
+    let (f, p, event) = if t < t_max {
+        let tr = (-sigma_t * t).exp();
+        (sigma_s * tr, sigma_t * tr, MediumEvent::Scattered(t))
+    } else {
+        if !t_max.is_finite() {
+            return MediumEvent::Absorbed;
+        }
+        let tr = (-sigma_t * t_max).exp();
+        (tr, tr, MediumEvent::Crossed)
+    };
+    let weighted = *lane_pdfs * p;
+    let density = super::lane_mean(weighted, 4);
+    if density.is_nan() || density <= 0.0 {
+        return MediumEvent::Absorbed;
+    }
+    *lane_pdfs = weighted / density;
+    *beta *= f / density;
+    if *beta == Color::ZERO {
+        return MediumEvent::Absorbed;
+    }
+    event
 }
 
 /// Free-flight sampling in a homogeneous medium: a colour channel (a spectral path's

@@ -71,6 +71,15 @@ fn lane_sum(c: Color, lanes: usize) -> f32 {
     }
 }
 
+/// A spectral path's relative densities of having been sampled with each of its four lanes
+/// as the hero (normalised to a mean of 1; pbrt-v4's r_u), before any medium event
+/// changed them: equal. See `homogeneous::track_hero`.
+pub const LANE_PDFS: Color = Color::ONE;
+
+/// The same after a dispersive refraction kept only the hero (lane 0): from there on the path
+/// is sampled by the hero alone, so only its density counts.
+pub const HERO_ONLY_LANE_PDFS: Color = Color::new(4.0, 0.0, 0.0, 0.0);
+
 /// The mean of a colour's first `lanes` lanes (see [`lane_sum`]).
 fn lane_mean(c: Color, lanes: usize) -> f32 {
     lane_sum(c, lanes) / lanes as f32
@@ -123,28 +132,31 @@ impl Medium {
     /// Free-flight sampling along `ray` over (0, `t_max`), updating the throughput `beta`.
     /// Emission met on the way goes to `emitted` (see [`Emitted`]) before the event it
     /// precedes is chosen. The path tracer and the photon tracer share this; with `waves`,
-    /// a spectral path at those wavelengths.
+    /// a spectral path at those wavelengths, whose lanes' relative densities of being
+    /// sampled so far are `lane_pdfs` (see [`LANE_PDFS`]).
+    #[allow(clippy::too_many_arguments)]
     pub fn sample_interaction(
         &self,
         ray: &Ray,
         t_max: f32,
         rng: &mut TrackingRng,
         beta: &mut Color,
+        lane_pdfs: &mut Color,
         waves: Option<&Wavelengths>,
         mut emitted: impl FnMut(Emitted),
     ) -> MediumEvent {
         match self {
             Medium::Homogeneous(h) => {
                 let spectral;
-                let (h, lanes) = match waves {
-                    None => (h, 3),
+                let (h, lane_pdfs) = match waves {
+                    None => (h, None),
                     Some(w) => {
                         spectral = h.at_wavelengths(w);
-                        (&spectral, 4)
+                        (&spectral, Some(lane_pdfs))
                     }
                 };
                 emitted(Emitted::Segment(*beta * h.segment_emission(t_max)));
-                h.sample_interaction(t_max, rng, beta, lanes)
+                h.sample_interaction(t_max, rng, beta, lane_pdfs)
             }
             Medium::Grid(g) => g.track(ray, t_max, rng, beta, waves, |t, sigma_maj, radiance| {
                 emitted(Emitted::Collision {

@@ -29,6 +29,13 @@ impl Gather {
 }
 
 impl Gather {
+    /// At a scattering event of a subsurface walk: the walk ends any caustic chain, as it
+    /// does a photon's (photons that walked are stored as no caustic), so light the path
+    /// finds from here on is its own to count, gathered or not before.
+    pub fn walked(&mut self) {
+        self.specular_since_gather = None;
+    }
+
     /// At a scattering in medium `med` at `p` (not inside a subsurface walk, whose random
     /// walk goes on as a path): the light the photons scattered there (if the maps hold any), times the throughput
     /// `beta`. With a volume map the path then ends after its next segment: the map holds

@@ -67,7 +67,8 @@ fn track(
     let counts = state.depth < settings.max_depth && !state.gather.after_caustic_gather();
     let l = &mut state.l;
     let waves = ctx.waves.as_ref();
-    med.sample_interaction(ray, t_max, &mut rng, &mut state.beta, waves, |e| match e {
+    let (beta, lane_pdfs) = (&mut state.beta, &mut state.travel.lane_pdfs);
+    med.sample_interaction(ray, t_max, &mut rng, beta, lane_pdfs, waves, |e| match e {
         _ if !counts => {}
         Emitted::Segment(c) => *l += c,
         Emitted::Collision {
@@ -104,6 +105,7 @@ fn scatter(
         if !state.travel.walk.take_event(settings.walk_depth) {
             return Next::Stop;
         }
+        state.gather.walked();
     } else {
         if state.depth == settings.max_depth || state.gather.ending {
             return Next::Stop;

@@ -126,6 +126,9 @@ impl PrevVertex {
 /// it is inside, and the subsurface walk it is on.
 struct Travel {
     medium: Option<u32>,
+    /// A spectral path's lanes' relative densities of being sampled so far (see
+    /// [`crate::media::LANE_PDFS`]).
+    lane_pdfs: Color,
     /// Medium segments so far (each gets its own tracking numbers).
     segments: u32,
     nesting: Nesting,
@@ -185,6 +188,7 @@ impl PathState {
         if !self.hero_only {
             self.hero_only = true;
             self.beta = Color::new(4.0 * self.beta.x, 0.0, 0.0, 0.0);
+            self.travel.lane_pdfs = crate::media::HERO_ONLY_LANE_PDFS;
         }
     }
 
@@ -231,6 +235,7 @@ pub(super) fn path_li(
         prev: PrevVertex::camera(ray.origin),
         travel: Travel {
             medium: ctx.scene.camera_medium,
+            lane_pdfs: crate::media::LANE_PDFS,
             segments: 0,
             nesting: Nesting::default(),
             walk: Walk::default(),

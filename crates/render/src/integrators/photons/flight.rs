@@ -31,6 +31,9 @@ struct Flight {
     /// it the hero alone.
     waves: Option<Wavelengths>,
     hero_only: bool,
+    /// A spectral photon's lanes' relative densities of being sampled so far (see
+    /// [`crate::media::LANE_PDFS`]).
+    lane_pdfs: Color,
 }
 
 impl Flight {
@@ -102,6 +105,7 @@ impl Shooter<'_> {
             walk: Walk::default(),
             waves,
             hero_only: false,
+            lane_pdfs: crate::media::LANE_PDFS,
         };
         f.start = f.brightness(f.beta);
         loop {
@@ -140,6 +144,7 @@ impl Shooter<'_> {
             t_max,
             &mut f.rng,
             &mut f.beta,
+            &mut f.lane_pdfs,
             waves.as_ref(),
             |_| {},
         ) {
@@ -254,6 +259,7 @@ impl Shooter<'_> {
         {
             f.hero_only = true;
             f.beta = Color::new(4.0 * f.beta.x, 0.0, 0.0, 0.0);
+            f.lane_pdfs = crate::media::HERO_ONLY_LANE_PDFS;
         }
         let Some(bounce) = scatter(&bsdf, hit, f.ray.dir, &mut f.rng) else {
             return Step::Stop;

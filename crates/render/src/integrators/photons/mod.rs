@@ -214,11 +214,12 @@ impl PhotonMaps {
 /// A stored photon's power as a path sees it: its RGB, or at a spectral path's `waves` the
 /// spectrum of light of that colour. (A spectral photon flew at wavelengths of its own,
 /// which a path gathering it does not share: what it brings is the colour the film would
-/// record of it, met by the gathering surface's spectrum.)
+/// record of it, met by the gathering surface's spectrum.) That colour, four wavelengths'
+/// estimate, is often out of gamut: its negative components count as negative light.
 fn power_at(ph: &Photon, waves: Option<&Wavelengths>) -> Color {
     match waves {
         None => ph.power,
-        Some(w) => w.illuminant(ph.power),
+        Some(w) => w.signed_illuminant(ph.power),
     }
 }
 
