@@ -365,9 +365,9 @@ impl ParamSet {
 
     /// The shape of an emission parameter given as a spectrum (see
     /// [`spectrum::EmissionSpectrum`]): a blackbody, or inline (wavelength, value) pairs (a
-    /// spectrum file's, once read). None when it is absent, given as RGB or a float, or named
-    /// (pbrt-v4's named illuminants reach spectral rendering through their RGB). Call it
-    /// after [`ParamSet::rgb`] has checked the value.
+    /// spectrum file's, once read, or one of pbrt-v4's named illuminants, from the CIE's
+    /// tables). None when it is absent, given as RGB or a float, or another named spectrum.
+    /// Call it after [`ParamSet::rgb`] has checked the value.
     pub fn emission_spectrum(&self, name: &str) -> Option<spectrum::EmissionSpectrum> {
         let p = self
             .params
@@ -391,6 +391,9 @@ impl ParamSet {
                         .chain(std::iter::once((last + 1.0, 0.0)))
                         .collect()
                 })
+            }
+            ("spectrum", ParamValues::Strings(v)) if v.len() == 1 => {
+                spectrum::named_illuminant_spectrum(&v[0])
             }
             _ => None,
         }

@@ -17,10 +17,12 @@
 
 mod conductor;
 mod glass;
+mod illuminants;
 mod response;
 
 pub use conductor::{FRESNEL_TABLE_LEN, conductor_fresnel_rgb};
 pub use glass::glass_index;
+pub use illuminants::named_illuminant_spectrum;
 pub use response::srgb_response_per_nm;
 
 use std::sync::OnceLock;
