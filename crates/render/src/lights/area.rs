@@ -28,6 +28,8 @@ pub struct TriangleLight {
     /// The shape's alpha texture (an index into the geometry's): where alpha masks the
     /// surface it emits nothing, as in pbrt-v4.
     pub alpha: Option<u32>,
+    /// An "invisible" light (see [`SphereLight::invisible`]).
+    pub invisible: bool,
     /// pbrt-v4's emission image: the radiance at a point is the image there, times `radiance`.
     pub image: Option<Arc<EmissionImage>>,
 }
@@ -115,9 +117,12 @@ pub struct SphereLight {
     pub radiance: Color,
     pub two_sided: bool,
     pub inward: bool,
-    /// The shape's alpha texture: where it masks the surface the sphere emits nothing (an
-    /// alpha-0 sphere light is dark as well as invisible, as in pbrt-v4).
+    /// The shape's alpha texture: where it masks the surface the sphere emits nothing.
     pub alpha: Option<u32>,
+    /// pbrt-v4's "invisible area light": a shape whose alpha is the constant 0 emits in
+    /// full (its alpha dropped), while every ray passes through it, so only light samples
+    /// find its light, each counted whole.
+    pub invisible: bool,
     /// The sphere's rotation, by which its (u, v) turn (for the alpha texture).
     pub rotation: Rotation,
 }
@@ -323,6 +328,8 @@ pub struct QuadricLight {
     /// World-space area.
     pub area: f32,
     pub alpha: Option<u32>,
+    /// An "invisible" light (see [`SphereLight::invisible`]).
+    pub invisible: bool,
     pub image: Option<Arc<EmissionImage>>,
 }
 
@@ -404,6 +411,7 @@ mod tests {
             two_sided: false,
             inward: false,
             alpha: None,
+            invisible: false,
             rotation: Rotation::IDENTITY,
         };
         let geometry = Geometry::new(Default::default());
@@ -434,6 +442,7 @@ mod tests {
             two_sided: false,
             uv: [Vec2::ZERO, Vec2::X, Vec2::ONE],
             alpha: None,
+            invisible: false,
             image: None,
         };
         let mut sum = 0.0f64;
@@ -474,6 +483,7 @@ mod tests {
             two_sided: false,
             uv: [Vec2::ZERO, Vec2::X, Vec2::ONE],
             alpha: None,
+            invisible: false,
             image: None,
         };
         let g = Geometry::new(Default::default());

@@ -81,6 +81,8 @@ pub struct LightSample {
     /// The sampled point's normal, for offsetting the shadow ray's far end (zero for
     /// points not on a surface).
     pub n: Vec3A,
+    /// No scattering finds this light, so its sample counts whole: a delta light, or an
+    /// invisible area light (see [`SphereLight::invisible`]).
     pub delta: bool,
     /// For a point in a medium: the medium the shadow ray must arrive in for it to emit.
     pub medium: Option<u32>,
@@ -106,6 +108,14 @@ fn shaped_point_sample(
     let wi = d / dist;
     let i = towards(-wi);
     (i != Color::ZERO).then(|| LightSample::delta(i / dist2, wi, dist))
+}
+
+/// An area light's sample, counted whole if the light is invisible (no ray meets it).
+fn seen_if(sample: Option<LightSample>, invisible: bool) -> Option<LightSample> {
+    sample.map(|s| LightSample {
+        delta: s.delta || invisible,
+        ..s
+    })
 }
 
 impl LightSample {
@@ -395,9 +405,9 @@ impl Light {
             Light::Goniometric(l) => (l.sample(p), 0),
             Light::Projection(l) => (l.sample(p), 0),
             Light::Distant(l) => (l.sample(), 0),
-            Light::Triangle(l) => (l.sample(ctx.geometry, p, u), 0),
-            Light::Sphere(l) => (l.sample(ctx.geometry, p, u), 0),
-            Light::Quadric(l) => (l.sample(ctx.geometry, p, u), 0),
+            Light::Triangle(l) => (seen_if(l.sample(ctx.geometry, p, u), l.invisible), 0),
+            Light::Sphere(l) => (seen_if(l.sample(ctx.geometry, p, u), l.invisible), 0),
+            Light::Quadric(l) => (seen_if(l.sample(ctx.geometry, p, u), l.invisible), 0),
             Light::VolumeTriangle(l) => l.sample(ctx, p, u),
             Light::VolumeSphere(l) => l.sample(ctx, p, u),
             Light::VolumeQuadric(l) => l.sample(ctx, p, u),

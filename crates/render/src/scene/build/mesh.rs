@@ -83,6 +83,7 @@ impl Builder {
                 } else {
                     [Vec2::ZERO, Vec2::X, Vec2::ONE]
                 };
+                let (alpha, invisible) = self.light_alpha(surface.alpha);
                 self.lights.push(Light::Triangle(TriangleLight {
                     p,
                     n,
@@ -91,7 +92,8 @@ impl Builder {
                         * power_scale(*power, area, *two_sided, image_luminance),
                     two_sided: *two_sided,
                     uv,
-                    alpha: surface.alpha,
+                    alpha,
+                    invisible,
                     image: image.clone(),
                 }));
             }

@@ -457,6 +457,17 @@ impl Builder {
         light_spectrum(self.spectral, s)
     }
 
+    /// The alpha an area light on a surface of alpha `alpha` keeps, and whether it is
+    /// pbrt-v4's "invisible area light": a constant alpha of 0 lets every ray through the
+    /// surface but not its light, which emits in full and is found by light samples alone
+    /// (see [`crate::lights::SphereLight::invisible`]).
+    fn light_alpha(&self, alpha: Option<u32>) -> (Option<u32>, bool) {
+        match alpha.map(|a| &self.prims.alphas[a as usize]) {
+            Some(crate::textures::Texture::Constant(a)) if *a <= 0.0 => (None, true),
+            _ => (alpha, false),
+        }
+    }
+
     /// Notes the media around, and the spectrum of, the area light about to be pushed.
     fn note_area_light(&mut self, media: Option<[u32; 2]>, spectrum: &Option<Arc<LightSpectrum>>) {
         self.light_media.resize(self.lights.len(), None);

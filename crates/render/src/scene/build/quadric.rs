@@ -89,13 +89,15 @@ impl Builder {
             self.note_area_light(media, &spectrum);
             // pbrt-v4's "power" divides by the object-space area, whatever the transform.
             let area = 4.0 * std::f32::consts::PI * (radius * radius) as f32;
+            let (alpha, invisible) = self.light_alpha(surface(None).alpha);
             self.lights.push(Light::Sphere(SphereLight {
                 center: center.as_vec3().into(),
                 radius: world_radius,
                 radiance: rgb(*radiance) * power_scale(*power, area, *two_sided, 1.0),
                 two_sided: *two_sided,
                 inward: flip,
-                alpha: surface(None).alpha,
+                alpha,
+                invisible,
                 rotation,
             }));
         }
@@ -244,13 +246,15 @@ impl Builder {
             let luminance = image.as_ref().map_or(1.0, |i| i.mean_luminance());
             let spectrum = self.light_spectrum(spectrum);
             self.note_area_light(surface.media, &spectrum);
+            let (alpha, invisible) = self.light_alpha(surface.alpha);
             self.lights.push(Light::Quadric(QuadricLight {
                 quadric: self.prims.quadrics.len() as u32,
                 // pbrt-v4's "power" divides by the object-space area, whatever the transform.
                 radiance: rgb(*radiance) * power_scale(*power, power_area, *two_sided, luminance),
                 two_sided: *two_sided,
                 area: quadric.world_area(),
-                alpha: surface.alpha,
+                alpha,
+                invisible,
                 image,
             }));
         }
