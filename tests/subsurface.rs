@@ -468,6 +468,67 @@ Shape "sphere"
     }
 }
 
+/// A textured reflectance (pbrt-v4's head scene gives one) sets each walk's coefficients
+/// where it enters: a deep slab whose reflectance is a checkerboard of 0.8 and 0.3, with a
+/// mean free path far below a square's size, shows in each square what a slab of that
+/// square's constant reflectance shows (within four standard errors of the difference),
+/// and the two squares differ.
+#[test]
+fn a_textured_reflectance_sets_each_walk_where_it_enters() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |reflectance: &str| {
+        format!(
+            r#"Integrator "volpath" "integer maxdepth" [ 1000 ]
+Sampler "zsobol" "integer pixelsamples" [ 64 ]
+Film "rgb" "integer xresolution" [ 48 ] "integer yresolution" [ 48 ]
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "orthographic" "float screenwindow" [ -2 2 -2 2 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+Texture "checks" "spectrum" "checkerboard" "float uscale" 2 "float vscale" 2
+    "rgb tex1" [ 0.8 0.8 0.8 ] "rgb tex2" [ 0.3 0.3 0.3 ]
+Material "subsurface" "float eta" 1 {reflectance} "rgb mfp" [ 0.01 0.01 0.01 ]
+Shape "trianglemesh"
+    "point3 P" [ -2 -2 0  2 -2 0  2 2 0  -2 2 0  -2 -2 -1  2 -2 -1  2 2 -1  -2 2 -1 ]
+    "point2 uv" [ 0 0  1 0  1 1  0 1  0 0  1 0  1 1  0 1 ]
+    "integer indices" [ 0 1 2  0 2 3  4 6 5  4 7 6  0 4 5  0 5 1  1 5 6  1 6 2
+                        2 6 7  2 7 3  3 7 4  3 4 0 ]
+"#
+        )
+    };
+    let render_with = |name: &str, reflectance: &str| {
+        let path = write_scene(dir.path(), &format!("{name}.pbrt"), &scene(reflectance));
+        render(&path, dir.path(), name, &[]).image
+    };
+    let textured = render_with("textured", "\"texture reflectance\" \"checks\"");
+    let light = render_with("light", "\"rgb reflectance\" [ 0.8 0.8 0.8 ]");
+    let dark = render_with("dark", "\"rgb reflectance\" [ 0.3 0.3 0.3 ]");
+    // The squares' interiors, 4 pixels in from every edge. pbrt-v4's camera space is
+    // left-handed: looking down from +z with y up, the image's x runs along world -x, so u
+    // runs right to left and v bottom to top; checkerboard's tex1 is where both are below
+    // 0.5, the bottom right square.
+    let squares = [(4, 28, 0.3), (28, 28, 0.8), (4, 4, 0.8), (28, 4, 0.3)];
+    let mut seen = Vec::new();
+    for (x0, y0, a) in squares {
+        let reference = if a > 0.5 { &light } else { &dark };
+        let (got, se) = block_stats(&textured, x0, y0, 16, 16, 1);
+        let (want, se_want) = block_stats(reference, x0, y0, 16, 16, 1);
+        let err = (se * se + se_want * se_want).sqrt();
+        eprintln!(
+            "square at ({x0}, {y0}), reflectance {a}: {got:.4} ± {se:.4}, constant {want:.4} ± {se_want:.4}"
+        );
+        assert!(
+            (got - want).abs() < 4.0 * err + 1e-4,
+            "square at ({x0}, {y0}): {got} ± {se}, against {want} ± {se_want} for a constant {a}"
+        );
+        seen.push(got);
+    }
+    assert!(
+        seen[1] > 1.5 * seen[0] && seen[2] > 1.5 * seen[3],
+        "{seen:?}"
+    );
+}
+
 /// Walks take no light samples (their shape's surface blocks every shadow ray) unless a
 /// light at a point might lie inside: lights inside a subsurface sphere, an emitting sphere
 /// or a point light, light it as they light the same medium inside a dielectric, where paths

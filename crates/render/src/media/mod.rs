@@ -80,6 +80,15 @@ pub const LANE_PDFS: Color = Color::ONE;
 /// is sampled by the hero alone, so only its density counts.
 pub const HERO_ONLY_LANE_PDFS: Color = Color::new(4.0, 0.0, 0.0, 0.0);
 
+/// The throughput a spectral path keeps when a dispersive refraction leaves it its hero
+/// wavelength alone: the hero's, four times over (the film averages the four lanes), and
+/// over the hero's own density of the path so far rather than the four lanes' mean, which
+/// the throughput was divided by ([`LANE_PDFS`]): that mean weighs the lanes only while
+/// all four go on. (With no medium met, `lane_pdfs` is 1 and this is 4 times the hero's.)
+pub fn hero_only(beta: Color, lane_pdfs: Color) -> Color {
+    Color::new(4.0 * beta.x / lane_pdfs.x, 0.0, 0.0, 0.0)
+}
+
 /// The mean of a colour's first `lanes` lanes (see [`lane_sum`]).
 fn lane_mean(c: Color, lanes: usize) -> f32 {
     lane_sum(c, lanes) / lanes as f32

@@ -182,12 +182,13 @@ impl PathState {
     /// From a dispersive glass on, the path's direction depends on its hero wavelength (the
     /// first lane), so the other three are dropped, as pbrt-v4's `TerminateSecondary` drops
     /// them: what the path carries on is the hero's alone, four times over, since the film
-    /// averages the four lanes (the hero's wavelength alone is distributed as each lane is,
-    /// so this stays unbiased). What the path gathered before stays four wavelengths'.
+    /// averages the four lanes (the hero's wavelength alone is distributed as each lane is),
+    /// over the hero's own density of any media crossed ([`crate::media::hero_only`]). What
+    /// the path gathered before stays four wavelengths'.
     fn keep_hero_only(&mut self) {
         if !self.hero_only {
             self.hero_only = true;
-            self.beta = Color::new(4.0 * self.beta.x, 0.0, 0.0, 0.0);
+            self.beta = crate::media::hero_only(self.beta, self.travel.lane_pdfs);
             self.travel.lane_pdfs = crate::media::HERO_ONLY_LANE_PDFS;
         }
     }

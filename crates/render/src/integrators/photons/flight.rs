@@ -258,7 +258,7 @@ impl Shooter<'_> {
             && !f.hero_only
         {
             f.hero_only = true;
-            f.beta = Color::new(4.0 * f.beta.x, 0.0, 0.0, 0.0);
+            f.beta = crate::media::hero_only(f.beta, f.lane_pdfs);
             f.lane_pdfs = crate::media::HERO_ONLY_LANE_PDFS;
         }
         let Some(bounce) = scatter(&bsdf, hit, f.ray.dir, &mut f.rng) else {
