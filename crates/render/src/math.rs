@@ -136,14 +136,44 @@ fn any_perpendicular(n: Vec3A) -> Vec3A {
     Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x)
 }
 
-/// Moves a point off a surface along its geometric normal, to the side `dir` leaves towards.
-pub fn offset_origin(p: Vec3A, ng: Vec3A, dir: Vec3A) -> Vec3A {
-    let eps = 2e-4 * (1.0 + p.abs().max_element());
-    if ng.dot(dir) >= 0.0 {
-        p + ng * eps
+/// pbrt-v4's γ(n): a bound on the relative error that n roundings of float arithmetic
+/// make, n·ε / (1 − n·ε) with ε half an ulp of 1.
+pub const fn gamma(n: u32) -> f32 {
+    let e = f32::EPSILON * 0.5 * n as f32;
+    e / (1.0 - e)
+}
+
+/// How far a point that carries no error bound of its own (a point on a quadric, a curve,
+/// a moving shape, or sampled on a light) is moved off its surface: a fixed fraction of
+/// its distance from the origin, generous enough for every shape Kiln intersects.
+pub fn surface_epsilon(p: Vec3A) -> f32 {
+    2e-4 * (1.0 + p.abs().max_element())
+}
+
+/// Moves a point off a surface along its geometric normal by `distance`, to the side `dir`
+/// leaves towards, then one float further in each coordinate the move changed, so that
+/// rounding the sum cannot leave it on the surface (pbrt-v4's `OffsetRayOrigin`).
+pub fn offset_origin(p: Vec3A, ng: Vec3A, distance: f32, dir: Vec3A) -> Vec3A {
+    let offset = if ng.dot(dir) >= 0.0 {
+        ng * distance
     } else {
-        p - ng * eps
-    }
+        -ng * distance
+    };
+    let moved = p + offset;
+    let away = |x: f32, o: f32| {
+        if o > 0.0 {
+            x.next_up()
+        } else if o < 0.0 {
+            x.next_down()
+        } else {
+            x
+        }
+    };
+    Vec3A::new(
+        away(moved.x, offset.x),
+        away(moved.y, offset.y),
+        away(moved.z, offset.z),
+    )
 }
 
 /// The azimuth of (x, y) in [0, 2π).

@@ -3,7 +3,7 @@
 //! media; and Russian roulette.
 
 use super::PathSettings;
-use crate::math::{Color, Ray, offset_origin};
+use crate::math::{Color, Ray, offset_origin, surface_epsilon};
 use crate::sampling::{PixelSampler, TrackingRng, power_heuristic};
 use crate::scene::Scene;
 use crate::shapes::SurfaceHit;
@@ -110,7 +110,7 @@ pub(super) fn sample_direct(
     if f == Color::ZERO {
         return Color::ZERO;
     }
-    let origin = v.surface.map_or(v.p, |h| offset_origin(v.p, h.ng, ls.wi));
+    let origin = v.surface.map_or(v.p, |h| h.origin_towards(ls.wi));
     let medium = v.medium_towards(ls.wi);
     let mut rng = TrackingRng::from_values(&[u_light, u.x, u.y], 2);
     let tr = if ls.distance.is_finite() {
@@ -119,7 +119,8 @@ pub(super) fn sample_direct(
         let target = if ls.n == Vec3A::ZERO {
             v.p + ls.wi * ls.distance
         } else {
-            offset_origin(v.p + ls.wi * ls.distance, ls.n, -ls.wi)
+            let q = v.p + ls.wi * ls.distance;
+            offset_origin(q, ls.n, surface_epsilon(q), -ls.wi)
         };
         let d = target - origin;
         let len = d.length();

@@ -47,7 +47,7 @@ fn pass_through(
     {
         return false;
     }
-    *ray = ray.spawn(crate::math::offset_origin(hit.p, hit.ng, ray.dir), ray.dir);
+    *ray = ray.spawn(hit.origin_towards(ray.dir), ray.dir);
     true
 }
 

@@ -24,7 +24,7 @@ use super::photons::{BATCH, Emitters, Gather, Launch, Photon, PhotonMap, launch,
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, pass_through};
 use crate::bsdfs::Bsdf;
 use crate::lights::SceneSphere;
-use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::math::{Color, Frame, Ray};
 use crate::nesting::Nesting;
 use crate::sampling::{AliasTable, PixelSampler, TrackingRng};
 use crate::scene::Scene;
@@ -255,7 +255,7 @@ pub fn camera_pass<'a>(
         if !nesting.cross(&scene.nested, hit, ray.dir, wi, &mut medium) {
             return None;
         }
-        ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+        ray = ray.spawn(hit.origin_towards(wi), wi);
         depth += 1;
     }
     None
@@ -463,7 +463,7 @@ fn trace_photon(
         if !nesting.cross(&scene.nested, &hit, ray.dir, wi, &mut None) {
             return;
         }
-        ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+        ray = ray.spawn(hit.origin_towards(wi), wi);
         depth += 1;
     }
 }

@@ -257,7 +257,7 @@ impl Scene {
             if let Some(next) = h.surface.medium_towards(dir, h.ng) {
                 medium = next;
             }
-            o = crate::math::offset_origin(h.p, h.ng, dir);
+            o = h.origin_towards(dir);
             remaining -= h.t;
         }
         (Color::ZERO, medium)

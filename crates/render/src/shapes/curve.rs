@@ -381,8 +381,9 @@ impl Geometry {
                 v: 0.5,
             });
         let (dpdu, dpdv, n) = seg.shading(ray.dir, hit.u, hit.v);
+        let p = ray.at(t);
         SurfaceHit {
-            p: ray.at(t),
+            p,
             t,
             ng: n,
             ns: n,
@@ -391,6 +392,7 @@ impl Geometry {
             uv: Vec2::new(hit.u, hit.v),
             surface: seg.surface,
             light: None,
+            offset: crate::math::surface_epsilon(p),
         }
     }
 }

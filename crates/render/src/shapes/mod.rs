@@ -112,6 +112,19 @@ pub struct SurfaceHit {
     pub surface: SurfaceInfo,
     /// The light this point emits as, if any.
     pub light: Option<u32>,
+    /// How far along `ng` a ray leaving `p` starts, so that it cannot meet this surface
+    /// again at its start: a bound on `p`'s rounding error where the shape gives one
+    /// (triangles), [`crate::math::surface_epsilon`] elsewhere.
+    pub offset: f32,
+}
+
+impl SurfaceHit {
+    /// Where a ray leaving this point in direction `dir` starts (pbrt-v4's
+    /// `SpawnRay`): moved off the surface by its error bound, to `dir`'s side.
+    #[inline]
+    pub fn origin_towards(&self, dir: Vec3A) -> Vec3A {
+        crate::math::offset_origin(self.p, self.ng, self.offset, dir)
+    }
 }
 
 /// A scene's primitives in world space, as the scene builder gathers them, before their

@@ -111,8 +111,10 @@ impl Mover {
         let hit = self.geometry.intersect(&ray, tmax * len)?;
         let nm = normal_matrix(&to_world);
         let normal = |n: Vec3A| (nm * n).normalize_or(n);
+        let p = to_world.transform_point3a(hit.p);
         Some(SurfaceHit {
-            p: to_world.transform_point3a(hit.p),
+            p,
+            offset: crate::math::surface_epsilon(p),
             t: hit.t / len,
             ng: normal(hit.ng),
             ns: normal(hit.ns),

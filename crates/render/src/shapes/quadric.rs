@@ -299,6 +299,7 @@ impl Geometry {
             uv: w.uv,
             surface: q.surface,
             light: q.surface.light,
+            offset: crate::math::surface_epsilon(w.p),
         }
     }
 

@@ -131,6 +131,7 @@ impl Geometry {
             uv,
             surface: s.surface,
             light: s.surface.light,
+            offset: crate::math::surface_epsilon(p),
         }
     }
 }

@@ -7,7 +7,7 @@ use super::super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use super::{Next, PathContext, PathState};
 use crate::bsdfs::Bsdf;
 use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
-use crate::math::{Color, Frame, Ray, offset_origin};
+use crate::math::{Color, Frame, Ray};
 use crate::sampling::PixelSampler;
 use crate::shapes::SurfaceHit;
 use crate::spectral::Wavelengths;
@@ -131,7 +131,7 @@ fn scatter(
     if !state.travel.scatter(scene, hit, ray.dir, wi) {
         return Next::Stop;
     }
-    *ray = ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+    *ray = ray.spawn(hit.origin_towards(wi), wi);
     state.interior.crossed(hit.surface.volume, hit.ng, wi);
     state.roulette(settings, sampler)
 }

@@ -2,7 +2,7 @@
 //! absorbed, lost to roulette or done with its events.
 
 use super::{Launch, Pass, Photon, Roulette, Shooter, Stored, launch, scatter};
-use crate::math::{Color, Ray, luminance, offset_origin};
+use crate::math::{Color, Ray, luminance};
 use crate::media::MediumEvent;
 use crate::media::subsurface::Walk;
 use crate::nesting::Nesting;
@@ -284,7 +284,7 @@ impl Shooter<'_> {
             return Step::Stop;
         }
         scene.enter_walk(hit, wi, before, f.medium, &mut f.walk);
-        f.ray = f.ray.spawn(offset_origin(hit.p, hit.ng, wi), wi);
+        f.ray = f.ray.spawn(hit.origin_towards(wi), wi);
         Step::Continue
     }
 

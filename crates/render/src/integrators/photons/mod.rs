@@ -30,7 +30,7 @@ pub mod map;
 pub use map::{Gather, Photon, PhotonMap};
 
 use crate::lights::{EmittedRay, Light, SceneSphere};
-use crate::math::{Color, Frame, Ray, luminance, offset_origin};
+use crate::math::{Color, Frame, Ray, luminance, offset_origin, surface_epsilon};
 use crate::sampling::{AliasTable, TrackingRng};
 use crate::scene::Scene;
 use crate::shapes::NO_MEDIUM;
@@ -309,7 +309,12 @@ pub(super) fn launch(
     let origin = if emitted.n == Vec3A::ZERO {
         emitted.origin
     } else {
-        offset_origin(emitted.origin, emitted.n, emitted.dir)
+        offset_origin(
+            emitted.origin,
+            emitted.n,
+            surface_epsilon(emitted.origin),
+            emitted.dir,
+        )
     };
     Some(Launch {
         light,
