@@ -664,3 +664,43 @@ Shape "bilinearmesh" "point3 P" [ -3 0 -3  3 0 -3  -3 0 3  3 0 3 ]
     let (behind, _) = crate::util::block_stats(&img, 21, 14, 6, 4, 0);
     assert!(behind < 1.0, "the sphere is seen: {behind}");
 }
+
+/// A film that clamps each sample ("maxcomponentvalue") makes the image depend on how each
+/// sample is computed, not only on its mean, so for such a pbrt-v4 scene Kiln computes
+/// samples as pbrt-v4 does. A diffuse floor of albedo 0.9 under a sky of radiance 10,
+/// clamped at 10: pbrt-v4 finds a uniform sky by BSDF sampling alone, so every sample is
+/// 0.9 · 10 = 9, under the clamp (which holds the sensor's XYZ, white 9 is Z = 9.8), and
+/// so is every pixel. Kiln's own estimator, kept
+/// when the file sets "rrdepth", also samples the sky as a light; a sample that adds both
+/// strategies' shares can pass 10, is clamped, and the image comes out darker.
+#[test]
+fn a_clamped_film_computes_its_samples_as_pbrt_v4() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_with = |integrator: &str| {
+        let text = format!(
+            "Integrator \"path\" \"integer maxdepth\" [ 1 ] {integrator}
+            Sampler \"zsobol\" \"integer pixelsamples\" [ 64 ]
+            Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]
+                \"float maxcomponentvalue\" [ 10 ]
+            LookAt 0 3 0.01  0 0 0  0 1 0
+            Camera \"perspective\" \"float fov\" [ 20 ]
+            WorldBegin
+            LightSource \"infinite\" \"rgb L\" [ 10 10 10 ]
+            Material \"diffuse\" \"rgb reflectance\" [ 0.9 0.9 0.9 ]
+            Shape \"bilinearmesh\" \"point3 P\" [ -10 0 -10  10 0 -10  -10 0 10  10 0 10 ]"
+        );
+        crate::util::write_scene(dir.path(), "clamped.pbrt", &text)
+    };
+    let pbrt = render(&scene_with(""), dir.path(), "pbrt", &["--rgb"]).image;
+    for (i, p) in pbrt.pixels.iter().enumerate() {
+        for (c, v) in p.iter().enumerate() {
+            assert!((v - 9.0).abs() < 2e-3, "pixel {i} channel {c}: {v}");
+        }
+    }
+    let own = scene_with("\"integer rrdepth\" [ 5 ]");
+    let kiln = render(&own, dir.path(), "kiln", &["--rgb"]).image.mean();
+    assert!(
+        kiln[1] < 9.0 * 0.99,
+        "Kiln's own estimator, clamped: {kiln:?}"
+    );
+}

@@ -41,7 +41,8 @@ pub(super) fn survives_roulette(
 ) -> bool {
     let rr = (*beta * eta_scale).max_element();
     if rr < 1.0 && depth >= settings.rr_depth {
-        let q = (1.0 - rr).max(0.05);
+        // Kiln ends at least one path in twenty that roulette meets; pbrt-v4 does not.
+        let q = (1.0 - rr).max(if settings.pbrt_estimator { 0.0 } else { 0.05 });
         if sampler.get_1d() < q {
             return false;
         }
@@ -96,6 +97,10 @@ pub(super) fn sample_direct(
         return Color::ZERO;
     };
     if v.last && matches!(scene.lights[index], crate::lights::Light::Medium(_)) {
+        return Color::ZERO;
+    }
+    // pbrt-v4 leaves a uniform light at infinity to BSDF sampling: picked, it gives nothing.
+    if settings.pbrt_estimator && scene.lights[index].found_by_bsdf_alone() {
         return Color::ZERO;
     }
     let (sample, traced) = scene.lights[index].sample(&scene.light_context_at(v.waves), v.p, u);

@@ -65,6 +65,9 @@ pub struct PathSettings {
     pub photons: PhotonDesc,
     /// pbrt-v4's "regularize": BSDFs met after a non-specular bounce are roughened.
     pub regularize: bool,
+    /// Samples computed as pbrt-v4 computes them (see
+    /// [`kiln_scene::IntegratorDesc::pbrt_estimator`]).
+    pub pbrt_estimator: bool,
 }
 
 impl PathSettings {
@@ -76,6 +79,7 @@ impl PathSettings {
             strategy: i.strategy,
             photons: i.photons,
             regularize: i.regularize,
+            pbrt_estimator: i.pbrt_estimator,
         }
     }
 }

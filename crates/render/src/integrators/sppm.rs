@@ -62,6 +62,7 @@ impl SppmSettings {
             strategy: LightStrategy::LightOnly,
             photons: PhotonDesc::NONE,
             regularize: false,
+            pbrt_estimator: false,
         }
     }
 }

@@ -163,6 +163,12 @@ impl LightSample {
 }
 
 impl Light {
+    /// Whether pbrt-v4's path tracers find this light only by BSDF sampling (a uniform
+    /// light at infinity, whose `SampleLi` with `allowIncompletePDF` gives no sample).
+    pub fn found_by_bsdf_alone(&self) -> bool {
+        matches!(self, Light::UniformInfinite(_))
+    }
+
     /// The light a scene description's LightSource makes.
     pub fn from_description(kind: &LightKind) -> Light {
         match kind {

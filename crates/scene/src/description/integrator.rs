@@ -54,6 +54,14 @@ pub struct IntegratorDesc {
     pub max_depth: u32,
     /// Russian roulette may end paths from this bounce on (Kiln's "integer rrdepth").
     pub rr_depth: u32,
+    /// Whether the file set `rr_depth` itself.
+    pub rr_depth_given: bool,
+    /// Each sample is computed as pbrt-v4 computes it, where that changes the image: when
+    /// the film clamps each sample ("maxcomponentvalue"), two estimators of the same mean
+    /// give different images, so a clamped pbrt-v4 scene that leaves "rrdepth" alone gets
+    /// pbrt-v4's own: Russian roulette from the second bounce with q = 1 − max β, and a
+    /// uniform light at infinity found by BSDF sampling alone (its `allowIncompletePDF`).
+    pub pbrt_estimator: bool,
     /// The most events one subsurface random walk may take, its scatterings inside and its
     /// reflections off the inside of its surface (Kiln's "integer walkdepth"). A walk counts
     /// as one bounce towards `max_depth`, as pbrt-v4's BSSRDF does.

@@ -533,6 +533,27 @@ impl Parser {
             gbuffer: None,
             loc: Loc::synthetic("default film"),
         });
+        let mut integrator = self.integrator.unwrap_or_else(|| IntegratorDesc {
+            name: "volpath".into(),
+            kind: IntegratorKind::VolPath,
+            max_depth: 5,
+            rr_depth: 5,
+            rr_depth_given: false,
+            pbrt_estimator: false,
+            walk_depth: DEFAULT_WALK_DEPTH,
+            strategy: LightStrategy::Mis,
+            light_sampler: LightSamplerKind::Bvh,
+            regularize: false,
+            max_radiance: 0.0,
+            photons: PhotonDesc::NONE,
+            sppm_photons: None,
+            sppm_radius: 1.0,
+            loc: Loc::synthetic("default integrator"),
+        });
+        if film.sensor.max_component.is_finite() && !integrator.rr_depth_given {
+            integrator.pbrt_estimator = true;
+            integrator.rr_depth = 2;
+        }
         Ok(SceneDescription {
             spectral: self.option_spectral,
             camera,
@@ -556,21 +577,7 @@ impl Parser {
                 radius: [1.5, 1.5],
                 loc: Loc::synthetic("default filter"),
             }),
-            integrator: self.integrator.unwrap_or_else(|| IntegratorDesc {
-                name: "volpath".into(),
-                kind: IntegratorKind::VolPath,
-                max_depth: 5,
-                rr_depth: 5,
-                walk_depth: DEFAULT_WALK_DEPTH,
-                strategy: LightStrategy::Mis,
-                light_sampler: LightSamplerKind::Bvh,
-                regularize: false,
-                max_radiance: 0.0,
-                photons: PhotonDesc::NONE,
-                sppm_photons: None,
-                sppm_radius: 1.0,
-                loc: Loc::synthetic("default integrator"),
-            }),
+            integrator,
             materials: self.materials,
             float_textures: self.float_textures,
             spectrum_textures: self.spectrum_textures,

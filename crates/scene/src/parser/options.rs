@@ -552,6 +552,8 @@ impl Parser {
             },
             max_depth: max_depth as u32,
             rr_depth: rr_depth as u32,
+            rr_depth_given: params.loc_of("rrdepth").is_some(),
+            pbrt_estimator: false,
             walk_depth: walk_depth as u32,
             strategy,
             light_sampler,

@@ -116,9 +116,14 @@ impl PrevVertex {
         x: Vec3A,
         n: Vec3A,
     ) -> f32 {
-        emission_weight(ctx.settings, self.first_or_specular, pdf, || {
-            ctx.scene.light_pdf(light, self.p, self.n, dir, x, n)
-        })
+        let unsampled =
+            ctx.settings.pbrt_estimator && ctx.scene.lights[light as usize].found_by_bsdf_alone();
+        emission_weight(
+            ctx.settings,
+            self.first_or_specular || unsampled,
+            pdf,
+            || ctx.scene.light_pdf(light, self.p, self.n, dir, x, n),
+        )
     }
 }
 
