@@ -36,7 +36,9 @@ pub struct JobSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub webhook: Option<String>,
     /// Spectral (true) or RGB (false) rendering; absent: the scene's choice (spectral
-    /// unless it says `Option "kiln.spectral" false`).
+    /// unless it says `Option "kiln.spectral" false`). The coordinator records the mode it
+    /// planned the job with, so the job's every tile renders in it, across restarts and
+    /// upgrades.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectral: Option<bool>,
 }

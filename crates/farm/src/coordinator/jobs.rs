@@ -82,7 +82,7 @@ impl Coordinator {
         }
         let scenes = self.files().scenes();
         let max_pixels = self.config().max_frame_pixels;
-        let spec2 = spec.clone();
+        let spec2 = spec;
         // Planning reads the whole scene into memory: a few at a time, the rest queued, so
         // that memory does not grow with the number of submissions in flight.
         let _turn = self
@@ -110,7 +110,10 @@ impl Coordinator {
             {
                 return Ok((id, false));
             }
-            let id = state.store.insert_job(&spec, idempotency_key.as_deref())?;
+            // The planned spec: its colour mode pinned (Job::plan).
+            let id = state
+                .store
+                .insert_job(&job.spec, idempotency_key.as_deref())?;
             job.id = id;
             state.jobs.insert(id, job);
             id

@@ -122,6 +122,11 @@ impl Job {
             .map_err(PlanError::Overrides)?;
         desc.check_frame_size(max_frame_pixels)
             .map_err(PlanError::Overrides)?;
+        // The colour mode is pinned as planned, so that a job stored now renders its last
+        // tile as its first even if a later Kiln changes the default. (Jobs stored before
+        // modes were pinned take the scene's choice as this Kiln makes it.)
+        let mut spec = spec;
+        spec.spectral = Some(desc.spectral);
         let spp = desc.sampler.pixel_samples;
         let passes = spec.passes.clone().unwrap_or_else(|| vec![spp]);
         check_passes(&passes, 0)?;

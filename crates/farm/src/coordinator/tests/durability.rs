@@ -414,3 +414,42 @@ async fn wait_until<F: std::future::Future<Output = bool>>(ready: impl Fn() -> F
     }
     panic!("never became true");
 }
+
+/// A job's colour mode is pinned when it is planned: a scene that says nothing renders
+/// spectrally (today's default) and its stored spec says so, before and after a restart,
+/// so a later Kiln with another default would still render its remaining tiles as its
+/// first; a job that asks for RGB keeps RGB.
+#[tokio::test]
+async fn a_jobs_colour_mode_is_pinned_when_it_is_planned() {
+    let f = farm(None);
+    let data = f.dir.path().join("data");
+    let by_default = submit(&f, 16, 16, 16).await;
+    let rgb = submit_with(&f, 16, 16, 16, |s| s.spectral = Some(false)).await;
+    let modes = |leases: Vec<Lease>| {
+        let mut m: Vec<(u64, Option<bool>)> = leases
+            .into_iter()
+            .map(|l| (l.job, l.spec.spectral))
+            .collect();
+        m.sort();
+        m
+    };
+    let first = vec![
+        lease(&f.app, "w").await.unwrap(),
+        lease(&f.app, "w").await.unwrap(),
+    ];
+    assert_eq!(
+        modes(first),
+        vec![(by_default, Some(true)), (rgb, Some(false))]
+    );
+    let Farm { dir: _dir, c, app } = f;
+    drop((c, app));
+    {
+        use crate::coordinator::store::JobStore;
+        let files = crate::coordinator::data_dir::DataDir::create(&data).unwrap();
+        let store = crate::coordinator::store::SqliteStore::open(&files.database()).unwrap();
+        let stored = store.jobs().unwrap();
+        let spec = |id: u64| stored.iter().find(|j| j.id == id).unwrap().spec.clone();
+        assert_eq!(spec(by_default).unwrap().spectral, Some(true));
+        assert_eq!(spec(rgb).unwrap().spectral, Some(false));
+    }
+}
