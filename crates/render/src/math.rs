@@ -151,29 +151,16 @@ pub fn surface_epsilon(p: Vec3A) -> f32 {
 }
 
 /// Moves a point off a surface along its geometric normal by `distance`, to the side `dir`
-/// leaves towards, then one float further in each coordinate the move changed, so that
-/// rounding the sum cannot leave it on the surface (pbrt-v4's `OffsetRayOrigin`).
+/// leaves towards (pbrt-v4's `OffsetRayOrigin`). Rounding the sum moves each coordinate by
+/// at most half an ulp of it, so `distance` must hold that too: pbrt-v4 steps one float
+/// further instead, which measured 4% of the Cornell box's time.
 pub fn offset_origin(p: Vec3A, ng: Vec3A, distance: f32, dir: Vec3A) -> Vec3A {
-    let offset = if ng.dot(dir) >= 0.0 {
-        ng * distance
+    let d = if ng.dot(dir) >= 0.0 {
+        distance
     } else {
-        -ng * distance
+        -distance
     };
-    let moved = p + offset;
-    let away = |x: f32, o: f32| {
-        if o > 0.0 {
-            x.next_up()
-        } else if o < 0.0 {
-            x.next_down()
-        } else {
-            x
-        }
-    };
-    Vec3A::new(
-        away(moved.x, offset.x),
-        away(moved.y, offset.y),
-        away(moved.z, offset.z),
-    )
+    p + ng * d
 }
 
 /// The azimuth of (x, y) in [0, 2π).

@@ -53,7 +53,7 @@ impl Geometry {
             uv,
             surface: mesh.surface,
             light: mesh.surface.light.map(|l| l + local),
-            offset: leaving_offset([p0, p1, p2], b, ng),
+            offset: leaving_offset([p0, p1, p2], b, p, ng),
         }
     }
 
@@ -110,24 +110,26 @@ impl Geometry {
     }
 }
 
-/// How far along the unit normal `ng` a ray leaving the point at barycentrics `b` of
+/// How far along the unit normal `ng` a ray leaving the point `p` at barycentrics `b` of
 /// triangle `v` must start so that the intersection test cannot find this triangle again.
 ///
 /// Two bounds add up. The point's own rounding error, pbrt-v4's γ(7)·Σ|bᵢ·vᵢ| per
-/// coordinate projected on the normal. And the error of Kiln's triangle test (Möller and
+/// coordinate projected on the normal, and one rounding more for the sum that moves it
+/// ([`crate::math::offset_origin`]): γ(8). And the error of Kiln's triangle test (Möller and
 /// Trumbore's, which unlike pbrt-v4's watertight test has no conservative check on the
 /// sign of t): the distance from a ray's origin to the plane it computes errs by a few
 /// roundings of the triangle's size, magnified by one over the sine of the angle its
 /// edge vectors make. Both are far below the old fixed 2·10⁻⁴·(1 + |p|), which stepped
 /// over a 0.2 mm sheet of the scenes' blinds; that stays the bound's ceiling.
-pub fn leaving_offset(v: [Vec3A; 3], b: [f32; 3], ng: Vec3A) -> f32 {
+pub fn leaving_offset(v: [Vec3A; 3], b: [f32; 3], p: Vec3A, ng: Vec3A) -> f32 {
     use crate::math::{gamma, surface_epsilon};
-    let point_error = ((v[0] * b[0]).abs() + (v[1] * b[1]).abs() + (v[2] * b[2]).abs()) * gamma(7);
-    let p = v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
+    let point_error = ((v[0] * b[0]).abs() + (v[1] * b[1]).abs() + (v[2] * b[2]).abs()) * gamma(8);
     let (e1, e2, e3) = (v[0] - v[1], v[2] - v[0], v[2] - v[1]);
-    let size = e1.length().max(e2.length()).max(e3.length());
-    let sine = e1.cross(e2).length() / (e1.length() * e2.length());
-    let test_error = gamma(8) * size / sine.max(f32::MIN_POSITIVE);
+    let (l1, l2) = (e1.length_squared(), e2.length_squared());
+    let size2 = l1.max(l2).max(e3.length_squared());
+    // size / sine, with sine = |e1 × e2| / (|e1| |e2|): one square root.
+    let cross2 = e1.cross(e2).length_squared();
+    let test_error = gamma(8) * (size2 * (l1 * l2 / cross2)).sqrt();
     (ng.abs().dot(point_error) + test_error).min(surface_epsilon(p))
 }
 
