@@ -276,7 +276,10 @@ fn a_real_camera_matches_pbrt_v4_within_its_training_difference() {
         let off: Vec<String> = (0..3)
             .map(|c| format!("{:+.1}%", (k[c] / p[c] - 1.0) * 100.0))
             .collect();
-        eprintln!("patch {i}: Kiln {k:.4?}, pbrt-v4 {p:.4?}: {}", off.join(" "));
+        eprintln!(
+            "patch {i}: Kiln {k:.4?}, pbrt-v4 {p:.4?}: {}",
+            off.join(" ")
+        );
         let strongest = (0..3).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap();
         let within = if i == 3 || i == 8 { 0.015 } else { 0.06 };
         for c in 0..3 {
