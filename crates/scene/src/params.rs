@@ -363,6 +363,28 @@ impl ParamSet {
         }
     }
 
+    /// The luminance pbrt-v4 gives emission parameter `name` where it makes an image of
+    /// the spectrum's own XYZ (an infinite light's "L" seen through a portal) rather than
+    /// normalising it to 1 nit as its lights otherwise do: a blackbody's (1 at its peak
+    /// wavelength) or an inline or file spectrum's own, as a factor on the 1-nit colour
+    /// [`ParamSet::rgb`] gives. 1 for RGB, a float, or a named spectrum (pbrt-v4's named
+    /// illuminants are 1 nit already). Call it after [`ParamSet::rgb`] has checked the value.
+    pub fn own_luminance(&self, name: &str) -> f32 {
+        let Some(p) = self
+            .params
+            .iter()
+            .find(|p| p.name == name && matches!(p.ty.as_str(), "blackbody" | "spectrum"))
+        else {
+            return 1.0;
+        };
+        match &p.values {
+            ParamValues::Numbers(_) => self
+                .emission_spectrum(name)
+                .map_or(1.0, |s| spectrum::own_luminance(&s) as f32),
+            _ => 1.0,
+        }
+    }
+
     /// The shape of an emission parameter given as a spectrum (see
     /// [`spectrum::EmissionSpectrum`]): a blackbody, or inline (wavelength, value) pairs (a
     /// spectrum file's, once read, or one of pbrt-v4's named illuminants, from the CIE's

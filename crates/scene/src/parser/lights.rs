@@ -155,12 +155,14 @@ impl Parser {
             let radiance = c.colour(params, "L", k)?;
             return Ok(match portal {
                 None => LightKind::UniformInfinite { radiance },
-                // As pbrt-v4: a constant image behind the portal.
+                // As pbrt-v4: a constant image behind the portal, of the spectrum's own
+                // XYZ, not normalised to 1 nit as its other lights' spectra are (a
+                // blackbody of 6500 K is 0.886 of the uniform sky's brightness).
                 Some(_) => LightKind::ImageInfinite {
                     image: Arc::new(kiln_image::ImageRgb {
                         width: 1,
                         height: 1,
-                        pixels: vec![radiance],
+                        pixels: vec![radiance.map(|c| c * params.own_luminance("L"))],
                     }),
                     layout: EnvironmentLayout::EqualArea,
                     scale: 1.0,

@@ -142,6 +142,33 @@ const F: [[f32; 81]; 12] = [
     ],
 ];
 
+/// A spectrum's own luminance, ∫ s·ȳ dλ / ∫ ȳ dλ over 360–830 nm, the pairs (in increasing
+/// wavelength) linear between samples and zero beyond their ends: the Y of pbrt-v4's
+/// `SpectrumToXYZ`, without the normalisation to 1 nit that its lights otherwise apply.
+pub fn own_luminance(pairs: &[(f32, f32)]) -> f64 {
+    let at = |l: f64| -> f64 {
+        let k = pairs.partition_point(|p| f64::from(p.0) <= l);
+        if k == 0 || k == pairs.len() {
+            return if k > 0 && f64::from(pairs[k - 1].0) == l {
+                f64::from(pairs[k - 1].1)
+            } else {
+                0.0
+            };
+        }
+        let ((l0, v0), (l1, v1)) = (pairs[k - 1], pairs[k]);
+        let t = (l - f64::from(l0)) / (f64::from(l1) - f64::from(l0));
+        f64::from(v0) + (f64::from(v1) - f64::from(v0)) * t
+    };
+    let (mut sy, mut y) = (0.0, 0.0);
+    for nm in 360..=830 {
+        let l = f64::from(nm);
+        let ybar = super::cmf_at(l)[1];
+        sy += at(l) * ybar;
+        y += ybar;
+    }
+    sy / y
+}
+
 /// The spectrum of pbrt-v4's named illuminant `name` (`stdillum-A`, `-D50`, `-D65`,
 /// `-F1` to `-F12`, `illum-acesD60`) as an emission shape, or None for any other name.
 /// Its brightness is the RGB [`super::named_spectrum_rgb`] gives it (luminance 1).

@@ -22,7 +22,7 @@ mod response;
 
 pub use conductor::{FRESNEL_TABLE_LEN, conductor_fresnel_rgb};
 pub use glass::glass_index;
-pub use illuminants::named_illuminant_spectrum;
+pub use illuminants::{named_illuminant_spectrum, own_luminance};
 pub use response::srgb_response_per_nm;
 
 use std::sync::OnceLock;
