@@ -412,14 +412,7 @@ mod tests {
             width: [width, width],
             normals: None,
             kind,
-            surface: SurfaceInfo {
-                material: 0,
-                light: None,
-                volume: None,
-                media: None,
-                alpha: None,
-                nest: None,
-            },
+            surface: SurfaceInfo::PLAIN,
             flip: false,
         }
     }

@@ -59,6 +59,19 @@ pub struct SurfaceInfo {
     pub nest: Option<u32>,
 }
 
+#[cfg(test)]
+impl SurfaceInfo {
+    /// Material 0 and nothing else: the surface the shapes' tests give their primitives.
+    pub(crate) const PLAIN: SurfaceInfo = SurfaceInfo {
+        material: 0,
+        light: None,
+        volume: None,
+        media: None,
+        alpha: None,
+        nest: None,
+    };
+}
+
 /// Which kind of primitive a hit is on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum HitKind {
@@ -162,6 +175,9 @@ pub struct Geometry {
     first: [u32; 5],
     /// Some surface has an alpha texture: candidate hits must be tested against it.
     any_alpha: bool,
+    /// Per triangle, the part of a leaving ray's offset that its own shape sets
+    /// ([`triangle::test_error`]).
+    triangle_test_error: Vec<f32>,
     /// Time spent building BVHs.
     pub build_time: Duration,
 }
@@ -239,8 +255,13 @@ impl Geometry {
         first[4] = first[3] + movers.len() as u32;
         let bvh = (first[4] > 0)
             .then(|| bvh_build::build_wide_bvh(&plain, &tris, &others, &mut build_time));
+        let triangle_test_error = triangle_vertices
+            .iter()
+            .map(|v| triangle::test_error(v.map(|i| positions[i as usize])))
+            .collect();
         Geometry {
             any_alpha: !primitives.alphas.is_empty(),
+            triangle_test_error,
             prims: primitives,
             bvh,
             first,
@@ -433,14 +454,7 @@ mod tests {
             Vec3A::new(1.0, 1.0, 0.0),
             Vec3A::new(-1.0, 1.0, 0.0),
         ];
-        let surface = SurfaceInfo {
-            material: 0,
-            light: None,
-            volume: None,
-            media: None,
-            alpha: None,
-            nest: None,
-        };
+        let surface = SurfaceInfo::PLAIN;
         let meshes = vec![MeshInfo {
             surface,
             first_triangle: 0,

@@ -320,14 +320,7 @@ mod tests {
     use std::f32::consts::{PI, TAU};
 
     fn surface() -> SurfaceInfo {
-        SurfaceInfo {
-            material: 0,
-            light: None,
-            volume: None,
-            media: None,
-            alpha: None,
-            nest: None,
-        }
+        SurfaceInfo::PLAIN
     }
 
     fn shapes() -> Vec<QuadricShape> {

@@ -53,7 +53,13 @@ impl Geometry {
             uv,
             surface: mesh.surface,
             light: mesh.surface.light.map(|l| l + local),
-            offset: leaving_offset([p0, p1, p2], b, p, ng),
+            offset: leaving_offset(
+                [p0, p1, p2],
+                b,
+                p,
+                ng,
+                self.triangle_test_error[tri as usize],
+            ),
         }
     }
 
@@ -120,17 +126,25 @@ impl Geometry {
 /// sign of t): the distance from a ray's origin to the plane it computes errs by a few
 /// roundings of the triangle's size, magnified by one over the sine of the angle its
 /// edge vectors make. Both are far below the old fixed 2·10⁻⁴·(1 + |p|), which stepped
-/// over a 0.2 mm sheet of the scenes' blinds; that stays the bound's ceiling.
-pub fn leaving_offset(v: [Vec3A; 3], b: [f32; 3], p: Vec3A, ng: Vec3A) -> f32 {
+/// over a 0.2 mm sheet of the scenes' blinds; that stays the bound's ceiling. The test's
+/// term depends on the triangle alone: [`test_error`], computed once when the geometry is
+/// built.
+pub fn leaving_offset(v: [Vec3A; 3], b: [f32; 3], p: Vec3A, ng: Vec3A, test_error: f32) -> f32 {
     use crate::math::{gamma, surface_epsilon};
     let point_error = ((v[0] * b[0]).abs() + (v[1] * b[1]).abs() + (v[2] * b[2]).abs()) * gamma(8);
+    (ng.abs().dot(point_error) + test_error).min(surface_epsilon(p))
+}
+
+/// The Möller-Trumbore term of [`leaving_offset`] for triangle `v`: γ(8) times its size
+/// over the sine of its corner angle (infinite or NaN for a degenerate triangle, which
+/// the bound's ceiling then holds).
+pub fn test_error(v: [Vec3A; 3]) -> f32 {
     let (e1, e2, e3) = (v[0] - v[1], v[2] - v[0], v[2] - v[1]);
     let (l1, l2) = (e1.length_squared(), e2.length_squared());
     let size2 = l1.max(l2).max(e3.length_squared());
     // size / sine, with sine = |e1 × e2| / (|e1| |e2|): one square root.
     let cross2 = e1.cross(e2).length_squared();
-    let test_error = gamma(8) * (size2 * (l1 * l2 / cross2)).sqrt();
-    (ng.abs().dot(point_error) + test_error).min(surface_epsilon(p))
+    crate::math::gamma(8) * (size2 * (l1 * l2 / cross2)).sqrt()
 }
 
 /// Barycentric coordinates of `p` (assumed in the triangle's plane).
@@ -201,14 +215,7 @@ mod tests {
     use super::*;
 
     fn mesh(positions: Vec<Vec3A>, triangles: Vec<[u32; 3]>) -> Geometry {
-        let surface = SurfaceInfo {
-            material: 0,
-            light: None,
-            volume: None,
-            media: None,
-            alpha: None,
-            nest: None,
-        };
+        let surface = SurfaceInfo::PLAIN;
         let meshes = vec![MeshInfo {
             surface,
             first_triangle: 0,
