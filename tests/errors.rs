@@ -439,6 +439,46 @@ fn camera_sensor_data_errors_name_the_line_and_the_file() {
     }
 }
 
+/// A training chart beside the camera data that cannot be read is an error naming the
+/// Film's line, the chart and its line; it is not silently replaced by Kiln's own spectra.
+#[test]
+fn a_broken_training_chart_names_the_film_the_file_and_its_line() {
+    let data = tempfile::tempdir().unwrap();
+    std::fs::write(
+        data.path().join("three.json"),
+        r#"{"spectral_data": {"index": {"main": ["R","G","B"]}, "data": {"main": {"400": [0,0.1,1], "550": [0.1,1,0.1], "700": [1,0.1,0]}}}}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        data.path().join("training-chart.csv"),
+        "wavelength,a,b,c\n400,0.1,0.2,0.3\n410,0.1,oops,0.3\n",
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        dir.path(),
+        "scene.pbrt",
+        "Sampler \"halton\"\nFilm \"rgb\"\n  \"string sensor\" \"three\"\nWorldBegin\n",
+    );
+    let out = kiln()
+        .env("KILN_SENSOR_DATA", data.path())
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("out.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert_names(
+        &err,
+        "scene.pbrt",
+        3,
+        "training-chart.csv': line 3, patch 2: \"oops\"",
+    );
+}
+
 /// A Loop subdivision Kiln cannot make is an error naming the line.
 #[test]
 fn loop_subdivision_errors_name_the_line() {

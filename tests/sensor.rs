@@ -241,7 +241,8 @@ fn a_camera_sensor_clamps_its_raw_rgb() {
 /// data: KILN_SENSOR_DATA must name a folder holding it (PhysLight's data/camera);
 /// SKIPPED otherwise. Greys within 1.5%, each patch's strongest channel within 6% (pbrt-v4
 /// fits its colour matrix on a measured colour chart that Kiln may not copy; see the
-/// manual's Films page, docs/src/scene-format/films.md).
+/// manual's Films page, docs/src/scene-format/films.md); with that chart in the folder,
+/// greys within 0.5% and every channel within 2.5% of its patch's strongest.
 #[test]
 fn a_real_camera_matches_pbrt_v4_within_its_training_difference() {
     let Some(data) = std::env::var_os("KILN_SENSOR_DATA") else {
@@ -260,6 +261,9 @@ fn a_real_camera_matches_pbrt_v4_within_its_training_difference() {
         ),
         "--spectral",
     ));
+    // With the measured chart pbrt-v4 trains on beside the curves (the manual's Films page
+    // says how to write it), the fits are the same and the tolerances tighten.
+    let trained = Path::new(&data).join("training-chart.csv").is_file();
     let pbrt: [[f64; 3]; 10] = [
         [0.8080, 0.1130, 0.1062],
         [0.1012, 0.8244, 0.1209],
@@ -281,6 +285,20 @@ fn a_real_camera_matches_pbrt_v4_within_its_training_difference() {
             off.join(" ")
         );
         let strongest = (0..3).max_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap();
+        if trained {
+            // pbrt-v4's own training set: greys within 0.5%, and every channel within 2.5%
+            // of the patch's strongest (PhysLight's curves have moved a little since
+            // pbrt-v4 copied them).
+            let within = if i == 3 || i == 8 { 0.005 } else { 0.025 };
+            for c in 0..3 {
+                let scale = if i == 3 || i == 8 { p[c] } else { p[strongest] };
+                assert!(
+                    (k[c] - p[c]).abs() < within * scale,
+                    "patch {i}, channel {c}, on the training chart: Kiln {k:?}, pbrt-v4 {p:?}"
+                );
+            }
+            continue;
+        }
         let within = if i == 3 || i == 8 { 0.015 } else { 0.06 };
         for c in 0..3 {
             if i == 3 || i == 8 || c == strongest {

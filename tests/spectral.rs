@@ -3,7 +3,7 @@
 //! many times, the bytes do not depend on tiles or threads, the option and the flags agree,
 //! and spectral inputs (coated layers, metals, named illuminants) match pbrt-v4.
 
-use crate::util::{block_stats, max_z_score, render, scene, write_scene};
+use crate::util::{block_stats, max_z_score, render, render_with_env, scene, write_scene};
 
 /// Asserts that every channel of `image` averages 1 within `within` and four standard errors.
 fn assert_white(name: &str, image: &kiln_image::RgbBuffer, within: f64) {
@@ -468,4 +468,72 @@ fn a_named_illuminant_is_its_cie_table() {
     let upsampled = lit(r#"LightSource "infinite" "rgb L" [ 0.98714 0.64776 0.37143 ]"#);
     println!("F11 table {table:?}, its RGB upsampled {upsampled:?}, pbrt-v4 {PBRT:?}");
     assert!(upsampled[0] / PBRT[0] - 1.0 > 0.05, "{upsampled:?}");
+}
+
+/// A named spectrum the user measured, in the folder KILN_SPECTRUM_DATA names, is read as
+/// its table: a smooth gold-like conductor named `metal-Au-eta` / `metal-Au-k` renders the
+/// same bytes as the same tables given inline (their end values carried on to 360 and
+/// 830 nm, as pbrt-v4 carries its named spectra's), and not the bytes of Kiln's own colour
+/// of gold. A broken file there is an error naming it, its line and the scene's line.
+#[test]
+fn a_measured_named_spectrum_is_read_as_its_table() {
+    let data = tempfile::tempdir().unwrap();
+    let eta = "400 1.6\n450 1.5\n500 0.9\n550 0.35\n600 0.22\n700 0.16\n";
+    let k = "# k\n400 1.95\n450 1.88\n500 1.89\n550 2.7\n600 3.0\n700 3.96\n";
+    std::fs::write(data.path().join("metal-Au-eta.spd"), eta).unwrap();
+    std::fs::write(data.path().join("metal-Au-k.spd"), k).unwrap();
+    let inline = |table: &str| {
+        let nums: Vec<&str> = table
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .flat_map(|l| l.split_whitespace())
+            .collect();
+        let (first, last) = (nums[1], nums[nums.len() - 1]);
+        format!("[ 360 {first} {} 830 {last} ]", nums.join(" "))
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |name: &str, material: String| {
+        let text = sphere_under_sky(&material).replace("[ 256 ]", "[ 16 ]");
+        write_scene(dir.path(), name, &text)
+    };
+    let named = scene(
+        "named.pbrt",
+        r#"Material "conductor" "spectrum eta" "metal-Au-eta" "spectrum k" "metal-Au-k" "float roughness" 0"#.into(),
+    );
+    let tables = scene(
+        "inline.pbrt",
+        format!(
+            r#"Material "conductor" "spectrum eta" {} "spectrum k" {} "float roughness" 0"#,
+            inline(eta),
+            inline(k)
+        ),
+    );
+    let env = [("KILN_SPECTRUM_DATA", data.path().to_str().unwrap())];
+    let measured = render_with_env(&named, dir.path(), "measured", &["--spectral"], &env);
+    let given = render(&tables, dir.path(), "given", &["--spectral"]);
+    let own = render(&named, dir.path(), "own", &["--spectral"]);
+    assert!(
+        measured.bytes == given.bytes,
+        "the measured tables were not used"
+    );
+    assert!(
+        own.bytes != given.bytes,
+        "the test cannot tell the tables from the colour"
+    );
+
+    std::fs::write(data.path().join("metal-Au-k.spd"), "400 1.9\n500 x\n").unwrap();
+    let out = crate::util::kiln()
+        .env("KILN_SPECTRUM_DATA", data.path())
+        .arg("render")
+        .arg(&named)
+        .arg("-o")
+        .arg(dir.path().join("broken.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("named.pbrt:8:") && err.contains("metal-Au-k.spd', line 2: 'x'"),
+        "{err}"
+    );
 }

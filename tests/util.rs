@@ -33,11 +33,13 @@ pub fn reference_scene(name: &str) -> Option<PathBuf> {
     }
 }
 
-/// The `kiln` binary, with no camera data unless a test gives it some (a developer's own
-/// KILN_SENSOR_DATA must not change what a test sees).
+/// The `kiln` binary, with no camera data or measured spectra unless a test gives it some
+/// (a developer's own KILN_SENSOR_DATA or KILN_SPECTRUM_DATA must not change what a test
+/// sees).
 pub fn kiln() -> Command {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_kiln"));
     cmd.env_remove("KILN_SENSOR_DATA");
+    cmd.env_remove("KILN_SPECTRUM_DATA");
     cmd
 }
 

@@ -144,7 +144,8 @@ mod tests {
                 .collect(),
             path: "srgb.json".into(),
         };
-        let camera = kiln_scene::camera_sensor::camera_response("srgb", &curves, 6500.0).unwrap();
+        let camera =
+            kiln_scene::camera_sensor::camera_response("srgb", &curves, 6500.0, None).unwrap();
         let sensor = Sensor::new(
             &SensorDesc {
                 white_balance: 6500.0,

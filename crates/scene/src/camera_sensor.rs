@@ -19,12 +19,15 @@
 //! sample. Either way the fitted matrix then takes raw RGB to XYZ, and XYZ goes to linear
 //! sRGB.
 //!
-//! The training reflectances are Kiln's own: 125 smooth spectra of the same sigmoid form,
-//! spanning greys, pastels and saturated colours. pbrt-v4 trains on the 24 patches of a
-//! measured colour chart, which Kiln may not copy; the two fits differ by a few percent in
-//! saturated colours (the manual's Films page, docs/src/scene-format/films.md).
+//! The training reflectances are a measured colour chart's where the sensor data folder
+//! holds one (`files::training_chart`), else Kiln's own: 125 smooth spectra of the same
+//! sigmoid form, spanning greys, pastels and saturated colours. pbrt-v4 trains on the 24
+//! patches of a measured ColorChecker, which Kiln may not copy; with Kiln's own spectra the
+//! two fits differ by a few percent in saturated colours (the manual's Films page,
+//! docs/src/scene-format/films.md).
 
 use crate::files::sensor_curves::SensorCurves;
+use crate::files::training_chart::TrainingChart;
 use crate::rgb_spectrum::{Upsampler, grid};
 use crate::spectrum::{
     LAMBDA_MAX, LAMBDA_MIN, XYZ_TO_SRGB, cmf_at, d65_at, daylight_samples, det3, inverse3, mul3,
@@ -195,12 +198,28 @@ fn raw_table(up: &Upsampler, sums: &Sums) -> RawTable {
     RawTable { entries }
 }
 
+/// Kiln's own training reflectances, on the grid: 125 sigmoid spectra spanning greys,
+/// pastels and saturated colours.
+fn own_training_spectra(up: &Upsampler) -> Vec<Vec<f64>> {
+    let mut out = Vec::with_capacity(125);
+    for c0 in [-3.0, -1.5, 0.0, 1.5, 3.0] {
+        for c1 in [-6.0, -3.0, 0.0, 3.0, 6.0] {
+            for c2 in [-12.0, -6.0, 0.0, 6.0, 12.0] {
+                out.push(up.spectrum([c0, c1, c2]));
+            }
+        }
+    }
+    out
+}
+
 /// The response of camera `name` with curves `curves`, white balanced for daylight at
-/// `kelvin` (pbrt-v4's "whitebalance"; it defaults to 6500 for a camera).
+/// `kelvin` (pbrt-v4's "whitebalance"; it defaults to 6500 for a camera), its matrix fitted
+/// on `chart`'s patches where one is given, else on Kiln's own training spectra.
 pub fn camera_response(
     name: &str,
     curves: &SensorCurves,
     kelvin: f64,
+    chart: Option<&TrainingChart>,
 ) -> Result<CameraResponse, String> {
     let lambdas: Vec<f64> = grid().collect();
     let cmf: Vec<[f64; 3]> = lambdas.iter().map(|&l| cmf_at(l)).collect();
@@ -227,25 +246,30 @@ pub fn camera_response(
     }
 
     let up = Upsampler::new();
-    let mut raw_balanced = Vec::with_capacity(125);
-    let mut xyz_out = Vec::with_capacity(125);
-    for c0 in [-3.0, -1.5, 0.0, 1.5, 3.0] {
-        for c1 in [-6.0, -3.0, 0.0, 3.0, 6.0] {
-            for c2 in [-12.0, -6.0, 0.0, 6.0, 12.0] {
-                let rho = up.spectrum([c0, c1, c2]);
-                raw_balanced.push(Sums::project(&rho, &illum, &sums.cam).map(|v| v / illum_g));
-                xyz_out.push(
-                    Sums::project(&rho, &sums.d65, &sums.cmf)
-                        .map(|v| v / sums.d65_y * illum_y / illum_g),
-                );
-            }
-        }
+    let training = match chart {
+        Some(chart) => (0..chart.patches.len())
+            .map(|k| lambdas.iter().map(|&l| chart.reflectance(k, l)).collect())
+            .collect(),
+        None => own_training_spectra(&up),
+    };
+    let mut raw_balanced = Vec::with_capacity(training.len());
+    let mut xyz_out = Vec::with_capacity(training.len());
+    for rho in &training {
+        raw_balanced.push(Sums::project(rho, &illum, &sums.cam).map(|v| v / illum_g));
+        xyz_out.push(
+            Sums::project(rho, &sums.d65, &sums.cmf).map(|v| v / sums.d65_y * illum_y / illum_g),
+        );
     }
-    let xyz_from_raw = least_squares(&raw_balanced, &xyz_out).ok_or_else(|| {
-        format!(
+    let xyz_from_raw = least_squares(&raw_balanced, &xyz_out).ok_or_else(|| match chart {
+        Some(chart) => format!(
+            "camera '{name}' ('{}') on the training chart '{}': the patches' raw colours do not span three dimensions",
+            curves.path.display(),
+            chart.path.display()
+        ),
+        None => format!(
             "camera '{name}' ('{}'): its red, green and blue responses are not independent",
             curves.path.display()
-        )
+        ),
     })?;
     let white = apply(&XYZ_TO_SRGB, d65_xyz.map(|v| v / sums.d65_y));
     let mut raw_to_srgb = mul3(&XYZ_TO_SRGB, &xyz_from_raw);
@@ -291,7 +315,7 @@ mod tests {
     fn a_camera_that_is_a_mixture_of_the_observer_changes_no_colour() {
         // Its raw RGB is MIX · XYZ exactly, and the fit undoes MIX: at 6500 K (pbrt-v4's
         // D(6500) is D65 within the tables' rounding) every colour comes back.
-        let cam = camera_response("mixed", &mixed_observer(MIX), 6500.0).unwrap();
+        let cam = camera_response("mixed", &mixed_observer(MIX), 6500.0, None).unwrap();
         for rgb in [
             [1.0, 1.0, 1.0],
             [1.0, 0.0, 0.0],
@@ -316,7 +340,7 @@ mod tests {
     fn white_balance_makes_daylight_of_its_temperature_white() {
         let curves = mixed_observer(MIX);
         for kelvin in [3200.0, 4500.0, 6000.0, 9000.0] {
-            let cam = camera_response("mixed", &curves, kelvin).unwrap();
+            let cam = camera_response("mixed", &curves, kelvin, None).unwrap();
             // A white surface lit by daylight at `kelvin`, as Kiln's light colour of it.
             let pairs: Vec<(f32, f32)> = daylight_samples(kelvin)
                 .iter()
@@ -340,6 +364,120 @@ mod tests {
         }
     }
 
+    /// The chart's own colours through a camera: each patch lit by D65, recorded raw and
+    /// mapped to linear sRGB, against the patch's sRGB as the observer sees it. The squared
+    /// error summed over the patches, after the one scale that fits best (the fit's
+    /// exposure is not what the training decides).
+    fn chart_error(cam: &CameraResponse, curves: &SensorCurves, chart: &TrainingChart) -> f64 {
+        let lambdas: Vec<f64> = grid().collect();
+        let d65_y: f64 = lambdas.iter().map(|&l| d65_at(l) * cmf_at(l)[1]).sum();
+        let mut pairs = Vec::new();
+        for k in 0..chart.patches.len() {
+            let (mut raw, mut xyz) = ([0.0; 3], [0.0; 3]);
+            for &l in &lambdas {
+                let e = chart.reflectance(k, l) * d65_at(l) / d65_y;
+                let (c, o) = (curves_at(&curves.samples, l), cmf_at(l));
+                for i in 0..3 {
+                    raw[i] += e * c[i];
+                    xyz[i] += e * o[i];
+                }
+            }
+            pairs.push((apply(&cam.raw_to_srgb, raw), apply(&XYZ_TO_SRGB, xyz)));
+        }
+        let (mut gw, mut gg) = (0.0, 0.0);
+        for (g, w) in &pairs {
+            gw += (0..3).map(|i| g[i] * w[i]).sum::<f64>();
+            gg += (0..3).map(|i| g[i] * g[i]).sum::<f64>();
+        }
+        let scale = gw / gg;
+        pairs
+            .iter()
+            .map(|(g, w)| (0..3).map(|i| (scale * g[i] - w[i]).powi(2)).sum::<f64>())
+            .sum()
+    }
+
+    #[test]
+    fn a_measured_chart_trains_the_matrix_in_place_of_kilns_spectra() {
+        // A camera whose curves are no mixture of the observer's, so that no matrix is
+        // exact and the training set decides its errors.
+        let bump = |l: f64, mu: f64, w: f64| libm::exp(-((l - mu) / w).powi(2) / 2.0);
+        let curves = SensorCurves {
+            samples: (0..=94)
+                .map(|i| {
+                    let l = 360.0 + 5.0 * i as f64;
+                    (
+                        l,
+                        [
+                            bump(l, 610.0, 30.0),
+                            bump(l, 535.0, 35.0),
+                            bump(l, 455.0, 25.0),
+                        ],
+                    )
+                })
+                .collect(),
+            path: "bumps.json".into(),
+        };
+        // Twelve patches of steps and notches, nothing like sigmoid-quadratic spectra, on
+        // 380..730 nm as pbrt-v4's chart is.
+        let lambdas: Vec<f64> = (0..=35).map(|i| 380.0 + 10.0 * f64::from(i)).collect();
+        let patches: Vec<Vec<f64>> = (0..12)
+            .map(|k| {
+                let edge = 420.0 + 25.0 * f64::from(k);
+                lambdas
+                    .iter()
+                    .map(|&l| match k % 3 {
+                        0 => {
+                            if l < edge {
+                                0.05
+                            } else {
+                                0.8
+                            }
+                        }
+                        1 => {
+                            if l < edge {
+                                0.7
+                            } else {
+                                0.1
+                            }
+                        }
+                        _ => {
+                            if (l - edge).abs() < 30.0 {
+                                0.05
+                            } else {
+                                0.6
+                            }
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let chart = TrainingChart {
+            lambdas,
+            patches,
+            path: "chart.csv".into(),
+        };
+        let own = camera_response("bumps", &curves, 6504.0, None).unwrap();
+        let trained = camera_response("bumps", &curves, 6504.0, Some(&chart)).unwrap();
+        let (e_own, e_trained) = (
+            chart_error(&own, &curves, &chart),
+            chart_error(&trained, &curves, &chart),
+        );
+        assert!(
+            e_trained < 0.9 * e_own,
+            "on the chart's own patches: {e_trained} trained on it, {e_own} on Kiln's spectra"
+        );
+        // A chart whose patches are all one grey spans one dimension: refused, named.
+        let grey = TrainingChart {
+            patches: vec![vec![0.5; 36]; 3],
+            ..chart
+        };
+        let e = camera_response("bumps", &curves, 6504.0, Some(&grey)).unwrap_err();
+        assert!(
+            e.contains("chart.csv") && e.contains("three dimensions"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn curves_are_zero_outside_their_range() {
         let s = [(400.0, [1.0, 2.0, 3.0]), (500.0, [3.0, 2.0, 1.0])];
@@ -361,7 +499,7 @@ mod tests {
                 .collect(),
             path: "grey.json".into(),
         };
-        let e = camera_response("grey", &same, 6500.0).unwrap_err();
+        let e = camera_response("grey", &same, 6500.0, None).unwrap_err();
         assert!(
             e.contains("not independent") && e.contains("grey.json"),
             "{e}"

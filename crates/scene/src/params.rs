@@ -523,6 +523,23 @@ impl ParamSet {
             .collect()
     }
 
+    /// The `spectrum` parameters given as one of the built-in names, as (parameter name,
+    /// spectrum name, location).
+    pub fn named_spectra(&self) -> Vec<(String, String, Loc)> {
+        self.params
+            .iter()
+            .filter(|p| p.ty == "spectrum")
+            .filter_map(|p| match &p.values {
+                ParamValues::Strings(v)
+                    if v.len() == 1 && spectrum::named_spectrum_rgb(&v[0]).is_some() =>
+                {
+                    Some((p.name.clone(), v[0].clone(), p.loc.clone()))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
     /// Replaces the values of parameter `name`.
     pub fn set_values(&mut self, name: &str, values: ParamValues) {
         if let Some(p) = self.params.iter_mut().find(|p| p.name == name) {

@@ -1,6 +1,6 @@
 //! Readers for the files a scene refers to, one format a file: PLY and OBJ meshes, voxel
-//! grids (CSV, Mitsuba `.vol` and NanoVDB), EXR environment maps and cameras' spectral
-//! responses. Errors name the directive's location and the file.
+//! grids (CSV, Mitsuba `.vol` and NanoVDB), EXR environment maps, cameras' spectral
+//! responses and colour charts' reflectances. Errors name the directive's location and the file.
 
 use crate::error::{Loc, Result, SceneError};
 use std::path::Path;
@@ -11,7 +11,9 @@ pub mod nanovdb;
 pub mod obj;
 pub mod ply;
 pub mod sensor_curves;
+pub mod spectrum_data;
 pub mod tensor;
+pub mod training_chart;
 pub mod vol;
 pub mod voxel_csv;
 

@@ -262,8 +262,16 @@ impl Parser {
     /// "spds/Au.eta.spd"`: whitespace-separated wavelength and value pairs, `#` comments)
     /// replaced by the pairs the file holds.
     fn with_spectrum_files(&mut self, params: &ParamSet) -> Result<ParamSet> {
+        use crate::files::spectrum_data::{carried_to_ends, named_spectrum_file, spd_values};
         let files = params.spectrum_files();
-        if files.is_empty() {
+        let measured: Vec<_> = params
+            .named_spectra()
+            .into_iter()
+            .filter_map(|(name, spectrum, loc)| {
+                named_spectrum_file(&spectrum).map(|path| (name, path, loc))
+            })
+            .collect();
+        if files.is_empty() && measured.is_empty() {
             return Ok(params.clone());
         }
         let mut out = params.clone();
@@ -279,36 +287,17 @@ impl Parser {
                 ));
             }
             let text = crate::files::read_text(&path, &loc)?;
-            let mut values = Vec::new();
-            for (i, line) in text.lines().enumerate() {
-                let line = line.split('#').next().unwrap_or("");
-                for word in line.split_whitespace() {
-                    let v: f64 = word
-                        .parse()
-                        .ok()
-                        .filter(|v: &f64| v.is_finite())
-                        .ok_or_else(|| {
-                            SceneError::at(
-                                &loc,
-                                format!(
-                                    "spectrum file '{file}', line {}: '{word}' is not a number",
-                                    i + 1
-                                ),
-                            )
-                        })?;
-                    values.push(v);
-                }
-            }
-            if values.len() < 2 || values.len() % 2 != 0 {
-                return Err(SceneError::at(
-                    &loc,
-                    format!(
-                        "spectrum file '{file}' holds {} numbers; it needs (wavelength, value) pairs",
-                        values.len()
-                    ),
-                ));
-            }
+            let values = spd_values(&text, &file, &loc)?;
             out.set_values(&name, crate::params::ParamValues::Numbers(values));
+        }
+        // A named spectrum the user measured (KILN_SPECTRUM_DATA) is read as its table.
+        for (name, path, loc) in measured {
+            let text = crate::files::read_text(&path, &loc)?;
+            let values = spd_values(&text, &path.display().to_string(), &loc)?;
+            out.set_values(
+                &name,
+                crate::params::ParamValues::Numbers(carried_to_ends(values)),
+            );
         }
         Ok(out)
     }

@@ -8,6 +8,7 @@ use crate::camera_sensor::{CameraResponse, camera_response};
 use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
 use crate::files::sensor_curves::{SENSOR_DATA_ENV, find_sensor, read_sensor_curves};
+use crate::files::training_chart::{TRAINING_CHART_FILE, read_training_chart};
 use crate::lexer::TokenKind;
 use crate::params::ParamSet;
 use glam::DMat4;
@@ -663,7 +664,8 @@ impl Parser {
 }
 
 /// The response of the camera a film's "sensor" names, read from the folder
-/// [`SENSOR_DATA_ENV`] names, white balanced for daylight at `kelvin`.
+/// [`SENSOR_DATA_ENV`] names, white balanced for daylight at `kelvin`, and fitted on the
+/// folder's [`TRAINING_CHART_FILE`] where it has one.
 fn camera_of(name: &str, kelvin: f64) -> std::result::Result<CameraResponse, String> {
     let Some(dir) = std::env::var_os(SENSOR_DATA_ENV).filter(|d| !d.is_empty()) else {
         return Err(format!(
@@ -676,7 +678,13 @@ fn camera_of(name: &str, kelvin: f64) -> std::result::Result<CameraResponse, Str
     let dir = std::path::PathBuf::from(dir);
     let path = find_sensor(&dir, name)?;
     let curves = read_sensor_curves(&path)?;
-    camera_response(name, &curves, kelvin)
+    let chart_path = dir.join(TRAINING_CHART_FILE);
+    let chart = if chart_path.is_file() {
+        Some(read_training_chart(&chart_path)?)
+    } else {
+        None
+    };
+    camera_response(name, &curves, kelvin, chart.as_ref())
 }
 
 #[cfg(test)]
