@@ -436,6 +436,51 @@ fn a_near_specular_coated_gold_is_the_same_by_light_and_by_bsdf_sampling() {
     }
 }
 
+/// A coated diffuse lit by a constant environment map is what it is under a uniform sky of
+/// the same radiance: the map is found by light sampling and the sky by BSDF sampling alone,
+/// so the two estimators must agree. Kiln's do (0.12324 and 0.12325, 32x32, 1024 spp).
+/// pbrt-v4's do not: 0.125181 with the map against 0.123146 under the sky (5f7a606, the
+/// same files), +1.65%, from its layered BSDF's weighting of light samples (docs: the
+/// killeroo-coated-gold figures). Kiln is held to pbrt-v4's sky, which pbrt-v4 computes
+/// without light sampling; the survey's coffee and sssdragon floors differ by this.
+#[test]
+fn a_coated_diffuse_under_a_constant_map_is_as_under_a_uniform_sky() {
+    const PBRT_SKY: f64 = 0.123146;
+    let dir = tempfile::tempdir().unwrap();
+    crate::util::write_pfm(&dir.path().join("grey.pfm"), 4, 4, &[[0.5; 3]; 16]);
+    let lit = |name: &str, light: &str| {
+        let text = format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\n\
+             Camera \"orthographic\" \"float screenwindow\" [ -1 1 -1 1 ]\n\
+             Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 32 ]\n\
+             Sampler \"halton\" \"integer pixelsamples\" [ 1024 ]\n\
+             PixelFilter \"box\"\n\
+             Integrator \"volpath\" \"integer maxdepth\" [ 5 ]\n\
+             WorldBegin\n\
+             {light}\n\
+             Material \"coateddiffuse\" \"float roughness\" [ 0.2 ]\n\
+             Shape \"bilinearmesh\" \"point3 P\" [ -1 -1 0  1 -1 0  -1 1 0  1 1 0 ]\n"
+        );
+        let path = write_scene(dir.path(), &format!("{name}.pbrt"), &text);
+        render(&path, dir.path(), name, &["--spectral"])
+            .image
+            .mean()
+    };
+    let sky = lit("sky", r#"LightSource "infinite" "rgb L" [ 0.5 0.5 0.5 ]"#);
+    let map = lit(
+        "map",
+        r#"LightSource "infinite" "string filename" "grey.pfm""#,
+    );
+    println!("sky {sky:?}, map {map:?}, pbrt-v4's sky {PBRT_SKY}");
+    for c in 0..3 {
+        assert!(
+            (map[c] / sky[c] - 1.0).abs() < 0.003,
+            "map {map:?}, sky {sky:?}"
+        );
+        assert!((sky[c] / PBRT_SKY - 1.0).abs() < 0.005, "sky {sky:?}");
+    }
+}
+
 /// pbrt-v4's named illuminants light a spectral path as their CIE tables: a red surface
 /// under a sky of fluorescent F11 (three narrow bands) against pbrt-v4's render of the same
 /// file (32x32, 1024 spp) within 2% per channel (measured -0.1%, +0.1%, -1.5%). Light of the
