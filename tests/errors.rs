@@ -416,27 +416,33 @@ fn camera_sensor_data_errors_name_the_line_and_the_file() {
         ("leica", "neither a camera pbrt-v4 knows"),
         ("../../etc/passwd", "not a camera name"),
     ] {
-        let dir = tempfile::tempdir().unwrap();
-        let scene = write_scene(
-            dir.path(),
-            "scene.pbrt",
-            &format!(
-                "Sampler \"halton\"\nFilm \"rgb\"\n  \"string sensor\" \"{sensor}\"\nWorldBegin\n"
-            ),
-        );
-        let out = kiln()
-            .env("KILN_SENSOR_DATA", data.path())
-            .arg("render")
-            .arg(&scene)
-            .arg("-o")
-            .arg(dir.path().join("out.exr"))
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{sensor}: {err}");
-        assert!(!err.contains("panicked"), "{err}");
-        assert_names(&err, "scene.pbrt", 3, says);
+        assert_names(&sensor_error(data.path(), sensor), "scene.pbrt", 3, says);
     }
+}
+
+/// What `kiln render` of a scene whose Film names `sensor`, with the camera data folder
+/// `data`, says on failing (it must fail with status 1, not panic).
+fn sensor_error(data: &std::path::Path, sensor: &str) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        dir.path(),
+        "scene.pbrt",
+        &format!(
+            "Sampler \"halton\"\nFilm \"rgb\"\n  \"string sensor\" \"{sensor}\"\nWorldBegin\n"
+        ),
+    );
+    let out = kiln()
+        .env("KILN_SENSOR_DATA", data)
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("out.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{sensor}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err
 }
 
 /// A training chart beside the camera data that cannot be read is an error naming the
@@ -454,25 +460,8 @@ fn a_broken_training_chart_names_the_film_the_file_and_its_line() {
         "wavelength,a,b,c\n400,0.1,0.2,0.3\n410,0.1,oops,0.3\n",
     )
     .unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let scene = write_scene(
-        dir.path(),
-        "scene.pbrt",
-        "Sampler \"halton\"\nFilm \"rgb\"\n  \"string sensor\" \"three\"\nWorldBegin\n",
-    );
-    let out = kiln()
-        .env("KILN_SENSOR_DATA", data.path())
-        .arg("render")
-        .arg(&scene)
-        .arg("-o")
-        .arg(dir.path().join("out.exr"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(!err.contains("panicked"), "{err}");
     assert_names(
-        &err,
+        &sensor_error(data.path(), "three"),
         "scene.pbrt",
         3,
         "training-chart.csv': line 3, patch 2: \"oops\"",

@@ -509,29 +509,24 @@ impl ParamSet {
     /// The `spectrum` parameters given as one string that names no built-in spectrum: files
     /// of (wavelength, value) pairs, as (parameter name, file name, location).
     pub fn spectrum_files(&self) -> Vec<(String, String, Loc)> {
-        self.params
-            .iter()
-            .filter(|p| p.ty == "spectrum")
-            .filter_map(|p| match &p.values {
-                ParamValues::Strings(v)
-                    if v.len() == 1 && spectrum::named_spectrum_rgb(&v[0]).is_none() =>
-                {
-                    Some((p.name.clone(), v[0].clone(), p.loc.clone()))
-                }
-                _ => None,
-            })
-            .collect()
+        self.spectrum_strings(false)
     }
 
     /// The `spectrum` parameters given as one of the built-in names, as (parameter name,
     /// spectrum name, location).
     pub fn named_spectra(&self) -> Vec<(String, String, Loc)> {
+        self.spectrum_strings(true)
+    }
+
+    /// The `spectrum` parameters given as one string that is (`named`) or is not one of the
+    /// built-in names.
+    fn spectrum_strings(&self, named: bool) -> Vec<(String, String, Loc)> {
         self.params
             .iter()
             .filter(|p| p.ty == "spectrum")
             .filter_map(|p| match &p.values {
                 ParamValues::Strings(v)
-                    if v.len() == 1 && spectrum::named_spectrum_rgb(&v[0]).is_some() =>
+                    if v.len() == 1 && spectrum::named_spectrum_rgb(&v[0]).is_some() == named =>
                 {
                     Some((p.name.clone(), v[0].clone(), p.loc.clone()))
                 }
