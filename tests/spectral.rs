@@ -519,14 +519,18 @@ fn a_named_illuminant_is_its_cie_table() {
 /// its table: a smooth gold-like conductor named `metal-Au-eta` / `metal-Au-k` renders the
 /// same bytes as the same tables given inline (their end values carried on to 360 and
 /// 830 nm, as pbrt-v4 carries its named spectra's), and not the bytes of Kiln's own colour
-/// of gold. A broken file there is an error naming it, its line and the scene's line.
+/// of gold; a conductor given no eta and k is copper's tables there. A broken file there is
+/// an error naming it, its line and the scene's line.
 #[test]
 fn a_measured_named_spectrum_is_read_as_its_table() {
     let data = tempfile::tempdir().unwrap();
     let eta = "400 1.6\n450 1.5\n500 0.9\n550 0.35\n600 0.22\n700 0.16\n";
     let k = "# k\n400 1.95\n450 1.88\n500 1.89\n550 2.7\n600 3.0\n700 3.96\n";
-    std::fs::write(data.path().join("metal-Au-eta.spd"), eta).unwrap();
-    std::fs::write(data.path().join("metal-Au-k.spd"), k).unwrap();
+    // Copper's files hold the same tables: a conductor given no eta and k is copper.
+    for metal in ["Au", "Cu"] {
+        std::fs::write(data.path().join(format!("metal-{metal}-eta.spd")), eta).unwrap();
+        std::fs::write(data.path().join(format!("metal-{metal}-k.spd")), k).unwrap();
+    }
     let inline = |table: &str| {
         let nums: Vec<&str> = table
             .lines()
@@ -564,6 +568,15 @@ fn a_measured_named_spectrum_is_read_as_its_table() {
     assert!(
         own.bytes != given.bytes,
         "the test cannot tell the tables from the colour"
+    );
+    let copper = scene(
+        "copper.pbrt",
+        r#"Material "conductor" "float roughness" 0"#.into(),
+    );
+    let default = render_with_env(&copper, dir.path(), "copper", &["--spectral"], &env);
+    assert!(
+        default.bytes == given.bytes,
+        "copper's measured tables were not the default"
     );
 
     std::fs::write(data.path().join("metal-Au-k.spd"), "400 1.9\n500 x\n").unwrap();

@@ -208,7 +208,8 @@ impl Parser {
         name: Option<String>,
         loc: &Loc,
     ) -> Result<MaterialId> {
-        let params = &self.with_spectrum_files(params)?;
+        let copper = measured_copper(ty, params, loc)?;
+        let params = &self.with_spectrum_files(copper.as_ref().unwrap_or(params))?;
         let kind = self.material_kind(ty, params, loc)?;
         params.mark_used("type");
         let normal = self.normal_perturbation(params, loc)?;
@@ -464,6 +465,35 @@ impl Parser {
         params.mark_used("displacement");
         Ok(normal)
     }
+}
+
+/// pbrt-v4's conductors are copper unless told otherwise. Where the user has copper's
+/// measured tables (`KILN_SPECTRUM_DATA`), a conductor given no eta or k names them, as if
+/// the scene had: `params` with those parameters added, or None when nothing is added.
+fn measured_copper(ty: &str, params: &ParamSet, loc: &Loc) -> Result<Option<ParamSet>> {
+    use crate::files::spectrum_data::named_spectrum_file;
+    use crate::params::{Param, ParamValues};
+    let (eta, k) = match ty {
+        "conductor" => ("eta", "k"),
+        "coatedconductor" => ("conductor.eta", "conductor.k"),
+        _ => return Ok(None),
+    };
+    if params.loc_of("reflectance").is_some() {
+        return Ok(None);
+    }
+    let mut out: Option<ParamSet> = None;
+    for (param, spectrum) in [(eta, "metal-Cu-eta"), (k, "metal-Cu-k")] {
+        if params.loc_of(param).is_none() && named_spectrum_file(spectrum).is_some() {
+            let values = ParamValues::Strings(vec![spectrum.to_string()]);
+            out.get_or_insert_with(|| params.clone()).push(Param::new(
+                "spectrum",
+                param,
+                values,
+                loc.clone(),
+            ))?;
+        }
+    }
+    Ok(out)
 }
 
 fn named(name: &str) -> Rgb {
