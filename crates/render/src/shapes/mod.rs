@@ -72,6 +72,27 @@ impl SurfaceInfo {
     };
 }
 
+#[cfg(test)]
+impl Primitives {
+    /// One plain mesh (no normals, no uvs) of `triangles` over `positions`: the shapes'
+    /// tests' geometry; other primitives may be added with struct update syntax.
+    pub(crate) fn plain_mesh(positions: Vec<Vec3A>, triangles: Vec<[u32; 3]>) -> Primitives {
+        Primitives {
+            positions,
+            meshes: vec![MeshInfo {
+                surface: SurfaceInfo::PLAIN,
+                first_triangle: 0,
+                has_normals: false,
+                has_uvs: false,
+                flip: false,
+            }],
+            triangle_mesh: vec![0; triangles.len()],
+            triangle_vertices: triangles,
+            ..Primitives::default()
+        }
+    }
+}
+
 /// Which kind of primitive a hit is on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum HitKind {
@@ -454,27 +475,15 @@ mod tests {
             Vec3A::new(1.0, 1.0, 0.0),
             Vec3A::new(-1.0, 1.0, 0.0),
         ];
-        let surface = SurfaceInfo::PLAIN;
-        let meshes = vec![MeshInfo {
-            surface,
-            first_triangle: 0,
-            has_normals: false,
-            has_uvs: false,
-            flip: false,
-        }];
         Geometry::new(Primitives {
-            positions,
-            meshes,
-            triangle_vertices: vec![[0, 1, 2], [0, 2, 3]],
-            triangle_mesh: vec![0, 0],
             spheres: vec![Sphere {
                 center: Vec3A::new(0.0, 0.0, 5.0),
                 radius: 1.0,
                 rotation: sphere::Rotation::IDENTITY,
-                surface,
+                surface: SurfaceInfo::PLAIN,
                 flip: false,
             }],
-            ..Primitives::default()
+            ..Primitives::plain_mesh(positions, vec![[0, 1, 2], [0, 2, 3]])
         })
     }
 

@@ -211,25 +211,11 @@ pub fn triangle_pdf(area: f32, p: Vec3A, wi: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Primitives, SurfaceInfo};
+    use super::super::Primitives;
     use super::*;
 
     fn mesh(positions: Vec<Vec3A>, triangles: Vec<[u32; 3]>) -> Geometry {
-        let surface = SurfaceInfo::PLAIN;
-        let meshes = vec![MeshInfo {
-            surface,
-            first_triangle: 0,
-            has_normals: false,
-            has_uvs: false,
-            flip: false,
-        }];
-        Geometry::new(Primitives {
-            positions,
-            meshes,
-            triangle_mesh: vec![0; triangles.len()],
-            triangle_vertices: triangles,
-            ..Primitives::default()
-        })
+        Geometry::new(Primitives::plain_mesh(positions, triangles))
     }
 
     fn rng(state: &mut u64) -> f32 {

@@ -21,6 +21,21 @@ pub mod voxel_csv;
 /// A few kilobytes of gzip can claim gigabytes; the limit stops reading there.
 pub const MAX_DECOMPRESSED_BYTES: u64 = 1 << 30;
 
+/// Reads a whole data file of at most `max` bytes (`what` names its kind in the error, "a
+/// camera response file"); errors name the file.
+pub fn read_small(path: &Path, max: u64, what: &str) -> std::result::Result<Vec<u8>, String> {
+    let size = std::fs::metadata(path)
+        .map_err(|e| format!("cannot read '{}': {e}", path.display()))?
+        .len();
+    if size > max {
+        return Err(format!(
+            "'{}' is {size} bytes; {what} is at most {max}",
+            path.display()
+        ));
+    }
+    std::fs::read(path).map_err(|e| format!("cannot read '{}': {e}", path.display()))
+}
+
 /// Reads a whole file, decompressed if its name ends in `.gz` (as pbrt-v4 reads meshes and
 /// includes); an error names the directive's location and the file.
 pub fn read_bytes(path: &Path, loc: &Loc) -> Result<Vec<u8>> {

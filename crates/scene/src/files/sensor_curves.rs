@@ -119,16 +119,7 @@ fn starts_with_range(rest: &str) -> bool {
 
 /// Reads a camera response file; errors say what is wrong with it.
 pub fn read_sensor_curves(path: &Path) -> Result<SensorCurves, String> {
-    let size = std::fs::metadata(path)
-        .map_err(|e| format!("cannot read '{}': {e}", path.display()))?
-        .len();
-    if size > MAX_FILE_BYTES {
-        return Err(format!(
-            "'{}' is {size} bytes; a camera response file is at most {MAX_FILE_BYTES}",
-            path.display()
-        ));
-    }
-    let text = std::fs::read(path).map_err(|e| format!("cannot read '{}': {e}", path.display()))?;
+    let text = super::read_small(path, MAX_FILE_BYTES, "a camera response file")?;
     let samples = parse_sensor_curves(&text).map_err(|e| format!("'{}': {e}", path.display()))?;
     Ok(SensorCurves {
         samples,

@@ -49,16 +49,7 @@ impl TrainingChart {
 
 /// Reads the chart at `path`; errors name the file and the line.
 pub fn read_training_chart(path: &Path) -> Result<TrainingChart, String> {
-    let size = std::fs::metadata(path)
-        .map_err(|e| format!("cannot read '{}': {e}", path.display()))?
-        .len();
-    if size > MAX_FILE_BYTES {
-        return Err(format!(
-            "'{}' is {size} bytes; a training chart is at most {MAX_FILE_BYTES}",
-            path.display()
-        ));
-    }
-    let text = std::fs::read(path).map_err(|e| format!("cannot read '{}': {e}", path.display()))?;
+    let text = super::read_small(path, MAX_FILE_BYTES, "a training chart")?;
     let (lambdas, patches) =
         parse_training_chart(&text).map_err(|e| format!("'{}': {e}", path.display()))?;
     Ok(TrainingChart {
