@@ -23,6 +23,11 @@ pub const TRAINING_CHART_FILE: &str = "training-chart.csv";
 /// The largest chart read: a chart of a thousand patches at 1 nm is some 3 MB.
 const MAX_FILE_BYTES: u64 = 16 << 20;
 
+/// The most patches a chart may have: each is evaluated on the fit's 471 wavelengths, so
+/// that a one-line file of millions of values cannot ask for gigabytes (real charts have 24
+/// to a few hundred).
+pub const MAX_PATCHES: usize = 4096;
+
 /// Patches' reflectances sampled at increasing wavelengths.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainingChart {
@@ -94,9 +99,9 @@ pub fn parse_training_chart(text: &[u8]) -> Result<(Vec<f64>, Vec<Vec<f64>>), St
         }
         let values = &fields[1..];
         if patches.is_empty() {
-            if values.len() < 3 {
+            if values.len() < 3 || values.len() > MAX_PATCHES {
                 return Err(format!(
-                    "line {line_no}: {} reflectances; a chart needs at least 3 patches",
+                    "line {line_no}: {} reflectances; a chart has 3 to {MAX_PATCHES} patches",
                     values.len()
                 ));
             }
@@ -157,8 +162,10 @@ mod tests {
 
     #[test]
     fn bad_charts_say_where() {
+        let too_many = format!("400{}\n500,1", ",0".repeat(MAX_PATCHES + 1));
         let cases = [
             ("400,1,1\n500,1,1", "line 1: 2 reflectances"),
+            (too_many.as_str(), "line 1: 4097 reflectances"),
             ("w,a,b,c\n400,1,1,1\n390,1,1,1", "line 3: wavelength 390"),
             ("400,1,1,1\n500,1,1", "line 2: 2 reflectances where"),
             ("400,1,1,1\n500,1,x,1", "line 2, patch 2: \"x\""),
