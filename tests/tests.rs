@@ -24,3 +24,4 @@ mod spectral;
 mod subsurface;
 mod textures;
 mod volume_light;
+mod wavefront;

@@ -80,9 +80,11 @@ impl Vertex<'_> {
     }
 }
 
-/// One light sample for next-event estimation from `v`; `f` is the scattering function
-/// (times the cosine at surfaces) and `pdf` the density of sampling `wi` by it.
-pub(super) fn sample_direct(
+/// One light sample for next-event estimation from `v`, up to its shadow ray: `f` is the
+/// scattering function (times the cosine at surfaces) and `pdf` the density of sampling
+/// `wi` by it. Light sampling and the shadow ray are two stages, so that a wave of paths
+/// traces its shadow rays together ([`Shadow::trace`], [`Shadow::finish`]).
+pub(super) fn light_sample(
     scene: &Scene,
     settings: &PathSettings,
     v: &Vertex,
@@ -90,35 +92,35 @@ pub(super) fn sample_direct(
     pdf: impl Fn(Vec3A) -> f32,
     sampler: &mut PixelSampler,
     work: &mut Work,
-) -> Color {
+) -> Direct {
     let u_light = sampler.get_1d();
     let u = sampler.get_2d();
     let Some((index, pmf)) = scene.light_sampler.sample(v.p, v.normal(), u_light) else {
-        return Color::ZERO;
+        return Direct::Done(Color::ZERO);
     };
     if v.last && matches!(scene.lights[index], crate::lights::Light::Medium(_)) {
-        return Color::ZERO;
+        return Direct::Done(Color::ZERO);
     }
     // pbrt-v4 leaves a uniform light at infinity to BSDF sampling: picked, it gives nothing.
     if settings.pbrt_estimator && scene.lights[index].found_by_bsdf_alone() {
-        return Color::ZERO;
+        return Direct::Done(Color::ZERO);
     }
     let (sample, traced) = scene.lights[index].sample(&scene.light_context_at(v.waves), v.p, u);
     work.rays += traced;
     let Some(ls) = sample else {
-        return Color::ZERO;
+        return Direct::Done(Color::ZERO);
     };
     if ls.pdf <= 0.0 || ls.radiance == Color::ZERO {
-        return Color::ZERO;
+        return Direct::Done(Color::ZERO);
     }
     let f = f(ls.wi);
     if f == Color::ZERO {
-        return Color::ZERO;
+        return Direct::Done(Color::ZERO);
     }
     let origin = v.surface.map_or(v.p, |h| h.origin_towards(ls.wi));
     let medium = v.medium_towards(ls.wi);
-    let mut rng = TrackingRng::from_values(&[u_light, u.x, u.y], 2);
-    let tr = if ls.distance.is_finite() {
+    let rng = TrackingRng::from_values(&[u_light, u.x, u.y], 2);
+    let (ray, tmax) = if ls.distance.is_finite() {
         // Aim at the light's point moved off its surface towards us, and stop short of it:
         // following ls.wi for the full distance would graze the light's own surface.
         let target = if ls.n == Vec3A::ZERO {
@@ -128,45 +130,101 @@ pub(super) fn sample_direct(
             offset_origin(q, ls.n, surface_epsilon(q), -ls.wi)
         };
         let d = target - origin;
-        let len = d.length();
-        if len > 0.0 {
-            scene.transmittance(
-                Ray::at_time(origin, d / len, v.time),
-                len * (1.0 - 1e-4),
-                medium,
-                &mut rng,
-                work,
-                v.waves,
-            )
-        } else {
-            (Color::ZERO, medium)
-        }
+        // (Not `len <= 0.0`: a NaN length traces nothing either.)
+        let Some(len) = Some(d.length()).filter(|&len| len > 0.0) else {
+            return Direct::Done(Color::ZERO);
+        };
+        (Ray::at_time(origin, d / len, v.time), len * (1.0 - 1e-4))
     } else {
-        scene.transmittance(
-            Ray::at_time(origin, ls.wi, v.time),
-            f32::INFINITY,
-            medium,
-            &mut rng,
-            work,
-            v.waves,
-        )
+        (Ray::at_time(origin, ls.wi, v.time), f32::INFINITY)
     };
-    let (tr, end_medium) = tr;
-    if tr == Color::ZERO {
-        return Color::ZERO;
-    }
-    // A point sampled in a medium emits only if the shadow ray arrives in that medium.
-    if ls.medium.is_some() && end_medium != ls.medium {
-        return Color::ZERO;
-    }
     let light_pdf = pmf * ls.pdf;
-    let radiance = scene.light_radiance(index as u32, ls.radiance, v.waves);
-    if ls.delta {
-        return f * tr * radiance / light_pdf;
-    }
     let w = match settings.strategy {
-        LightStrategy::Mis => power_heuristic(light_pdf, pdf(ls.wi) * ls.scatter_rate),
+        LightStrategy::Mis if !ls.delta => power_heuristic(light_pdf, pdf(ls.wi) * ls.scatter_rate),
         _ => 1.0,
     };
-    f * tr * radiance * (w / light_pdf)
+    Direct::Shadow(Shadow {
+        ray,
+        tmax,
+        medium,
+        rng,
+        light_medium: ls.medium,
+        f,
+        radiance: scene.light_radiance(index as u32, ls.radiance, v.waves),
+        light_pdf,
+        delta: ls.delta,
+        w,
+    })
+}
+
+/// [`light_sample`] with its shadow ray traced at once: the sample's contribution.
+pub(super) fn sample_direct(
+    scene: &Scene,
+    settings: &PathSettings,
+    v: &Vertex,
+    f: impl Fn(Vec3A) -> Color,
+    pdf: impl Fn(Vec3A) -> f32,
+    sampler: &mut PixelSampler,
+    work: &mut Work,
+) -> Color {
+    match light_sample(scene, settings, v, f, pdf, sampler, work) {
+        Direct::Done(c) => c,
+        Direct::Shadow(mut s) => {
+            let (tr, end) = s.trace(scene, work, v.waves);
+            s.finish(tr, end)
+        }
+    }
+}
+
+/// What a light sample gives: its contribution, or a shadow ray to trace first.
+pub(super) enum Direct {
+    Done(Color),
+    Shadow(Shadow),
+}
+
+/// A light sample waiting on its shadow ray: the ray, and what its contribution is made of
+/// once the ray's transmittance is known.
+pub(super) struct Shadow {
+    ray: Ray,
+    tmax: f32,
+    /// The medium the ray starts in.
+    medium: Option<u32>,
+    /// Ratio tracking's numbers through grid media on the way.
+    rng: TrackingRng,
+    /// The medium the light's point lies in (None on a surface).
+    light_medium: Option<u32>,
+    f: Color,
+    radiance: Color,
+    light_pdf: f32,
+    delta: bool,
+    /// The MIS weight against BSDF or phase sampling.
+    w: f32,
+}
+
+impl Shadow {
+    /// Traces the shadow ray: its transmittance, and the medium it ends in.
+    pub fn trace(
+        &mut self,
+        scene: &Scene,
+        work: &mut Work,
+        waves: Option<&Wavelengths>,
+    ) -> (Color, Option<u32>) {
+        scene.transmittance(self.ray, self.tmax, self.medium, &mut self.rng, work, waves)
+    }
+
+    /// The light sample's contribution through transmittance `tr` of a shadow ray that
+    /// ended in `end_medium`.
+    pub fn finish(&self, tr: Color, end_medium: Option<u32>) -> Color {
+        if tr == Color::ZERO {
+            return Color::ZERO;
+        }
+        // A point sampled in a medium emits only if the shadow ray arrives in that medium.
+        if self.light_medium.is_some() && end_medium != self.light_medium {
+            return Color::ZERO;
+        }
+        if self.delta {
+            return self.f * tr * self.radiance / self.light_pdf;
+        }
+        self.f * tr * self.radiance * (self.w / self.light_pdf)
+    }
 }

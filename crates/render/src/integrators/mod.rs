@@ -2,9 +2,10 @@
 //!
 //! [`Integrator`] is built from the scene description's Integrator directive. Before any
 //! tile renders, [`Integrator::prepare`] runs the job's pre-passes once (the photon maps,
-//! [`photons`]) into a [`Prepass`]; every camera ray then goes through
-//! [`Integrator::li`]. The path tracers' steps live in [`path`], next-event estimation and
-//! its weights in [`direct`].
+//! [`photons`]) into a [`Prepass`]; every camera ray then goes through the
+//! [`PathTracer`] of [`Integrator::path_tracer`], whose paths advance in stages so that
+//! `crate::tile` runs each stage over a wave of them. The path tracers' steps live in
+//! [`path`], next-event estimation and its weights in [`direct`].
 //!
 //! Integrators read the scene and never change it; the scene knows nothing of them.
 
@@ -13,13 +14,12 @@ mod path;
 pub mod photons;
 pub mod sppm;
 
+pub use path::{Path, PathTracer};
 pub use photons::{Gather, PhotonMaps, PhotonSettings, Roulette};
 pub use sppm::SppmSettings;
 
-use crate::math::{Color, Ray};
-use crate::sampling::PixelSampler;
+use crate::math::Ray;
 use crate::scene::Scene;
-use crate::work::Work;
 use kiln_scene::{IntegratorDesc, LightStrategy, PhotonDesc};
 
 /// Where each bounce's sample dimensions start: 4 for the film and lens, then 8 per bounce.
@@ -94,7 +94,7 @@ pub enum Integrator {
     VolPath(PathSettings),
     /// pbrt-v4's "sppm": stochastic progressive photon mapping, iterations from the samples
     /// per pixel; surfaces only, as pbrt-v4's. Rendered by [`crate::tile`]'s SPPM driver,
-    /// not through [`Integrator::li`].
+    /// not through [`Integrator::path_tracer`].
     Sppm(SppmSettings),
 }
 
@@ -213,36 +213,25 @@ impl Integrator {
         })
     }
 
-    /// Radiance arriving along `ray`; `work` counts what it cost. Textures filter over the
-    /// camera's pixel footprint times `footprint`. With `visible`, the first surface the
-    /// ray reached (for a G-buffer) is written there.
-    #[allow(clippy::too_many_arguments)]
-    pub fn li(
-        &self,
-        prepass: &Prepass,
-        scene: &Scene,
+    /// The path tracer every camera ray of a render goes through, textures filtered over
+    /// the camera's pixel footprint times `footprint`; None for SPPM, whose pixels come from
+    /// its own driver ([`crate::tile`]).
+    pub fn path_tracer<'a>(
+        &'a self,
+        prepass: &'a Prepass,
+        scene: &'a Scene,
         footprint: f32,
-        ray: Ray,
-        sampler: &mut PixelSampler,
-        work: &mut Work,
-        visible: Option<&mut Option<crate::gbuffer::VisibleSurface>>,
-        waves: Option<crate::spectral::Wavelengths>,
-    ) -> Color {
+    ) -> Option<PathTracer<'a>> {
         match self {
             // The path tracer is the volumetric one; without media in the scene its medium
             // steps never run.
-            Integrator::Path(settings) | Integrator::VolPath(settings) => {
-                let ctx = path::PathContext {
-                    scene,
-                    settings,
-                    prepass,
-                    footprint,
-                    waves,
-                };
-                path::path_li(&ctx, ray, sampler, work, visible)
-            }
-            // SPPM's pixels come from its own driver; a single camera ray has no estimate.
-            Integrator::Sppm(_) => Color::ZERO,
+            Integrator::Path(settings) | Integrator::VolPath(settings) => Some(PathTracer {
+                scene,
+                settings,
+                prepass,
+                footprint,
+            }),
+            Integrator::Sppm(_) => None,
         }
     }
 }

@@ -67,7 +67,8 @@ impl TexturedInterior {
 /// maxdepth. `Scene::enter_walk` keeps both up to date at every crossing.
 #[derive(Debug, Clone, Default)]
 pub struct Walk {
-    entered: Option<(u32, Medium)>,
+    /// Boxed: a path carries its walk through every stage of a wave, and a medium is large.
+    entered: Option<Box<(u32, Medium)>>,
     events: u32,
 }
 
@@ -76,7 +77,7 @@ impl Walk {
     /// `m`, else the scene's.
     #[inline]
     pub fn medium<'a>(&'a self, media: &'a [Medium], m: u32) -> &'a Medium {
-        match &self.entered {
+        match self.entered.as_deref() {
             Some((w, medium)) if *w == m => medium,
             _ => &media[m as usize],
         }
@@ -85,7 +86,7 @@ impl Walk {
     /// The walk entered medium `m`, whose coefficients are `medium` there (None: the
     /// scene's own).
     pub fn set(&mut self, m: u32, medium: Option<Medium>) {
-        self.entered = medium.map(|medium| (m, medium));
+        self.entered = medium.map(|medium| Box::new((m, medium)));
     }
 
     /// The path left every subsurface interior: a later walk starts its count afresh.

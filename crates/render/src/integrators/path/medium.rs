@@ -2,7 +2,7 @@
 //! it reaches, the medium's emission on the way, and a scattering event if one happens
 //! (the photons' gather, a light sample, the phase function's next direction).
 
-use super::super::direct::{Vertex, sample_direct};
+use super::super::direct::{Vertex, light_sample};
 use super::super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use super::{Next, PathContext, PathState};
 use crate::math::{Color, Ray};
@@ -136,16 +136,16 @@ fn scatter(
             last: state.depth == settings.max_depth,
             waves: ctx.waves.as_ref(),
         };
-        state.l += state.beta
-            * sample_direct(
-                scene,
-                settings,
-                &v,
-                |wi| Color::splat(phase.p(wo, wi)),
-                |wi| phase.p(wo, wi),
-                sampler,
-                work,
-            );
+        let direct = light_sample(
+            scene,
+            settings,
+            &v,
+            |wi| Color::splat(phase.p(wo, wi)),
+            |wi| phase.p(wo, wi),
+            sampler,
+            work,
+        );
+        state.add_direct(direct);
     }
     sampler.set_dimension(base + 4);
     let (wi, pdf) = phase.sample(wo, sampler.get_2d());

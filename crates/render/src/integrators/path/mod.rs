@@ -15,7 +15,7 @@ mod interior;
 mod medium;
 mod surface;
 
-use super::direct::{emission_weight, survives_roulette};
+use super::direct::{Direct, Shadow, emission_weight, survives_roulette};
 use super::{PathSettings, Prepass};
 use crate::gbuffer::VisibleSurface;
 use crate::math::{Color, Ray};
@@ -76,6 +76,9 @@ struct PathState {
     /// For a G-buffer: whether to note the first surface with a BSDF, and what it was.
     want_visible: bool,
     visible: Option<VisibleSurface>,
+    /// The light sample of the last vertex waiting on its shadow ray, with the throughput
+    /// it is seen through there.
+    shadow: Option<(Color, Shadow)>,
 }
 
 /// What the previous scattering vertex knew, for weighting emission found by BSDF or phase
@@ -198,6 +201,16 @@ impl PathState {
         }
     }
 
+    /// A vertex's light sample: added now, or once its shadow ray is traced. Nothing else
+    /// adds to `l` between a light sample and the next segment, which waits for the shadow
+    /// ray: the sums are in the same order either way.
+    fn add_direct(&mut self, direct: Direct) {
+        match direct {
+            Direct::Done(c) => self.l += self.beta * c,
+            Direct::Shadow(s) => self.shadow = Some((self.beta, s)),
+        }
+    }
+
     /// Russian roulette after a scattering event: the path goes on, or stops.
     fn roulette(&mut self, settings: &PathSettings, sampler: &mut PixelSampler) -> Next {
         if survives_roulette(
@@ -224,60 +237,166 @@ enum Next {
     Stop,
 }
 
-/// Radiance arriving along `ray`; `work` counts what it cost.
-pub(super) fn path_li(
-    ctx: &PathContext,
-    mut ray: Ray,
-    sampler: &mut PixelSampler,
-    work: &mut Work,
-    visible: Option<&mut Option<VisibleSurface>>,
-) -> Color {
-    let mut state = PathState {
-        l: Color::ZERO,
-        beta: Color::ONE,
-        eta_scale: 1.0,
-        depth: 0,
-        vertices: 0,
-        prev: PrevVertex::camera(ray.origin),
-        travel: Travel {
-            medium: ctx.scene.camera_medium,
-            lane_pdfs: crate::media::LANE_PDFS,
-            segments: 0,
-            nesting: Nesting::default(),
-            walk: Walk::default(),
-            pass_throughs: 0,
-        },
-        interior: Interior::default(),
-        gather: Gather::default(),
-        hero_only: false,
-        want_visible: visible.is_some(),
-        visible: None,
-    };
-    loop {
+/// The path tracer of one render: what every path's steps read.
+pub struct PathTracer<'a> {
+    pub scene: &'a Scene,
+    pub settings: &'a PathSettings,
+    pub prepass: &'a Prepass,
+    /// The scale of the camera's pixel footprint for texture filtering.
+    pub footprint: f32,
+}
+
+/// One path between its segments: what it carries, the ray of its next segment, its
+/// sampler and what it cost so far. A path is advanced in stages (the closest hit of
+/// [`Path::ray`], [`PathTracer::advance`], then [`PathTracer::shadow`]), so that a wave of
+/// paths can run each stage over all of them; one path after another gives the same bytes,
+/// since every number a path uses is its own.
+pub struct Path {
+    state: PathState,
+    ray: Ray,
+    sampler: PixelSampler,
+    work: Work,
+    waves: Option<Wavelengths>,
+}
+
+impl Path {
+    /// The ray of the path's next segment, whose closest hit [`PathTracer::advance`] takes.
+    pub fn ray(&self) -> &Ray {
+        &self.ray
+    }
+
+    /// Whether a light sample waits on its shadow ray ([`PathTracer::shadow`]).
+    pub fn waits_on_shadow(&self) -> bool {
+        self.state.shadow.is_some()
+    }
+
+    /// The radiance gathered, what it cost, and (if asked for) the first surface it saw.
+    pub fn outcome(&self) -> (Color, Work, Option<VisibleSurface>) {
+        debug_assert!(self.state.shadow.is_none(), "a shadow ray is still waiting");
+        (self.state.l, self.work, self.state.visible)
+    }
+}
+
+impl PathTracer<'_> {
+    fn context(&self, waves: Option<Wavelengths>) -> PathContext<'_> {
+        PathContext {
+            scene: self.scene,
+            settings: self.settings,
+            prepass: self.prepass,
+            footprint: self.footprint,
+            waves,
+        }
+    }
+
+    /// A path from the camera along `ray`, at `waves` in spectral mode; with
+    /// `want_visible`, it notes the first surface it sees for a G-buffer.
+    pub fn start(
+        &self,
+        ray: Ray,
+        sampler: PixelSampler,
+        waves: Option<Wavelengths>,
+        want_visible: bool,
+    ) -> Path {
+        let state = PathState {
+            l: Color::ZERO,
+            beta: Color::ONE,
+            eta_scale: 1.0,
+            depth: 0,
+            vertices: 0,
+            prev: PrevVertex::camera(ray.origin),
+            travel: Travel {
+                medium: self.scene.camera_medium,
+                lane_pdfs: crate::media::LANE_PDFS,
+                segments: 0,
+                nesting: Nesting::default(),
+                walk: Walk::default(),
+                pass_throughs: 0,
+            },
+            interior: Interior::default(),
+            gather: Gather::default(),
+            hero_only: false,
+            want_visible,
+            visible: None,
+            shadow: None,
+        };
+        Path {
+            state,
+            ray,
+            sampler,
+            work: Work::default(),
+            waves,
+        }
+    }
+
+    /// The path's segment up to `found`, the closest hit of its ray (counted here): through
+    /// its medium, to the surface or off to the lights at infinity, and the next vertex's
+    /// scattering. True while the path goes on (after [`PathTracer::shadow`] if it waits
+    /// on a shadow ray, as it may also when it ends).
+    pub fn advance(&self, path: &mut Path, found: Option<&SurfaceHit>) -> bool {
+        let ctx = self.context(path.waves);
+        let Path {
+            state,
+            ray,
+            sampler,
+            work,
+            ..
+        } = path;
         work.rays += 1;
-        let found = ctx.scene.geometry.intersect(&ray, f32::INFINITY);
         if state.travel.medium.is_some() {
-            match medium::medium_step(ctx, &mut state, &mut ray, found.as_ref(), sampler, work) {
-                Next::Continue => continue,
-                Next::Stop => break,
+            match medium::medium_step(&ctx, state, ray, found, sampler, work) {
+                Next::Continue => return true,
+                Next::Stop => return false,
                 Next::Surface => {}
             }
         }
-        state.interior_segment(ctx.scene, &ray, found.as_ref(), ctx.waves.as_ref());
+        state.interior_segment(ctx.scene, ray, found, ctx.waves.as_ref());
         let Some(hit) = found else {
-            escape(ctx, &mut state, &ray);
-            break;
+            escape(&ctx, state, ray);
+            return false;
         };
-        surface_emission(ctx, &mut state, &ray, &hit, work);
-        match surface::surface_step(ctx, &mut state, &mut ray, &hit, sampler, work) {
-            Next::Continue | Next::Surface => {}
-            Next::Stop => break,
+        surface_emission(&ctx, state, ray, hit, work);
+        match surface::surface_step(&ctx, state, ray, hit, sampler, work) {
+            Next::Continue | Next::Surface => true,
+            Next::Stop => false,
         }
     }
-    if let Some(out) = visible {
-        *out = state.visible;
+
+    /// Traces the shadow ray the path's light sample waits on, and adds the sample.
+    pub fn shadow(&self, path: &mut Path) {
+        if let Some((beta, mut shadow)) = path.state.shadow.take() {
+            let (tr, end) = shadow.trace(self.scene, &mut path.work, path.waves.as_ref());
+            path.state.l += beta * shadow.finish(tr, end);
+        }
     }
-    state.l
+
+    /// Radiance arriving along `ray`, one path traced on its own to its end; `work` counts
+    /// what it cost. With `visible`, the first surface it saw is written there.
+    pub fn li(
+        &self,
+        ray: Ray,
+        sampler: &mut PixelSampler,
+        work: &mut Work,
+        visible: Option<&mut Option<VisibleSurface>>,
+        waves: Option<Wavelengths>,
+    ) -> Color {
+        let mut path = self.start(ray, sampler.clone(), waves, visible.is_some());
+        loop {
+            let found = self.scene.geometry.intersect(path.ray(), f32::INFINITY);
+            let goes_on = self.advance(&mut path, found.as_ref());
+            self.shadow(&mut path);
+            if !goes_on {
+                break;
+            }
+        }
+        *sampler = path.sampler.clone();
+        let (l, cost, seen) = path.outcome();
+        work.rays += cost.rays;
+        work.cut_walks += cost.cut_walks;
+        if let Some(out) = visible {
+            *out = seen;
+        }
+        l
+    }
 }
 
 /// A ray that left the scene: the lights at infinity.

@@ -2,7 +2,7 @@
 //! vertex (the caustic photons' gather, a light sample, the next direction by BSDF
 //! sampling), with the first one noted for a G-buffer.
 
-use super::super::direct::{Vertex, sample_direct};
+use super::super::direct::{Vertex, light_sample};
 use super::super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use super::{Next, PathContext, PathState};
 use crate::bsdfs::Bsdf;
@@ -107,7 +107,8 @@ fn scatter(
         };
         let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
         let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
-        state.l += state.beta * sample_direct(scene, settings, &v, f, pdf, sampler, work);
+        let direct = light_sample(scene, settings, &v, f, pdf, sampler, work);
+        state.add_direct(direct);
     }
     sampler.set_dimension(base + 3);
     let uc = sampler.get_1d();

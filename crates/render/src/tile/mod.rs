@@ -2,21 +2,22 @@
 //! that `kiln render` and the farm's workers both call, and the [`Renderer`] it renders
 //! with: a scene, its settings, and the integrator's pre-passes, done once per job.
 
+mod sample;
+mod wave;
+
 use crate::adaptive::Adaptive;
-use crate::gbuffer::{GBufferLayout, VisibleSurface};
+use crate::gbuffer::GBufferLayout;
 use crate::integrators::photons::Gather;
 use crate::integrators::sppm::PassCache;
-use crate::integrators::{Integrator, Prepass};
+use crate::integrators::{Integrator, PathTracer, Prepass};
 use crate::math::Color;
 use crate::rect::TileRect;
-use crate::sampling::PixelSampler;
 use crate::scene::{BuildError, MediaPolicy, Scene};
 use crate::shared::SharedPrepass;
-use crate::spectral::Wavelengths;
 use crate::sums::{PixelSums, SumsLayout, TileSums};
 use crate::work::Work;
-use glam::Vec2;
 use rayon::prelude::*;
+use sample::{CameraSample, camera_sample};
 use std::sync::Arc;
 
 /// Everything besides the scene that decides the pixels.
@@ -178,6 +179,14 @@ impl Renderer {
     pub fn prepass(&self) -> &Prepass {
         &self.prepass
     }
+
+    /// The path tracer of this render's camera rays (not SPPM's, which has its own driver).
+    fn path_tracer(&self) -> PathTracer<'_> {
+        self.settings
+            .integrator
+            .path_tracer(&self.prepass, &self.scene, self.settings.footprint())
+            .expect("SPPM renders through its own driver")
+    }
 }
 
 /// One camera sample: its pixel and its index (what `kiln render` prints so it can be
@@ -322,6 +331,17 @@ fn continue_tile(
     to: u32,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<(TileResult, TileSums)> {
+    continue_tile_in_waves(renderer, from, to, wave::WAVE, stop)
+}
+
+/// [`continue_tile`] with at most `wave` paths at a time in each row.
+fn continue_tile_in_waves(
+    renderer: &Renderer,
+    from: &TileSums,
+    to: u32,
+    wave: usize,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<(TileResult, TileSums)> {
     let rect = from.rect;
     let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
     let channels = layout.as_ref().map_or(0, |l| l.channels());
@@ -335,13 +355,13 @@ fn continue_tile(
             let mut stats = TileStats::default();
             let mut aovs = vec![0.0f32; channels * width];
             let mut sums = from.pixels[row * width..(row + 1) * width].to_vec();
+            let samples = from.samples..to;
+            let at = (rect.x0, y);
+            wave::add_row_samples(
+                renderer, at, &mut sums, samples, want, &mut stats, wave, stop,
+            )?;
             let mut pixels = Vec::with_capacity(width);
-            for (i, p) in sums.iter_mut().enumerate() {
-                if stop() {
-                    return None;
-                }
-                let x = rect.x0 + i as u32;
-                add_samples(renderer, x, y, from.samples..to, want, &mut stats, p);
+            for (i, p) in sums.iter().enumerate() {
                 if let Some(l) = &layout {
                     p.gbuffer
                         .finish(l, &mut aovs[i * channels..(i + 1) * channels]);
@@ -374,6 +394,54 @@ fn continue_tile(
         pixels: sums,
     };
     Some((result, sums))
+}
+
+/// The paths' reference: [`render_tile`] with every sample traced on its own, one path from
+/// the camera to its end after another, or with at most `wave` paths at a time in each row
+/// (production renders [`WAVE`](wave::WAVE) at a time). The same bytes every way, which the
+/// tests hold it to; not for production use.
+#[doc(hidden)]
+pub fn render_tile_reference(
+    renderer: &Renderer,
+    rect: TileRect,
+    wave: Option<usize>,
+) -> TileResult {
+    let from = TileSums::empty(rect, renderer.settings.sums_layout());
+    let to = renderer.settings.samples_per_pixel;
+    if let Some(wave) = wave {
+        return continue_tile_in_waves(renderer, &from, to, wave, &|| false)
+            .expect("never stopped")
+            .0;
+    }
+    let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
+    let channels = layout.as_ref().map_or(0, |l| l.channels());
+    let want = layout.as_ref().map(|l| l.space);
+    let adaptive = renderer.settings.adaptive;
+    let mut result = TileResult {
+        rect,
+        pixels: Vec::new(),
+        aovs: vec![0.0; rect.pixel_count() as usize * channels],
+        stats: TileStats::default(),
+    };
+    for (i, mut p) in from.pixels.into_iter().enumerate() {
+        let (x, y) = (
+            rect.x0 + i as u32 % rect.width,
+            rect.y0 + i as u32 / rect.width,
+        );
+        for s in 0..to {
+            if p.taken < s || adaptive.is_some_and(|a| a.converged(&p)) {
+                break;
+            }
+            let sample = sample::render_sample_seeing(renderer, x, y, s, &mut result.stats, want);
+            sample::accumulate(&mut p, s, sample, adaptive, want.is_some());
+        }
+        if let Some(l) = &layout {
+            p.gbuffer
+                .finish(l, &mut result.aovs[i * channels..(i + 1) * channels]);
+        }
+        result.pixels.push(p.value());
+    }
+    result
 }
 
 /// Renders `rects` (each as [`render_tile`] would) and calls `progress` after each unit of
@@ -523,50 +591,6 @@ fn render_sppm(
     Some(results)
 }
 
-/// One camera sample of a pixel: its sampler (past the film and lens dimensions), where it
-/// lies on the film and the lens, its instant, its filter weight, and the camera's ray with
-/// the camera's weight (None where a realistic camera's lens stops it).
-struct CameraSample {
-    sampler: PixelSampler,
-    film: Vec2,
-    lens: Vec2,
-    time: f32,
-    weight: f32,
-    ray: Option<(crate::math::Ray, f32)>,
-    /// The sample's wavelengths in spectral mode.
-    waves: Option<Wavelengths>,
-}
-
-fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) -> CameraSample {
-    let scene = &renderer.scene;
-    let mut sampler = PixelSampler::new(x, y, sample, renderer.settings.seed);
-    let (offset, weight) = scene.filter.sample(sampler.get_2d());
-    let film = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset;
-    let lens = sampler.get_2d();
-    // The sample's instant in the shutter, from a dimension of its own (so still scenes
-    // keep every other dimension as they were).
-    let time = if scene.has_motion {
-        let u = sampler.value(TIME_DIMENSION);
-        scene.shutter[0] + (scene.shutter[1] - scene.shutter[0]) * u
-    } else {
-        0.0
-    };
-    // Its wavelengths, from a dimension of their own too.
-    let waves = renderer
-        .settings
-        .spectral
-        .then(|| Wavelengths::sample(sampler.value(WAVELENGTH_DIMENSION)));
-    CameraSample {
-        sampler,
-        film,
-        lens,
-        time,
-        weight,
-        ray: scene.camera.generate_weighted_ray_at(film, lens, time),
-        waves,
-    }
-}
-
 /// Renders every sample of one pixel, in sample order, and returns their filter-weighted mean
 /// (for SPPM, the pixel's estimate after all its iterations: the same value its tile gives).
 pub fn render_pixel(renderer: &Renderer, x: u32, y: u32, stats: &mut TileStats) -> [f32; 3] {
@@ -581,187 +605,18 @@ pub fn render_pixel(renderer: &Renderer, x: u32, y: u32, stats: &mut TileStats) 
         stats.merge(&tile.stats);
         return tile.pixels[0];
     }
-    render_pixel_with(renderer, x, y, stats, None)
-}
-
-/// [`render_pixel`], and with `gbuffer` the pixel's G-buffer channels written there.
-fn render_pixel_with(
-    renderer: &Renderer,
-    x: u32,
-    y: u32,
-    stats: &mut TileStats,
-    gbuffer: Option<(&GBufferLayout, &mut [f32])>,
-) -> [f32; 3] {
-    let mut p = PixelSums::default();
+    let mut p = [PixelSums::default()];
     let samples = 0..renderer.settings.samples_per_pixel;
-    let want = gbuffer.as_ref().map(|(l, _)| l.space);
-    add_samples(renderer, x, y, samples, want, stats, &mut p);
-    if let Some((layout, out)) = gbuffer {
-        p.gbuffer.finish(layout, out);
-    }
-    p.value()
-}
-
-/// Adds the pixel's `samples`, in sample order, to its running sums: the one way every
-/// pixel is accumulated, in one go or in passes. With adaptive sampling the pixel stops at
-/// the first checkpoint where its own sums say it is good enough; a pixel that stopped
-/// before (it took fewer samples than `samples` starts from) takes none.
-fn add_samples(
-    renderer: &Renderer,
-    x: u32,
-    y: u32,
-    samples: std::ops::Range<u32>,
-    want: Option<kiln_scene::GBufferSpace>,
-    stats: &mut TileStats,
-    p: &mut PixelSums,
-) {
-    let adaptive = renderer.settings.adaptive;
-    for s in samples {
-        if p.taken < s || adaptive.is_some_and(|a| a.converged(p)) {
-            break;
-        }
-        let (l, w, seen) = render_sample_seeing(renderer, x, y, s, stats, want);
-        for c in 0..3 {
-            let v = (l[c] * w) as f64;
-            p.sum[c] += v;
-            if adaptive.is_some() {
-                p.squares[c] += v * v;
-            }
-        }
-        p.weight += w as f64;
-        if want.is_some() {
-            p.gbuffer.add(l, w, seen.as_ref());
-        }
-        p.taken = s + 1;
-    }
-}
-
-/// The sampler dimension a camera sample's time comes from: far from the path's own.
-const TIME_DIMENSION: u32 = 0x4000_0000;
-
-/// The sampler dimension a camera sample's wavelengths come from, beside its time's.
-const WAVELENGTH_DIMENSION: u32 = 0x4000_0001;
-
-/// One camera sample: its radiance (zeroed if not finite) and filter weight. (SPPM has no
-/// estimate from one camera sample: it gives black; its pixels come from [`render_tile`].)
-pub fn render_sample(
-    renderer: &Renderer,
-    x: u32,
-    y: u32,
-    sample: u32,
-    stats: &mut TileStats,
-) -> (Color, f32) {
-    let (l, w, _) = render_sample_seeing(renderer, x, y, sample, stats, None);
-    (l, w)
-}
-
-/// [`render_sample`], and with `gbuffer` the first surface the sample saw, in that space,
-/// with its screen-space derivatives.
-fn render_sample_seeing(
-    renderer: &Renderer,
-    x: u32,
-    y: u32,
-    sample: u32,
-    stats: &mut TileStats,
-    gbuffer: Option<kiln_scene::GBufferSpace>,
-) -> (Color, f32, Option<VisibleSurface>) {
-    let (scene, settings) = (&renderer.scene, &renderer.settings);
-    let mut seen = None;
-    let CameraSample {
-        mut sampler,
-        film,
-        lens,
-        time,
-        weight,
-        ray,
-        waves,
-    } = camera_sample(renderer, x, y, sample);
-    let mut work = Work::default();
-    // A realistic camera's lens may stop the ray (the sample counts, black) and weighs it.
-    let mut l = match ray {
-        Some((ray, camera_weight)) => {
-            let l = settings.integrator.li(
-                &renderer.prepass,
-                scene,
-                settings.footprint(),
-                ray,
-                &mut sampler,
-                &mut work,
-                gbuffer.is_some().then_some(&mut seen),
-                waves,
-            ) * camera_weight;
-            if let (Some(space), Some(s)) = (gbuffer, seen.as_mut()) {
-                *s = seen_from_camera(renderer, s, &ray, film, lens, time, space);
-            }
-            l
-        }
-        None => Color::ZERO,
-    };
-    // The film records a spectral sample as linear sRGB, or as a named camera's raw RGB.
-    if let Some(w) = &waves {
-        l = scene.sensor.sample(l, w);
-    }
-    stats.samples += 1;
-    stats.rays += work.rays;
-    if work.cut_walks > 0 {
-        stats.cut_off += 1;
-        if stats.cut_off_examples.len() < TileStats::MAX_EXAMPLES {
-            stats.cut_off_examples.push(SampleId { x, y, sample });
-        }
-    }
-    if !l.is_finite() {
-        stats.nonfinite += 1;
-        if stats.nonfinite_examples.len() < TileStats::MAX_EXAMPLES {
-            stats.nonfinite_examples.push(SampleId { x, y, sample });
-        }
-        l = Color::ZERO;
-    }
-    if settings.max_radiance > 0.0 {
-        let m = l.max_element();
-        if m > settings.max_radiance {
-            l *= settings.max_radiance / m;
-        }
-    }
-    (scene.sensor.respond(l, waves.is_some()), weight, seen)
-}
-
-/// A visible surface with its screen-space derivatives, in the G-buffer's space. The
-/// derivatives are pbrt-v4's: rays through the next pixel right and down (same lens sample
-/// and time), their offsets scaled by the footprint scale (1/sqrt(spp), at least 1/8), met
-/// on the surface's tangent plane.
-fn seen_from_camera(
-    renderer: &Renderer,
-    s: &VisibleSurface,
-    ray: &crate::math::Ray,
-    film: Vec2,
-    lens: Vec2,
-    time: f32,
-    space: kiln_scene::GBufferSpace,
-) -> VisibleSurface {
-    let camera = &renderer.scene.camera;
-    let scale = renderer.settings.footprint();
-    let derivative = |step: Vec2| {
-        let Some((r, _)) = camera.generate_weighted_ray_at(film + step, lens, time) else {
-            return glam::Vec3A::ZERO;
-        };
-        let o = ray.origin + (r.origin - ray.origin) * scale;
-        let d = ray.dir + (r.dir - ray.dir) * scale;
-        let denom = s.ng.dot(d);
-        if denom == 0.0 {
-            return glam::Vec3A::ZERO;
-        }
-        let t = s.ng.dot(s.p - o) / denom;
-        o + d * t - s.p
-    };
-    let world = VisibleSurface {
-        dpdx: derivative(Vec2::X),
-        dpdy: derivative(Vec2::Y),
-        ..*s
-    };
-    match space {
-        kiln_scene::GBufferSpace::World => world,
-        kiln_scene::GBufferSpace::Camera => {
-            world.transformed(&camera.camera_to_world_at(time).inverse())
-        }
-    }
+    wave::add_row_samples(
+        renderer,
+        (x, y),
+        &mut p,
+        samples,
+        None,
+        stats,
+        wave::WAVE,
+        &|| false,
+    )
+    .expect("never stopped");
+    p[0].value()
 }
