@@ -93,6 +93,14 @@ impl Primitives {
     }
 }
 
+/// The closest hit of a ray, before its record: the distance, and which primitive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClosestHit {
+    t: f32,
+    kind: HitKind,
+    id: u32,
+}
+
 /// Which kind of primitive a hit is on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum HitKind {
@@ -344,7 +352,24 @@ impl Geometry {
 
     /// The closest hit along `ray` within (0, tmax).
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<SurfaceHit> {
+        self.closest_hit(ray, tmax)
+            .and_then(|found| self.record(ray, tmax, found))
+    }
+
+    /// Where the closest hit along `ray` within (0, tmax) is, without its record: what a
+    /// wave's traversal stage keeps for each path, [`Geometry::record`] making the record
+    /// when the path reaches it.
+    #[inline]
+    pub fn closest_hit(&self, ray: &Ray, tmax: f32) -> Option<ClosestHit> {
         let (t, kind, id) = self.closest(ray, tmax)?;
+        Some(ClosestHit { t, kind, id })
+    }
+
+    /// The record of `found`, the closest hit along `ray` within (0, tmax):
+    /// [`Geometry::intersect`]'s, bit for bit. (None only where a moving group's hit is not
+    /// found again when traced for its record.)
+    pub fn record(&self, ray: &Ray, tmax: f32, found: ClosestHit) -> Option<SurfaceHit> {
+        let ClosestHit { t, kind, id } = found;
         Some(match kind {
             HitKind::Triangle => self.triangle_hit(ray, t, id),
             HitKind::Sphere => self.sphere_hit(ray, t, id),

@@ -14,7 +14,7 @@
 use super::sample::{Taken, accumulate, camera_sample};
 use super::{Renderer, SampleId, TileStats};
 use crate::integrators::Path;
-use crate::shapes::SurfaceHit;
+use crate::shapes::ClosestHit;
 use crate::sums::PixelSums;
 use kiln_scene::GBufferSpace;
 use std::ops::Range;
@@ -117,22 +117,23 @@ fn trace_round(
         });
     }
     let mut live: Vec<usize> = (0..paths.len()).collect();
-    let mut found: Vec<Option<SurfaceHit>> = Vec::with_capacity(live.len());
+    let mut found: Vec<Option<ClosestHit>> = Vec::with_capacity(live.len());
     let mut goes_on: Vec<bool> = Vec::with_capacity(live.len());
     while !live.is_empty() {
         // The closest hits of every live path's ray.
         found.clear();
         found.extend(
             live.iter()
-                .map(|&i| geometry.intersect(paths[i].ray(), f32::INFINITY)),
+                .map(|&i| geometry.closest_hit(paths[i].ray(), f32::INFINITY)),
         );
-        // Each path's segment and vertex, its light sample waiting on its shadow ray.
+        // Each path's segment and vertex (the hit's record made there, while the path is
+        // at hand), its light sample waiting on its shadow ray.
         goes_on.clear();
-        goes_on.extend(
-            live.iter()
-                .zip(&found)
-                .map(|(&i, hit)| tracer.advance(&mut paths[i], hit.as_ref())),
-        );
+        goes_on.extend(live.iter().zip(&found).map(|(&i, &hit)| {
+            let path = &mut paths[i];
+            let hit = hit.and_then(|h| geometry.record(path.ray(), f32::INFINITY, h));
+            tracer.advance(path, hit.as_ref())
+        }));
         // The shadow rays.
         for &i in &live {
             if paths[i].waits_on_shadow() {
