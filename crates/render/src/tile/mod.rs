@@ -350,26 +350,28 @@ fn continue_tile_in_waves(
     type Row = (Vec<[f32; 3]>, Vec<f32>, Vec<PixelSums>, TileStats);
     let rows: Option<Vec<Row>> = (0..rect.height as usize)
         .into_par_iter()
-        .map(|row| {
-            let y = rect.y0 + row as u32;
-            let mut stats = TileStats::default();
-            let mut aovs = vec![0.0f32; channels * width];
-            let mut sums = from.pixels[row * width..(row + 1) * width].to_vec();
-            let samples = from.samples..to;
-            let at = (rect.x0, y);
-            wave::add_row_samples(
-                renderer, at, &mut sums, samples, want, &mut stats, wave, stop,
-            )?;
-            let mut pixels = Vec::with_capacity(width);
-            for (i, p) in sums.iter().enumerate() {
-                if let Some(l) = &layout {
-                    p.gbuffer
-                        .finish(l, &mut aovs[i * channels..(i + 1) * channels]);
+        .map_init(
+            || wave::Wave::new(wave),
+            |room, row| {
+                let y = rect.y0 + row as u32;
+                let mut stats = TileStats::default();
+                let mut aovs = vec![0.0f32; channels * width];
+                let mut sums = from.pixels[row * width..(row + 1) * width].to_vec();
+                let samples = from.samples..to;
+                let at = (rect.x0, y);
+                let (sums_, stats_) = (&mut sums, &mut stats);
+                wave::add_row_samples(renderer, room, at, sums_, samples, want, stats_, stop)?;
+                let mut pixels = Vec::with_capacity(width);
+                for (i, p) in sums.iter().enumerate() {
+                    if let Some(l) = &layout {
+                        p.gbuffer
+                            .finish(l, &mut aovs[i * channels..(i + 1) * channels]);
+                    }
+                    pixels.push(p.value());
                 }
-                pixels.push(p.value());
-            }
-            Some((pixels, aovs, sums, stats))
-        })
+                Some((pixels, aovs, sums, stats))
+            },
+        )
         .collect();
     let mut pixels = Vec::with_capacity(rect.pixel_count() as usize);
     let mut aovs = Vec::with_capacity(rect.pixel_count() as usize * channels);
@@ -607,14 +609,15 @@ pub fn render_pixel(renderer: &Renderer, x: u32, y: u32, stats: &mut TileStats) 
     }
     let mut p = [PixelSums::default()];
     let samples = 0..renderer.settings.samples_per_pixel;
+    let room = &mut wave::Wave::new(wave::WAVE);
     wave::add_row_samples(
         renderer,
+        room,
         (x, y),
         &mut p,
         samples,
         None,
         stats,
-        wave::WAVE,
         &|| false,
     )
     .expect("never stopped");

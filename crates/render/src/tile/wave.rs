@@ -26,6 +26,36 @@ use std::ops::Range;
 /// their hits and samples about 1.2 KB) outgrow the second-level cache.
 pub(super) const WAVE: usize = 512;
 
+/// A wave's room: its size, and the buffers its rounds reuse (a thread renders row after
+/// row in the same room, so a round allocates nothing, and its pages stay mapped).
+pub(super) struct Wave {
+    size: usize,
+    /// The round's samples, in the order they are folded.
+    taken: Vec<Taken>,
+    paths: Vec<Path>,
+    /// The sample each path is of (a sample whose lens stopped its ray has none).
+    sample_of: Vec<usize>,
+    /// The paths still going, and for each its closest hit and whether it goes on.
+    live: Vec<usize>,
+    found: Vec<Option<ClosestHit>>,
+    goes_on: Vec<bool>,
+}
+
+impl Wave {
+    /// A room for rounds of at most `size` paths (at least one).
+    pub fn new(size: usize) -> Wave {
+        Wave {
+            size: size.max(1),
+            taken: Vec::new(),
+            paths: Vec::new(),
+            sample_of: Vec::new(),
+            live: Vec::new(),
+            found: Vec::new(),
+            goes_on: Vec::new(),
+        }
+    }
+}
+
 /// Adds `samples` to the running sums of the row of pixels at `x0..`, `y` (one sum a
 /// pixel, in `sums`), with statistics into `stats`: as many paths at a time as `wave`
 /// allows. With adaptive sampling a pixel stops at the first checkpoint where its own sums
@@ -35,16 +65,16 @@ pub(super) const WAVE: usize = 512;
 #[allow(clippy::too_many_arguments)]
 pub(super) fn add_row_samples(
     renderer: &Renderer,
+    wave: &mut Wave,
     (x0, y): (u32, u32),
     sums: &mut [PixelSums],
     samples: Range<u32>,
     gbuffer: Option<GBufferSpace>,
     stats: &mut TileStats,
-    wave: usize,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<()> {
     let adaptive = renderer.settings.adaptive;
-    let per_pixel = (wave / sums.len().max(1)).max(1) as u32;
+    let per_pixel = (wave.size / sums.len().max(1)).max(1) as u32;
     let mut pixel_stats = vec![TileStats::default(); sums.len()];
     let mut s0 = samples.start;
     while s0 < samples.end {
@@ -69,8 +99,8 @@ pub(super) fn add_row_samples(
                 sample,
             })
         });
-        let round = trace_round(renderer, ids, gbuffer.is_some());
-        let mut round = round.iter();
+        wave.trace(renderer, ids, gbuffer.is_some());
+        let mut round = wave.taken.iter();
         for &i in &taking {
             for s in s0..s1 {
                 let taken = round.next().expect("one result a sample");
@@ -86,70 +116,75 @@ pub(super) fn add_row_samples(
     Some(())
 }
 
-/// Traces the paths of camera samples `ids` as one wave: every stage over all the live
-/// paths in turn, until every path has ended. Its samples, in the order of `ids`.
-fn trace_round(
-    renderer: &Renderer,
-    ids: impl Iterator<Item = SampleId>,
-    want_visible: bool,
-) -> Vec<Taken> {
-    let tracer = renderer.path_tracer();
-    let geometry = &renderer.scene.geometry;
-    let mut taken = Vec::new();
-    // The paths, and the sample each is of (a sample whose lens stopped its ray has none).
-    let mut paths: Vec<Path> = Vec::new();
-    let mut sample_of: Vec<usize> = Vec::new();
-    for id in ids {
-        let c = camera_sample(renderer, id.x, id.y, id.sample);
-        if let Some((ray, _)) = c.ray {
-            sample_of.push(taken.len());
-            paths.push(tracer.start(ray, c.sampler, c.waves, want_visible));
-        }
-        taken.push(Taken {
-            id,
-            film: c.film,
-            lens: c.lens,
-            time: c.time,
-            weight: c.weight,
-            ray: c.ray,
-            waves: c.waves,
-            path: None,
-        });
-    }
-    let mut live: Vec<usize> = (0..paths.len()).collect();
-    let mut found: Vec<Option<ClosestHit>> = Vec::with_capacity(live.len());
-    let mut goes_on: Vec<bool> = Vec::with_capacity(live.len());
-    while !live.is_empty() {
-        // The closest hits of every live path's ray.
-        found.clear();
-        found.extend(
-            live.iter()
-                .map(|&i| geometry.closest_hit(paths[i].ray(), f32::INFINITY)),
-        );
-        // Each path's segment and vertex (the hit's record made there, while the path is
-        // at hand), its light sample waiting on its shadow ray.
-        goes_on.clear();
-        goes_on.extend(live.iter().zip(&found).map(|(&i, &hit)| {
-            let path = &mut paths[i];
-            let hit = hit.and_then(|h| geometry.record(path.ray(), f32::INFINITY, h));
-            tracer.advance(path, hit.as_ref())
-        }));
-        // The shadow rays.
-        for &i in &live {
-            if paths[i].waits_on_shadow() {
-                tracer.shadow(&mut paths[i]);
+impl Wave {
+    /// Traces the paths of camera samples `ids` as one wave: every stage over all the live
+    /// paths in turn, until every path has ended. Its samples, in the order of `ids`, are
+    /// left in `self.taken`.
+    fn trace(&mut self, renderer: &Renderer, ids: impl Iterator<Item = SampleId>, visible: bool) {
+        let tracer = renderer.path_tracer();
+        let geometry = &renderer.scene.geometry;
+        let Wave {
+            taken,
+            paths,
+            sample_of,
+            live,
+            found,
+            goes_on,
+            ..
+        } = self;
+        taken.clear();
+        paths.clear();
+        sample_of.clear();
+        for id in ids {
+            let c = camera_sample(renderer, id.x, id.y, id.sample);
+            if let Some((ray, _)) = c.ray {
+                sample_of.push(taken.len());
+                paths.push(tracer.start(ray, c.sampler, c.waves, visible));
             }
+            taken.push(Taken {
+                id,
+                film: c.film,
+                lens: c.lens,
+                time: c.time,
+                weight: c.weight,
+                ray: c.ray,
+                waves: c.waves,
+                path: None,
+            });
         }
-        // The paths that ended leave the wave.
-        let mut k = 0;
-        live.retain(|&i| {
-            let on = goes_on[k];
-            k += 1;
-            if !on {
-                taken[sample_of[i]].path = Some(paths[i].outcome());
+        live.clear();
+        live.extend(0..paths.len());
+        while !live.is_empty() {
+            // The closest hits of every live path's ray.
+            found.clear();
+            found.extend(
+                live.iter()
+                    .map(|&i| geometry.closest_hit(paths[i].ray(), f32::INFINITY)),
+            );
+            // Each path's segment and vertex (the hit's record made there, while the path
+            // is at hand), its light sample waiting on its shadow ray.
+            goes_on.clear();
+            goes_on.extend(live.iter().zip(found.iter()).map(|(&i, &hit)| {
+                let path = &mut paths[i];
+                let hit = hit.and_then(|h| geometry.record(path.ray(), f32::INFINITY, h));
+                tracer.advance(path, hit)
+            }));
+            // The shadow rays.
+            for &i in live.iter() {
+                if paths[i].waits_on_shadow() {
+                    tracer.shadow(&mut paths[i]);
+                }
             }
-            on
-        });
+            // The paths that ended leave the wave.
+            let mut k = 0;
+            live.retain(|&i| {
+                let on = goes_on[k];
+                k += 1;
+                if !on {
+                    taken[sample_of[i]].path = Some(paths[i].outcome());
+                }
+                on
+            });
+        }
     }
-    taken
 }

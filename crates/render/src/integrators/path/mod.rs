@@ -332,7 +332,7 @@ impl PathTracer<'_> {
     /// its medium, to the surface or off to the lights at infinity, and the next vertex's
     /// scattering. True while the path goes on (after [`PathTracer::shadow`] if it waits
     /// on a shadow ray, as it may also when it ends).
-    pub fn advance(&self, path: &mut Path, found: Option<&SurfaceHit>) -> bool {
+    pub fn advance(&self, path: &mut Path, mut found: Option<SurfaceHit>) -> bool {
         let ctx = self.context(path.waves);
         let Path {
             state,
@@ -343,14 +343,14 @@ impl PathTracer<'_> {
         } = path;
         work.rays += 1;
         if state.travel.medium.is_some() {
-            match medium::medium_step(&ctx, state, ray, found, sampler, work) {
+            match medium::medium_step(&ctx, state, ray, found.as_ref(), sampler, work) {
                 Next::Continue => return true,
                 Next::Stop => return false,
                 Next::Surface => {}
             }
         }
-        state.interior_segment(ctx.scene, ray, found, ctx.waves.as_ref());
-        let Some(hit) = found else {
+        state.interior_segment(ctx.scene, ray, found.as_ref(), ctx.waves.as_ref());
+        let Some(hit) = found.as_mut() else {
             escape(&ctx, state, ray);
             return false;
         };
@@ -382,7 +382,7 @@ impl PathTracer<'_> {
         let mut path = self.start(ray, sampler.clone(), waves, visible.is_some());
         loop {
             let found = self.scene.geometry.intersect(path.ray(), f32::INFINITY);
-            let goes_on = self.advance(&mut path, found.as_ref());
+            let goes_on = self.advance(&mut path, found);
             self.shadow(&mut path);
             if !goes_on {
                 break;

@@ -21,13 +21,12 @@ pub(super) fn surface_step(
     ctx: &PathContext,
     state: &mut PathState,
     ray: &mut Ray,
-    hit: &SurfaceHit,
+    hit: &mut SurfaceHit,
     sampler: &mut PixelSampler,
     work: &mut Work,
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
-    // Shading may perturb the normal (bump and normal maps): shade a copy of the hit.
-    let hit = &mut hit.clone();
+    // Shading may perturb the normal (bump and normal maps), in the path's own record.
     let Some(mut bsdf) = scene.bsdf_nested(
         hit,
         ctx.footprint,
