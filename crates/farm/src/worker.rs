@@ -407,7 +407,7 @@ async fn render_and_upload(
     fault: Option<Fault>,
 ) -> Result<Outcome, ClientError> {
     // Heartbeats keep the lease while the tile renders; one the coordinator refuses (the
-    // job was cancelled or has ended, the lease expired) stops the render between pixels.
+    // job was cancelled or has ended, the lease expired) stops the render between rounds.
     let (beat, lost) = keep_alive(client, lease);
     let rect = TileRect::from(lease.tile);
     let from = match previous_sums(client, loaded, lease).await {

@@ -267,7 +267,8 @@ pub fn render_tile(renderer: &Renderer, rect: TileRect) -> TileResult {
     render_tile_until(renderer, rect, &|| false).expect("never stopped")
 }
 
-/// [`render_tile`], asking `stop` before each pixel: None as soon as it says yes (a job
+/// [`render_tile`], asking `stop` before each round of a row (a wave of at most 512 paths,
+/// or one sample of each pixel of a wider row): None as soon as it says yes (a job
 /// cancelled, a lease lost, a worker told to leave). A tile that runs to its end is the
 /// same bytes as [`render_tile`]'s.
 pub fn render_tile_until(
