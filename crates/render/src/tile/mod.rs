@@ -512,14 +512,11 @@ fn render_sppm(
             .par_iter()
             .zip(states.par_iter_mut())
             .map(|(&(x, y), (state, rays))| {
-                let CameraSample {
-                    mut sampler,
-                    weight,
-                    ray,
-                    ..
-                } = camera_sample(renderer, x, y, it);
+                let CameraSample { mut sampler, shot } = camera_sample(renderer, x, y, it);
                 let mut work = Work::default();
-                let (ray, weight) = ray.map_or((None, 0.0), |(r, w)| (Some(r), w * weight));
+                let (ray, weight) = shot
+                    .ray
+                    .map_or((None, 0.0), |(r, w)| (Some(r), w * shot.weight));
                 let vp = camera_pass(
                     scene,
                     sppm,

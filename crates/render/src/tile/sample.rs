@@ -20,11 +20,18 @@ const TIME_DIMENSION: u32 = 0x4000_0000;
 /// The sampler dimension a camera sample's wavelengths come from, beside its time's.
 const WAVELENGTH_DIMENSION: u32 = 0x4000_0001;
 
-/// One camera sample of a pixel: its sampler (past the film and lens dimensions), where it
-/// lies on the film and the lens, its instant, its filter weight, and the camera's ray with
-/// the camera's weight (None where a realistic camera's lens stops it).
+/// One camera sample of a pixel: its sampler (past the film and lens dimensions), and the
+/// shot it took.
 pub(super) struct CameraSample {
     pub sampler: PixelSampler,
+    pub shot: Shot,
+}
+
+/// Where a camera sample lies on the film and the lens, its instant, its filter weight, and
+/// the camera's ray with the camera's weight (None where a realistic camera's lens stops
+/// it): what the film needs of it besides its path's radiance.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Shot {
     pub film: Vec2,
     pub lens: Vec2,
     pub time: f32,
@@ -55,25 +62,22 @@ pub(super) fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) ->
         .then(|| Wavelengths::sample(sampler.value(WAVELENGTH_DIMENSION)));
     CameraSample {
         sampler,
-        film,
-        lens,
-        time,
-        weight,
-        ray: scene.camera.generate_weighted_ray_at(film, lens, time),
-        waves,
+        shot: Shot {
+            film,
+            lens,
+            time,
+            weight,
+            ray: scene.camera.generate_weighted_ray_at(film, lens, time),
+            waves,
+        },
     }
 }
 
-/// A camera sample without its sampler (which its path took), and what its path gave:
-/// radiance, cost and the first surface it saw (None where the lens stopped the ray).
+/// A camera sample's shot, and what its path gave: radiance, cost and the first surface it
+/// saw (None where the lens stopped the ray).
 pub(super) struct Taken {
     pub id: SampleId,
-    pub film: Vec2,
-    pub lens: Vec2,
-    pub time: f32,
-    pub weight: f32,
-    pub ray: Option<(Ray, f32)>,
-    pub waves: Option<Wavelengths>,
+    pub shot: Shot,
     pub path: Option<(Color, Work, Option<VisibleSurface>)>,
 }
 
@@ -89,11 +93,19 @@ impl Taken {
     ) -> (Color, f32, Option<VisibleSurface>) {
         let (scene, settings) = (&renderer.scene, &renderer.settings);
         let SampleId { x, y, sample } = self.id;
-        let (mut l, work, seen) = match (self.ray, self.path) {
+        let Shot {
+            film,
+            lens,
+            time,
+            weight,
+            ray,
+            waves,
+        } = self.shot;
+        let (mut l, work, seen) = match (ray, self.path) {
             (Some((ray, camera_weight)), Some((l, work, seen))) => {
                 let seen = match (gbuffer, seen) {
                     (Some(space), Some(s)) => Some(seen_from_camera(
-                        renderer, &s, &ray, self.film, self.lens, self.time, space,
+                        renderer, &s, &ray, film, lens, time, space,
                     )),
                     (_, seen) => seen,
                 };
@@ -103,7 +115,7 @@ impl Taken {
             _ => (Color::ZERO, Work::default(), None),
         };
         // The film records a spectral sample as linear sRGB, or as a named camera's raw RGB.
-        if let Some(w) = &self.waves {
+        if let Some(w) = &waves {
             l = scene.sensor.sample(l, w);
         }
         stats.samples += 1;
@@ -127,11 +139,7 @@ impl Taken {
                 l *= settings.max_radiance / m;
             }
         }
-        (
-            scene.sensor.respond(l, self.waves.is_some()),
-            self.weight,
-            seen,
-        )
+        (scene.sensor.respond(l, waves.is_some()), weight, seen)
     }
 }
 
@@ -170,16 +178,8 @@ pub(super) fn render_sample_seeing(
     stats: &mut TileStats,
     gbuffer: Option<GBufferSpace>,
 ) -> (Color, f32, Option<VisibleSurface>) {
-    let CameraSample {
-        mut sampler,
-        film,
-        lens,
-        time,
-        weight,
-        ray,
-        waves,
-    } = camera_sample(renderer, x, y, sample);
-    let path = ray.map(|(ray, _)| {
+    let CameraSample { mut sampler, shot } = camera_sample(renderer, x, y, sample);
+    let path = shot.ray.map(|(ray, _)| {
         let tracer = renderer.path_tracer();
         let mut work = Work::default();
         let mut seen = None;
@@ -188,18 +188,13 @@ pub(super) fn render_sample_seeing(
             &mut sampler,
             &mut work,
             gbuffer.is_some().then_some(&mut seen),
-            waves,
+            shot.waves,
         );
         (l, work, seen)
     });
     let taken = Taken {
         id: SampleId { x, y, sample },
-        film,
-        lens,
-        time,
-        weight,
-        ray,
-        waves,
+        shot,
         path,
     };
     taken.take(renderer, gbuffer, stats)

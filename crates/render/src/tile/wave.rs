@@ -137,18 +137,13 @@ impl Wave {
         sample_of.clear();
         for id in ids {
             let c = camera_sample(renderer, id.x, id.y, id.sample);
-            if let Some((ray, _)) = c.ray {
+            if let Some((ray, _)) = c.shot.ray {
                 sample_of.push(taken.len());
-                paths.push(tracer.start(ray, c.sampler, c.waves, visible));
+                paths.push(tracer.start(ray, c.sampler, c.shot.waves, visible));
             }
             taken.push(Taken {
                 id,
-                film: c.film,
-                lens: c.lens,
-                time: c.time,
-                weight: c.weight,
-                ray: c.ray,
-                waves: c.waves,
+                shot: c.shot,
                 path: None,
             });
         }
