@@ -19,16 +19,29 @@ fn bits(t: &TileResult) -> (Vec<[u32; 3]>, Vec<u32>) {
     )
 }
 
-/// Renders the whole film of `renderer` as one tile, path after path and in waves of every
-/// size, and requires the same bits and statistics.
-fn assert_waves_match_one_path_at_a_time(name: &str, renderer: &Renderer) {
+/// Renders the whole film of `renderer` as one tile, and a column one pixel wide (whose
+/// waves of one hold one path, of three a pixel's three samples), path after path and in
+/// waves of every size, and requires the same bits and statistics. The whole film's
+/// reference.
+fn assert_waves_match_one_path_at_a_time(name: &str, renderer: &Renderer) -> TileResult {
     let (w, h) = renderer.scene().resolution;
-    let rect = TileRect {
+    let column = TileRect {
+        x0: w / 2,
+        y0: 0,
+        width: 1,
+        height: h,
+    };
+    assert_waves_match_in(&format!("{name}, a column"), renderer, column);
+    let film = TileRect {
         x0: 0,
         y0: 0,
         width: w,
         height: h,
     };
+    assert_waves_match_in(name, renderer, film)
+}
+
+fn assert_waves_match_in(name: &str, renderer: &Renderer, rect: TileRect) -> TileResult {
     let reference = render_tile_reference(renderer, rect, None);
     assert!(
         reference.pixels.iter().any(|p| p.iter().any(|&c| c > 0.0)),
@@ -53,6 +66,7 @@ fn assert_waves_match_one_path_at_a_time(name: &str, renderer: &Renderer) {
         assert!(aovs == ref_aovs, "{name}, {how}: the G-buffer differs");
         assert_eq!(tile.stats, reference.stats, "{name}, {how}: statistics");
     }
+    reference
 }
 
 #[test]
@@ -89,12 +103,19 @@ fn media_volume_lights_photons_and_walks_in_waves_are_one_path_at_a_time() {
     }
 }
 
-/// Adaptive sampling (rounds end at its checkpoints), a G-buffer film, spectral paths.
+/// Adaptive sampling (rounds end at its checkpoints, and some pixels stop before others),
+/// a G-buffer film, spectral paths, and a realistic camera whose lens stops some rays (a
+/// sample without a path).
 #[test]
-fn adaptive_gbuffer_and_spectral_renders_in_waves_are_one_path_at_a_time() {
+fn adaptive_gbuffer_spectral_and_lens_renders_in_waves_are_one_path_at_a_time() {
     let path = scene("mis/scene.pbrt");
     let adaptive = crate::passes::load_adaptive(&path, 32, (24, 14), 0.05, 4);
-    assert_waves_match_one_path_at_a_time("mis, adaptive", &adaptive);
+    let reference = assert_waves_match_one_path_at_a_time("mis, adaptive", &adaptive);
+    assert!(
+        reference.stats.samples < 32 * 24 * 14,
+        "no pixel stopped early: {} samples",
+        reference.stats.samples
+    );
     let mut desc = kiln_scene::load_file(&scene("materials/scene.pbrt")).unwrap();
     desc.apply_overrides(&kiln_scene::Overrides {
         resolution: Some((24, 16)),
@@ -106,4 +127,27 @@ fn adaptive_gbuffer_and_spectral_renders_in_waves_are_one_path_at_a_time() {
     desc.film.gbuffer = Some(kiln_scene::GBufferSpace::Camera);
     let renderer = Renderer::build(&desc).unwrap();
     assert_waves_match_one_path_at_a_time("materials, spectral, G-buffer", &renderer);
+    // A singlet with a stop wider than its elements: rays off the axis are stopped.
+    let dir = tempfile::tempdir().unwrap();
+    let lens = "# radius thickness eta aperture\n40 6 1.6 24\n-40 4 1 24\n0 0 0 16\n";
+    std::fs::write(dir.path().join("singlet.dat"), lens).unwrap();
+    let file = dir.path().join("lens.pbrt");
+    std::fs::write(
+        &file,
+        r#"Integrator "volpath" "integer maxdepth" [ 3 ]
+Sampler "independent" "integer pixelsamples" [ 4 ]
+Film "rgb" "integer xresolution" [ 24 ] "integer yresolution" [ 16 ] "float diagonal" [ 30 ]
+LookAt 0 0.3 0  0 0 -3  0 1 0
+Camera "realistic" "string lensfile" "singlet.dat" "float aperturediameter" [ 30 ] "float focusdistance" [ 2.5 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+Material "diffuse" "rgb reflectance" [ 0.8 0.3 0.2 ]
+Shape "bilinearmesh" "point3 P" [ -4 -0.5 -8  4 -0.5 -8  -4 -0.5 1  4 -0.5 1 ]
+Translate 0.4 0 -2.5
+Shape "sphere" "float radius" [ 0.3 ]
+"#,
+    )
+    .unwrap();
+    let renderer = load(&file, 4, None);
+    assert_waves_match_one_path_at_a_time("a realistic camera", &renderer);
 }

@@ -128,7 +128,7 @@ fn a_medium_too_dense_to_track_fails_its_job_with_the_reason() {
 }
 
 /// A tile that would take minutes (one 64x64 tile at 16,384 spp). Cancelling its job stops
-/// the worker mid-tile: its next heartbeat is refused and the render stops between pixels.
+/// the worker mid-tile: its next heartbeat is refused and the render stops between rounds.
 /// A worker told twice to stop leaves at once and gives its tile back, which is lent
 /// again straight away. The second signal is sent once the worker says it took the first
 /// (two signals sent together may reach a process as one).

@@ -14,7 +14,7 @@ mod path;
 pub mod photons;
 pub mod sppm;
 
-pub use path::{Path, PathTracer};
+pub(crate) use path::{Path, PathTracer};
 pub use photons::{Gather, PhotonMaps, PhotonSettings, Roulette};
 pub use sppm::SppmSettings;
 
@@ -216,7 +216,7 @@ impl Integrator {
     /// The path tracer every camera ray of a render goes through, textures filtered over
     /// the camera's pixel footprint times `footprint`; None for SPPM, whose pixels come from
     /// its own driver ([`crate::tile`]).
-    pub fn path_tracer<'a>(
+    pub(crate) fn path_tracer<'a>(
         &'a self,
         prepass: &'a Prepass,
         scene: &'a Scene,

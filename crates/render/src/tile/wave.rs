@@ -3,8 +3,9 @@
 //! before the next stage starts, rather than one path running from the camera to its end
 //! before the next begins.
 //!
-//! A row renders in rounds: its pixels times a range of samples, at most [`WAVE`] paths
-//! (every sample of a round is one path of its wave). Rounds end at adaptive sampling's
+//! A row renders in rounds: its pixels times a range of samples, at most [`WAVE`] paths, or
+//! one sample of each pixel of a row wider than that (every sample of a round is one path
+//! of its wave). Rounds end at adaptive sampling's
 //! checkpoints, so a pixel's decision to go on is taken on all the samples before it, as
 //! one path at a time takes it. Paths end in any order; when the last has, the round is
 //! folded into each pixel's sums in sample order ([`accumulate`]), and into statistics
@@ -19,15 +20,17 @@ use crate::sums::PixelSums;
 use kiln_scene::GBufferSpace;
 use std::ops::Range;
 
-/// The most paths a round holds (fewer on a row narrower than it: a round takes whole
-/// samples of every pixel). Measured on the Cornell box (2026-11-28, `benches/cornell.rs`
+/// The most paths a round holds, unless its row is wider (a round takes at least one sample
+/// of every pixel that goes on, and whole samples: fewer than this where the row's width
+/// does not divide it). Measured on the Cornell box (2026-11-28, `benches/cornell.rs`
 /// against one path at a time, CPU time): 128 paths 1.04x, 256 1.06x, 512 1.00x, 1024
 /// 1.04x, each within the machine's 5% noise; past 1024 a wave's paths (0.7 KB each, with
 /// their hits and samples about 1.2 KB) outgrow the second-level cache.
 pub(super) const WAVE: usize = 512;
 
-/// A wave's room: its size, and the buffers its rounds reuse (a thread renders row after
-/// row in the same room, so a round allocates nothing, and its pages stay mapped).
+/// A wave's room: its size, and the buffers its rounds reuse for their paths and samples
+/// (each of a tile's row jobs renders row after row in the same room, so those pages stay
+/// mapped: allocating them every round cost 3.6% in page faults on a medium scene).
 pub(super) struct Wave {
     size: usize,
     /// The round's samples, in the order they are folded.
@@ -74,13 +77,13 @@ pub(super) fn add_row_samples(
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<()> {
     let adaptive = renderer.settings.adaptive;
-    let per_pixel = (wave.size / sums.len().max(1)).max(1) as u32;
+    let per_pixel = (wave.size / sums.len().max(1)).clamp(1, u32::MAX as usize) as u32;
     let mut pixel_stats = vec![TileStats::default(); sums.len()];
     let mut s0 = samples.start;
+    if stop() {
+        return None;
+    }
     while s0 < samples.end {
-        if stop() {
-            return None;
-        }
         let mut s1 = samples.end.min(s0.saturating_add(per_pixel));
         if let Some(a) = adaptive {
             // No checkpoint strictly inside a round.
@@ -92,6 +95,10 @@ pub(super) fn add_row_samples(
                 p.taken >= s0 && !adaptive.is_some_and(|a| a.converged(p))
             })
             .collect();
+        if taking.is_empty() {
+            // Every pixel has stopped, and a stopped pixel takes no more samples.
+            break;
+        }
         let ids = taking.iter().flat_map(|&i| {
             (s0..s1).map(move |sample| SampleId {
                 x: x0 + i as u32,
@@ -109,6 +116,9 @@ pub(super) fn add_row_samples(
             }
         }
         s0 = s1;
+        if s0 < samples.end && stop() {
+            return None;
+        }
     }
     for s in &pixel_stats {
         stats.merge(s);

@@ -205,6 +205,10 @@ impl PathState {
     /// adds to `l` between a light sample and the next segment, which waits for the shadow
     /// ray: the sums are in the same order either way.
     fn add_direct(&mut self, direct: Direct) {
+        assert!(
+            self.shadow.is_none(),
+            "a vertex's shadow ray was never traced"
+        );
         match direct {
             Direct::Done(c) => self.l += self.beta * c,
             Direct::Shadow(s) => self.shadow = Some((self.beta, s)),
@@ -272,7 +276,7 @@ impl Path {
 
     /// The radiance gathered, what it cost, and (if asked for) the first surface it saw.
     pub fn outcome(&self) -> (Color, Work, Option<VisibleSurface>) {
-        debug_assert!(self.state.shadow.is_none(), "a shadow ray is still waiting");
+        assert!(self.state.shadow.is_none(), "a shadow ray is still waiting");
         (self.state.l, self.work, self.state.visible)
     }
 }
