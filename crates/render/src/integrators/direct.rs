@@ -83,7 +83,7 @@ impl Vertex<'_> {
 /// One light sample for next-event estimation from `v`, up to its shadow ray: `f` is the
 /// scattering function (times the cosine at surfaces) and `pdf` the density of sampling
 /// `wi` by it. Light sampling and the shadow ray are two stages, so that a wave of paths
-/// traces its shadow rays together ([`Shadow::trace`], [`Shadow::finish`]).
+/// traces its shadow rays together ([`Shadow::resolve`]).
 pub(super) fn light_sample(
     scene: &Scene,
     settings: &PathSettings,
@@ -157,29 +157,20 @@ pub(super) fn light_sample(
     })
 }
 
-/// [`light_sample`] with its shadow ray traced at once: the sample's contribution.
-pub(super) fn sample_direct(
-    scene: &Scene,
-    settings: &PathSettings,
-    v: &Vertex,
-    f: impl Fn(Vec3A) -> Color,
-    pdf: impl Fn(Vec3A) -> f32,
-    sampler: &mut PixelSampler,
-    work: &mut Work,
-) -> Color {
-    match light_sample(scene, settings, v, f, pdf, sampler, work) {
-        Direct::Done(c) => c,
-        Direct::Shadow(mut s) => {
-            let (tr, end) = s.trace(scene, work, v.waves);
-            s.finish(tr, end)
-        }
-    }
-}
-
 /// What a light sample gives: its contribution, or a shadow ray to trace first.
 pub(super) enum Direct {
     Done(Color),
     Shadow(Shadow),
+}
+
+impl Direct {
+    /// The contribution, its shadow ray traced now if it waits on one.
+    pub fn resolve(self, scene: &Scene, work: &mut Work, waves: Option<&Wavelengths>) -> Color {
+        match self {
+            Direct::Done(c) => c,
+            Direct::Shadow(s) => s.resolve(scene, work, waves),
+        }
+    }
 }
 
 /// A light sample waiting on its shadow ray: the ray, and what its contribution is made of
@@ -202,8 +193,14 @@ pub(super) struct Shadow {
 }
 
 impl Shadow {
+    /// The light sample's contribution, its shadow ray traced.
+    pub fn resolve(mut self, scene: &Scene, work: &mut Work, waves: Option<&Wavelengths>) -> Color {
+        let (tr, end) = self.trace(scene, work, waves);
+        self.finish(tr, end)
+    }
+
     /// Traces the shadow ray: its transmittance, and the medium it ends in.
-    pub fn trace(
+    fn trace(
         &mut self,
         scene: &Scene,
         work: &mut Work,
@@ -214,7 +211,7 @@ impl Shadow {
 
     /// The light sample's contribution through transmittance `tr` of a shadow ray that
     /// ended in `end_medium`.
-    pub fn finish(&self, tr: Color, end_medium: Option<u32>) -> Color {
+    fn finish(&self, tr: Color, end_medium: Option<u32>) -> Color {
         if tr == Color::ZERO {
             return Color::ZERO;
         }

@@ -18,7 +18,7 @@
 //! throughput multiply wavelength by wavelength; each product goes through the film to RGB
 //! where it is added to a pixel.
 
-use super::direct::{Vertex, sample_direct};
+use super::direct::{Vertex, light_sample};
 use super::photons::map::{decode, encode};
 use super::photons::{BATCH, Emitters, Gather, Launch, Photon, PhotonMap, launch, scatter};
 use super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, PathSettings, pass_through};
@@ -223,7 +223,8 @@ pub fn camera_pass<'a>(
                 };
                 let f = |wi: Vec3A| bsdf.f(wo, frame.to_local(wi)) * wi.dot(hit.ns).abs();
                 let pdf = |wi: Vec3A| bsdf.pdf(wo, frame.to_local(wi));
-                let ld = sample_direct(scene, &path, &v, f, pdf, sampler, work);
+                let ld = light_sample(scene, &path, &v, f, pdf, sampler, work)
+                    .resolve(scene, work, waves);
                 state.ld += film(&scene.sensor, beta * ld, waves);
             }
             return Some(VisiblePointHandle(VisiblePoint {

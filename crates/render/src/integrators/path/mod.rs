@@ -367,9 +367,8 @@ impl PathTracer<'_> {
 
     /// Traces the shadow ray the path's light sample waits on, and adds the sample.
     pub fn shadow(&self, path: &mut Path) {
-        if let Some((beta, mut shadow)) = path.state.shadow.take() {
-            let (tr, end) = shadow.trace(self.scene, &mut path.work, path.waves.as_ref());
-            path.state.l += beta * shadow.finish(tr, end);
+        if let Some((beta, shadow)) = path.state.shadow.take() {
+            path.state.l += beta * shadow.resolve(self.scene, &mut path.work, path.waves.as_ref());
         }
     }
 
