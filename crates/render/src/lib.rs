@@ -49,6 +49,7 @@ pub mod scene;
 pub mod sensor;
 pub mod shapes;
 pub mod shared;
+pub(crate) mod simd;
 pub mod spectral;
 pub mod sums;
 pub mod textures;

@@ -10,6 +10,7 @@
 //! Lights know nothing of integrators: they never see a path, only a reference point.
 
 mod area;
+mod bounds;
 mod distant;
 mod goniometric;
 mod infinite;
@@ -21,13 +22,14 @@ mod spot;
 pub mod volume;
 
 pub use area::{EmissionImage, EmissionPoint, QuadricLight, SphereLight, TriangleLight};
+pub use bounds::LightBounds;
 pub use distant::DistantLight;
 pub use goniometric::GoniometricLight;
 pub use infinite::{DomeLight, ImageInfiniteLight, Portal, UniformInfiniteLight};
 pub use medium::MediumLight;
 pub use point::PointLight;
 pub use projection::ProjectionLight;
-pub use sampler::{LightBounds, LightBvh, LightSampler};
+pub use sampler::{LightBvh, LightSampler};
 pub use spot::SpotLight;
 pub use volume::{VolumeInterior, VolumeQuadricLight, VolumeSphereLight, VolumeTriangleLight};
 

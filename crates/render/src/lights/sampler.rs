@@ -16,243 +16,13 @@
 //! from an alias table: a choice in constant time instead of a walk of twenty levels.
 
 use super::Light;
+use super::bounds::{Cluster, LightBounds, Pair};
 use crate::sampling::AliasTable;
 use glam::Vec3A;
 use kiln_scene::LightSamplerKind;
-use std::f32::consts::PI;
 
 /// The largest f32 below 1.
 const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
-
-/// What a light, or a cluster of lights, can send where: a box holding the emitters, the
-/// cone of their surface normals (axis `w`, half-angle theta_o) and the spread of emission
-/// about each normal (theta_e), and their power.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LightBounds {
-    pub lo: Vec3A,
-    pub hi: Vec3A,
-    pub w: Vec3A,
-    /// Power, in the units the lights share (what [`Light::power`] gives or, for lights
-    /// with a narrower cone, the power of an isotropic emitter of the same intensity).
-    pub phi: f32,
-    pub cos_o: f32,
-    pub cos_e: f32,
-    /// Emits on both sides of the normals.
-    pub two_sided: bool,
-}
-
-impl LightBounds {
-    /// An emitter that may send light in every direction from anywhere in the box.
-    pub fn everywhere(lo: Vec3A, hi: Vec3A, phi: f32) -> LightBounds {
-        LightBounds {
-            lo,
-            hi,
-            w: Vec3A::Z,
-            phi,
-            cos_o: -1.0,
-            cos_e: 0.0,
-            two_sided: false,
-        }
-    }
-
-    /// A one-sided (or two-sided) diffuse emitter whose normals all lie in the cone about
-    /// `n` of half-angle acos(cos_o).
-    pub fn diffuse(
-        lo: Vec3A,
-        hi: Vec3A,
-        n: Vec3A,
-        cos_o: f32,
-        phi: f32,
-        two_sided: bool,
-    ) -> LightBounds {
-        LightBounds {
-            lo,
-            hi,
-            w: n,
-            phi,
-            cos_o,
-            cos_e: 0.0,
-            two_sided,
-        }
-    }
-
-    fn union(&self, b: &LightBounds) -> LightBounds {
-        if self.phi == 0.0 {
-            return *b;
-        }
-        if b.phi == 0.0 {
-            return *self;
-        }
-        let (w, cos_o) = cone_union((self.w, self.cos_o), (b.w, b.cos_o));
-        LightBounds {
-            lo: self.lo.min(b.lo),
-            hi: self.hi.max(b.hi),
-            w,
-            phi: self.phi + b.phi,
-            cos_o,
-            cos_e: self.cos_e.min(b.cos_e),
-            two_sided: self.two_sided || b.two_sided,
-        }
-    }
-
-    fn centroid(&self) -> Vec3A {
-        0.5 * (self.lo + self.hi)
-    }
-
-    /// How much light the emitters could send to a point `p` with normal `n` (zero for a
-    /// point in a medium): their power over the squared distance, times the cosine of the
-    /// smallest angle any emitter's direction can make with the way to `p` and, at a
-    /// surface, the largest cosine its normal can make with the box. Zero only where no
-    /// emitter in the bounds can light `p`.
-    pub fn importance(&self, p: Vec3A, n: Vec3A) -> f32 {
-        Cluster::new(self).importance(p, n)
-    }
-
-    /// The surface-area and orientation cost pbrt-v4 splits clusters by: power times the
-    /// solid measure of the emission cone times the box's area, times how elongated the
-    /// parent box is across the split axis.
-    fn cost(&self, parent_diag: Vec3A, axis: usize) -> f32 {
-        let theta_o = libm::acosf(self.cos_o.clamp(-1.0, 1.0));
-        let theta_e = libm::acosf(self.cos_e.clamp(-1.0, 1.0));
-        let theta_w = (theta_o + theta_e).min(PI);
-        let sin_o = safe_sqrt(1.0 - self.cos_o * self.cos_o);
-        let m_omega = 2.0 * PI * (1.0 - self.cos_o)
-            + PI / 2.0
-                * (2.0 * theta_w * sin_o
-                    - libm::cosf(theta_o - 2.0 * theta_w)
-                    - 2.0 * theta_o * sin_o
-                    + self.cos_o);
-        let kr = if parent_diag[axis] > 0.0 {
-            parent_diag.max_element() / parent_diag[axis]
-        } else {
-            1.0
-        };
-        let d = self.hi - self.lo;
-        let area = 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
-        self.phi * m_omega * kr * area
-    }
-}
-
-/// A [`LightBounds`] with what its importance needs computed once: the centre and squared
-/// radius of the box's bounding sphere, the distance clamp, and the sine of the cone.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Cluster {
-    center: Vec3A,
-    radius2: f32,
-    /// pbrt-v4 clamps the squared distance by half the diagonal's length (not squared);
-    /// Kiln keeps its choice so that scenes shared with it sample alike.
-    min_d2: f32,
-    w: Vec3A,
-    phi: f32,
-    cos_o: f32,
-    sin_o: f32,
-    cos_e: f32,
-    two_sided: bool,
-}
-
-impl Cluster {
-    fn new(b: &LightBounds) -> Cluster {
-        let half_diag = (b.hi - b.lo).length() / 2.0;
-        Cluster {
-            center: b.centroid(),
-            radius2: half_diag * half_diag,
-            min_d2: half_diag,
-            w: b.w,
-            phi: b.phi,
-            cos_o: b.cos_o,
-            sin_o: safe_sqrt(1.0 - b.cos_o * b.cos_o),
-            cos_e: b.cos_e,
-            two_sided: b.two_sided,
-        }
-    }
-
-    /// See [`LightBounds::importance`].
-    fn importance(&self, p: Vec3A, n: Vec3A) -> f32 {
-        let d = p - self.center;
-        let dist2 = d.length_squared();
-        let wi = if dist2 > 0.0 {
-            d / dist2.sqrt()
-        } else {
-            Vec3A::ZERO
-        };
-        let mut cos_w = self.w.dot(wi);
-        if self.two_sided {
-            cos_w = cos_w.abs();
-        }
-        let sin_w = safe_sqrt(1.0 - cos_w * cos_w);
-        // The cone of directions the box's bounding sphere subtends from p.
-        let (cos_b, sin_b) = if dist2 < self.radius2 {
-            (-1.0, 0.0)
-        } else {
-            let sin2 = self.radius2 / dist2;
-            (safe_sqrt(1.0 - sin2), sin2.sqrt())
-        };
-        // theta' = max(0, theta_w - theta_o - theta_b), by its sine and cosine.
-        let cos_x = cos_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
-        let sin_x = sin_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
-        let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
-        if cos_p <= self.cos_e {
-            return 0.0;
-        }
-        let mut importance = self.phi * cos_p / dist2.max(self.min_d2);
-        if n != Vec3A::ZERO {
-            let cos_i = n.dot(wi).abs();
-            let sin_i = safe_sqrt(1.0 - cos_i * cos_i);
-            importance *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
-        }
-        if importance > 0.0 && importance.is_finite() {
-            importance
-        } else {
-            0.0
-        }
-    }
-}
-
-fn safe_sqrt(x: f32) -> f32 {
-    x.max(0.0).sqrt()
-}
-
-/// cos(max(0, a - b)) from the sines and cosines of a and b.
-fn cos_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
-    if cos_a > cos_b {
-        1.0
-    } else {
-        cos_a * cos_b + sin_a * sin_b
-    }
-}
-
-/// sin(max(0, a - b)) from the sines and cosines of a and b.
-fn sin_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
-    if cos_a > cos_b {
-        0.0
-    } else {
-        sin_a * cos_b - cos_a * sin_b
-    }
-}
-
-/// The smallest cone holding both cones (axis, cosine of the half-angle).
-fn cone_union(a: (Vec3A, f32), b: (Vec3A, f32)) -> (Vec3A, f32) {
-    let theta_a = libm::acosf(a.1.clamp(-1.0, 1.0));
-    let theta_b = libm::acosf(b.1.clamp(-1.0, 1.0));
-    let theta_d = libm::acosf(a.0.dot(b.0).clamp(-1.0, 1.0));
-    if (theta_d + theta_b).min(PI) <= theta_a {
-        return a;
-    }
-    if (theta_d + theta_a).min(PI) <= theta_b {
-        return b;
-    }
-    let theta_o = (theta_a + theta_d + theta_b) / 2.0;
-    if theta_o >= PI {
-        return (Vec3A::Z, -1.0);
-    }
-    let theta_r = theta_o - theta_a;
-    let axis = a.0.cross(b.0);
-    if axis.length_squared() == 0.0 {
-        return (Vec3A::Z, -1.0);
-    }
-    let w = glam::Quat::from_axis_angle(axis.normalize().into(), theta_r) * glam::Vec3::from(a.0);
-    (Vec3A::from(w).normalize(), libm::cosf(theta_o))
-}
 
 /// Lights at infinity (and distant lights), chosen uniformly with one share beside the
 /// bounded lights' (pbrt-v4's rule for its bvh and exhaustive samplers).
@@ -291,11 +61,12 @@ impl Beside {
     }
 }
 
-/// A node of the light hierarchy: its bounds and either its second child (the first
-/// follows it) or, in a leaf, its light or its group of lights.
+/// A node of the light hierarchy: its two children's bounds side by side and its second
+/// child (the first follows it) or, in a leaf, its light or its group of lights.
 #[derive(Debug, Clone)]
 struct Node {
-    cluster: Cluster,
+    /// The children's clusters (unused in a leaf).
+    children: Pair,
     /// The second child's index, or in a leaf the light's index (the group's, for a
     /// group).
     index: u32,
@@ -321,6 +92,8 @@ const GROUP: u32 = 1 << 31;
 #[derive(Debug, Clone, Default)]
 pub struct LightBvh {
     nodes: Vec<Node>,
+    /// The root's cluster: a root that is a leaf lights only where it has importance.
+    root: Cluster,
     infinite: Beside,
     /// Per light: the branches (bit k set: the second child at depth k) from the root to
     /// its leaf, or None for lights at infinity and lights that emit nothing.
@@ -344,6 +117,7 @@ impl LightBvh {
         debug_assert_eq!(bounds.len(), group.len());
         let mut bvh = LightBvh {
             nodes: Vec::new(),
+            root: Cluster::default(),
             infinite: Beside::default(),
             trails: vec![None; bounds.len()],
             groups: Vec::new(),
@@ -391,7 +165,8 @@ impl LightBvh {
         }
         if !finite.is_empty() {
             let limit = sah_depth(finite.len());
-            bvh.build(&mut finite, 0, 0, limit);
+            let b = bvh.build(&mut finite, 0, 0, limit);
+            bvh.root = Cluster::new(&b);
         }
         bvh
     }
@@ -407,7 +182,7 @@ impl LightBvh {
             let (light, b) = lights[0];
             let group = light & GROUP != 0;
             self.nodes.push(Node {
-                cluster: Cluster::new(&b),
+                children: Pair::default(),
                 index: light & !GROUP,
                 leaf: true,
                 group,
@@ -430,7 +205,7 @@ impl LightBvh {
         .unwrap_or(lights.len() / 2);
         let me = self.nodes.len();
         self.nodes.push(Node {
-            cluster: Cluster::new(&lights[0].1),
+            children: Pair::default(),
             index: 0,
             leaf: false,
             group: false,
@@ -440,11 +215,10 @@ impl LightBvh {
         let b0 = self.build(first, depth + 1, trail, sah_limit);
         self.nodes[me].index = self.nodes.len() as u32;
         let b1 = self.build(second, depth + 1, trail | (1 << depth), sah_limit);
-        let b = b0.union(&b1);
-        self.nodes[me].cluster = Cluster::new(&b);
-        self.nodes[me].twins =
-            self.nodes[me + 1].cluster == self.nodes[self.nodes[me].index as usize].cluster;
-        b
+        let (c0, c1) = (Cluster::new(&b0), Cluster::new(&b1));
+        self.nodes[me].children = Pair::new(&c0, &c1);
+        self.nodes[me].twins = c0 == c1;
+        b0.union(&b1)
     }
 
     fn sample(&self, p: Vec3A, n: Vec3A, u: f32) -> Option<(usize, f32)> {
@@ -459,7 +233,7 @@ impl LightBvh {
         loop {
             let node = &self.nodes[i];
             if node.leaf {
-                if i == 0 && node.cluster.importance(p, n) <= 0.0 {
+                if i == 0 && self.root.importance(p, n) <= 0.0 {
                     return None;
                 }
                 if node.group {
@@ -469,7 +243,7 @@ impl LightBvh {
                 }
                 return Some((node.index as usize, pmf));
             }
-            let (c0, c1) = self.child_importances(node, i, p, n);
+            let (c0, c1) = self.child_importances(node, p, n);
             let total = c0 + c1;
             if total == 0.0 {
                 return None;
@@ -487,14 +261,14 @@ impl LightBvh {
         }
     }
 
-    /// The importances of node `i`'s two children at (`p`, `n`).
+    /// The importances of `node`'s two children at (`p`, `n`).
     #[inline(always)]
-    fn child_importances(&self, node: &Node, i: usize, p: Vec3A, n: Vec3A) -> (f32, f32) {
-        let c0 = self.nodes[i + 1].cluster.importance(p, n);
+    fn child_importances(&self, node: &Node, p: Vec3A, n: Vec3A) -> (f32, f32) {
+        let (c0, c1) = node.children.importances(p, n);
         if node.twins {
             return (c0, c0);
         }
-        (c0, self.nodes[node.index as usize].cluster.importance(p, n))
+        (c0, c1)
     }
 
     fn pmf(&self, p: Vec3A, n: Vec3A, light: usize) -> f32 {
@@ -507,7 +281,7 @@ impl LightBvh {
         loop {
             let node = &self.nodes[i];
             if node.leaf {
-                if i == 0 && node.cluster.importance(p, n) == 0.0 {
+                if i == 0 && self.root.importance(p, n) == 0.0 {
                     return 0.0;
                 }
                 if node.group {
@@ -516,7 +290,7 @@ impl LightBvh {
                 }
                 return pmf;
             }
-            let (c0, c1) = self.child_importances(node, i, p, n);
+            let (c0, c1) = self.child_importances(node, p, n);
             let total = c0 + c1;
             if total == 0.0 {
                 return 0.0;

@@ -2,7 +2,7 @@
 //! (obvhs's Möller-Trumbore, the test Kiln's images were made with) does for one triangle,
 //! operation for operation, so a lane's distance is that test's distance to the bit.
 
-use super::lanes::{F4, Lanes, Mask};
+use crate::simd::{F4, Lanes, Mask};
 use glam::Vec3A;
 use obvhs::rt_triangle::RtTriangle;
 
@@ -87,7 +87,7 @@ impl Tri4 {
         tmin: f32,
         tmax: f32,
     ) -> ([f32; 8], Mask) {
-        use super::lanes::F8;
+        use crate::simd::F8;
         let l = |a: &[[f32; 4]; 3], b: &[[f32; 4]; 3]| [0, 1, 2].map(|k| F8::halves(&a[k], &b[k]));
         let (t, mask) = hit(
             l(&self.v0, &other.v0),

@@ -8,11 +8,11 @@
 //! so rounding never loses a box a ray grazes), and a NaN (a ray in a slab's plane, parallel
 //! to it) leaves that axis out rather than the box.
 
-#[cfg(target_arch = "x86_64")]
-use super::lanes::F8;
-use super::lanes::{F4, Mask};
 use super::tri4::{Ray4, Tri4};
 use super::{EMPTY, Kernel, LEAF, LEAF_FIRST, Node, OTHERS, STACK, WIDTH, WideBvh};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::F8;
+use crate::simd::{F4, Mask};
 use glam::Vec3A;
 
 /// How far past the closest hit so far a box is still opened: a triangle's distance and

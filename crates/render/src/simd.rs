@@ -1,5 +1,6 @@
-//! Four f32 lanes and the few operations the wide BVH's kernels use, as SSE2 on x86-64 and
-//! as plain arrays elsewhere, with the same result to the bit either way: each operation is
+//! Four and eight f32 lanes and the operations Kiln's kernels use (the wide BVH's box and
+//! triangle tests, the light hierarchy's importances), as SSE2 (AVX2 for eight) on x86-64
+//! and as plain arrays elsewhere, with the same result to the bit either way: each operation is
 //! one IEEE-754 operation per lane (no fused multiply-add, no reciprocal estimate), and
 //! `min`/`max` are SSE's (`a < b ? a : b`, so a NaN picks the second operand).
 
@@ -159,6 +160,48 @@ impl F4 {
         // SAFETY: as above.
         F4(unsafe { _mm_or_ps(self.0, o.0) })
     }
+    /// `v` in the first two lanes, zeros in the others.
+    #[inline(always)]
+    pub fn load2(v: &[f32; 2]) -> F4 {
+        // SAFETY: SSE2 is part of every x86-64 CPU; `v` is 8 bytes, read unaligned.
+        F4(unsafe { _mm_castsi128_ps(_mm_loadl_epi64(v.as_ptr() as *const __m128i)) })
+    }
+    /// The square root of each lane (correctly rounded, as `f32::sqrt`).
+    #[inline(always)]
+    pub fn sqrt(self) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_sqrt_ps(self.0) })
+    }
+    /// All bits set in the lanes that hold a NaN.
+    #[inline(always)]
+    pub fn nan_lanes(self) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_cmpunord_ps(self.0, self.0) })
+    }
+    /// Each lane with its sign bit cleared, as `f32::abs`.
+    #[inline(always)]
+    pub fn abs(self) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_andnot_ps(_mm_set1_ps(-0.0), self.0) })
+    }
+    /// All bits set in the lanes where `self < o` (none where either is NaN).
+    #[inline(always)]
+    pub fn lt_lanes(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_cmplt_ps(self.0, o.0) })
+    }
+    /// All bits set in the lanes where `self <= o` (none where either is NaN).
+    #[inline(always)]
+    pub fn le_lanes(self, o: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_cmple_ps(self.0, o.0) })
+    }
+    /// In the lanes whose bits `self` (a mask from a comparison) sets, `a`; elsewhere `b`.
+    #[inline(always)]
+    pub fn select(self, a: F4, b: F4) -> F4 {
+        // SAFETY: as above.
+        F4(unsafe { _mm_or_ps(_mm_and_ps(self.0, a.0), _mm_andnot_ps(self.0, b.0)) })
+    }
 }
 
 #[cfg(not(target_arch = "x86_64"))]
@@ -222,6 +265,41 @@ impl F4 {
     #[inline(always)]
     pub fn or(self, o: F4) -> F4 {
         self.zip(o, |a, b| f32::from_bits(a.to_bits() | b.to_bits()))
+    }
+    #[inline(always)]
+    pub fn load2(v: &[f32; 2]) -> F4 {
+        F4([v[0], v[1], 0.0, 0.0])
+    }
+    #[inline(always)]
+    pub fn sqrt(self) -> F4 {
+        F4(self.0.map(f32::sqrt))
+    }
+    #[inline(always)]
+    pub fn nan_lanes(self) -> F4 {
+        self.mask(self, |a, _| a.is_nan())
+    }
+    #[inline(always)]
+    pub fn abs(self) -> F4 {
+        F4(self.0.map(f32::abs))
+    }
+    #[inline(always)]
+    fn mask(self, o: F4, f: impl Fn(f32, f32) -> bool) -> F4 {
+        self.zip(o, |a, b| f32::from_bits(if f(a, b) { u32::MAX } else { 0 }))
+    }
+    #[inline(always)]
+    pub fn lt_lanes(self, o: F4) -> F4 {
+        self.mask(o, |a, b| a < b)
+    }
+    #[inline(always)]
+    pub fn le_lanes(self, o: F4) -> F4 {
+        self.mask(o, |a, b| a <= b)
+    }
+    #[inline(always)]
+    pub fn select(self, a: F4, b: F4) -> F4 {
+        F4(std::array::from_fn(|i| {
+            let m = self.0[i].to_bits();
+            f32::from_bits((m & a.0[i].to_bits()) | (!m & b.0[i].to_bits()))
+        }))
     }
 }
 
@@ -351,5 +429,21 @@ mod tests {
         assert_eq!(x.le(y), 0b0010);
         assert_eq!(x.signs(), 0b0010);
         assert_eq!(x.nonzero(), 0b1101);
+        let c = [4.0f32, -0.0, f32::NAN, -f32::INFINITY];
+        let z = F4::load(&c);
+        for (i, x) in c.into_iter().enumerate() {
+            let (sq, ab) = (z.sqrt().store()[i], z.abs().store()[i]);
+            assert!(sq.to_bits() == x.sqrt().to_bits() || (sq.is_nan() && x.sqrt().is_nan()));
+            assert_eq!(ab.to_bits(), x.abs().to_bits());
+        }
+        // NaN compares false; the masks pick whole lanes.
+        let lt = x.lt_lanes(y).select(F4::splat(1.0), F4::splat(2.0)).store();
+        assert_eq!(lt, [2.0, 2.0, 2.0, 2.0]);
+        let le = x.le_lanes(y).select(x, y).store().map(f32::to_bits);
+        assert_eq!(le, [b[0], -0.0, b[2], b[3]].map(f32::to_bits));
+        assert_eq!(y.lt_lanes(x).select(y, x).store()[3], -7.25);
+        let nan = x.nan_lanes().select(F4::splat(1.0), F4::splat(0.0)).store();
+        assert_eq!(nan, [0.0, 0.0, 1.0, 0.0]);
+        assert_eq!(F4::load2(&[3.0, -1.0]).store(), [3.0, -1.0, 0.0, 0.0]);
     }
 }
