@@ -104,6 +104,8 @@ fn scale(workers: usize) {
         priority: 0,
         webhook: None,
         spectral: None,
+        requires: Vec::new(),
+        max_workers: None,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let total = rt.block_on(client.status(id)).unwrap().tiles_total;

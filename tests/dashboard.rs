@@ -59,6 +59,8 @@ fn the_dashboard_works_in_a_real_browser() {
         priority,
         webhook: None,
         spectral: None,
+        requires: Vec::new(),
+        max_workers: None,
     };
     // A job of four passes to watch, one below it in priority to stop after its first
     // pass, and one below that to cancel.

@@ -15,6 +15,7 @@ mod connections;
 mod failures;
 mod limits;
 mod passes;
+mod requirements;
 mod verify;
 mod webhooks;
 
@@ -349,6 +350,8 @@ impl Farm {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         }
     }
 

@@ -146,6 +146,8 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         };
         let id = rt.block_on(client.create_job(&spec, None)).unwrap();
         if stop_at_once {

@@ -27,6 +27,8 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
         priority: 0,
         webhook: None,
         spectral: None,
+        requires: Vec::new(),
+        max_workers: None,
     };
     let workers = |rt: &tokio::runtime::Runtime| -> Vec<kiln_farm::api::WorkerStatus> {
         let http = reqwest::Client::new();

@@ -78,6 +78,8 @@ fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
         priority: 0,
         webhook: Some(format!("{base}/{hook}")),
         spectral: None,
+        requires: Vec::new(),
+        max_workers: None,
     };
     let bad = JobSpec {
         webhook: Some("ftp://x/".into()),

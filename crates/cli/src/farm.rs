@@ -155,6 +155,10 @@ pub struct WorkerArgs {
     /// renderer would.
     #[arg(long, value_parser = parse_fault)]
     inject_fault: Option<worker::Fault>,
+    /// What this worker offers, comma separated (e.g. big-mem,avx512): it is lent only
+    /// the tiles of jobs whose requirements (kiln submit --requires) it has, every one.
+    #[arg(long, value_delimiter = ',')]
+    tags: Vec<String>,
 }
 
 fn parse_fault(s: &str) -> std::result::Result<worker::Fault, String> {
@@ -184,6 +188,7 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
         format!("{host}-{}", std::process::id())
     });
     kiln_farm::api::check_worker_name(&name).map_err(anyhow::Error::msg)?;
+    kiln_farm::api::check_tags(&args.tags).map_err(anyhow::Error::msg)?;
     let cache_dir = args
         .cache_dir
         .unwrap_or_else(|| std::env::temp_dir().join("kiln-bundles"));
@@ -198,6 +203,7 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
         poll: Duration::from_millis(100),
         give_up_after: Duration::from_secs_f64(args.give_up_after.max(0.0)),
         fault: args.inject_fault,
+        tags: args.tags,
     };
     rt.block_on(async move {
         let stop = Arc::new(worker::Stop::default());
@@ -257,6 +263,13 @@ pub struct JobArgs {
     /// Render in RGB.
     #[arg(long)]
     rgb: bool,
+    /// Tags a worker must offer, every one, to render this job (kiln worker --tags),
+    /// comma separated.
+    #[arg(long, value_delimiter = ',')]
+    requires: Vec<String>,
+    /// At most this many workers render the job at once.
+    #[arg(long)]
+    max_workers: Option<u32>,
 }
 
 impl JobArgs {
@@ -304,6 +317,8 @@ async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> 
         priority: job.priority,
         webhook: job.webhook.clone(),
         spectral: job.spectral(),
+        requires: job.requires.clone(),
+        max_workers: job.max_workers,
     };
     // The same scene and settings submitted twice (a retry) make one job.
     let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);
@@ -500,6 +515,13 @@ pub struct FarmArgs {
 pub fn farm(args: FarmArgs) -> Result<()> {
     if args.workers == 0 {
         bail!("--workers must be at least 1");
+    }
+    if !args.job.requires.is_empty() {
+        // Its workers declare no tags, so the job would wait for ever.
+        bail!(
+            "--requires is for `kiln submit` to a coordinator whose workers offer tags; \
+             this farm's workers are this machine's own"
+        );
     }
     let desc = kiln_scene::load_file(&args.scene)?;
     let output = args.output.clone().unwrap_or_else(|| {

@@ -41,6 +41,14 @@ pub struct JobSpec {
     /// upgrades.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectral: Option<bool>,
+    /// Tags a worker must have declared, every one of them, to be lent this job's tiles
+    /// (`kiln worker --tags big-mem,avx512`); empty: any worker.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub requires: Vec<String>,
+    /// At most this many workers hold the job's leases at once (at least 1); absent: no
+    /// limit beyond sharing with jobs of equal priority.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_workers: Option<u32>,
 }
 
 fn is_zero(v: &i32) -> bool {
@@ -166,6 +174,16 @@ pub struct JobStatus {
     /// What became of the job's webhook call, once it has ended.
     #[serde(default)]
     pub webhook: Option<String>,
+    /// Why no worker takes the running job's tiles, when none of the workers heard from
+    /// can: the tags it requires that none of them has.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub waiting: Option<String>,
+    /// The tags its workers must offer (its spec's).
+    #[serde(default)]
+    pub requires: Vec<String>,
+    /// The most workers it is lent to at once (its spec's).
+    #[serde(default)]
+    pub max_workers: Option<u32>,
 }
 
 /// A worker as the coordinator knows it (GET /v1/workers).
@@ -181,6 +199,9 @@ pub struct WorkerStatus {
     pub set_aside: Option<String>,
     /// What it is rendering now.
     pub leases: Vec<WorkerLease>,
+    /// The tags it declared with its last request for work.
+    #[serde(default)]
+    pub tags: Vec<String>,
 }
 
 /// A lease a worker holds, as [`WorkerStatus`] lists it.
@@ -250,6 +271,37 @@ pub struct Lease {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct LeaseRequest {
     pub worker: String,
+    /// What the worker offers (see [`check_tags`]): it is lent only tiles of jobs whose
+    /// `requires` it has, every one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tags: Vec<String>,
+}
+
+/// The longest tag, in bytes.
+pub const MAX_TAG: usize = 64;
+
+/// The most tags a worker declares or a job requires.
+pub const MAX_TAGS: usize = 32;
+
+/// Checks tags (a worker's, or those a job requires): at most [`MAX_TAGS`], each 1 to
+/// [`MAX_TAG`] bytes of lower-case letters, digits and `-`, `_`, `.`. The message names
+/// the first that is not one.
+pub fn check_tags(tags: &[String]) -> Result<(), String> {
+    if tags.len() > MAX_TAGS {
+        return Err(format!("{} tags; at most {MAX_TAGS}", tags.len()));
+    }
+    let allowed = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || "-_.".contains(c);
+    for tag in tags {
+        if tag.is_empty() || tag.len() > MAX_TAG || !tag.chars().all(allowed) {
+            let shown: String = tag.chars().take(40).collect();
+            return Err(format!(
+                "tag '{}{}' is not 1 to {MAX_TAG} of a-z, 0-9 and - _ .",
+                shown.escape_debug(),
+                if tag.chars().count() > 40 { "..." } else { "" }
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The longest worker name, in bytes.

@@ -159,6 +159,15 @@ impl Client {
             .await?)
     }
 
+    /// Every worker the coordinator has heard from, with what it renders now.
+    pub async fn workers(&self) -> Result<Vec<crate::api::WorkerStatus>> {
+        Ok(self
+            .send(self.req(Method::GET, "/v1/workers"))
+            .await?
+            .json()
+            .await?)
+    }
+
     pub async fn result(&self, job: u64) -> Result<Vec<u8>> {
         Ok(self
             .send(self.req(Method::GET, &format!("/v1/jobs/{job}/result.exr")))
@@ -169,9 +178,15 @@ impl Client {
     }
 
     pub async fn lease(&self, worker: &str) -> Result<Option<Lease>> {
+        self.lease_tagged(worker, &[]).await
+    }
+
+    /// A lease for `worker`, which offers `tags` (see [`crate::api::LeaseRequest`]).
+    pub async fn lease_tagged(&self, worker: &str, tags: &[String]) -> Result<Option<Lease>> {
         let r = self
             .send(self.req(Method::POST, "/v1/leases").json(&LeaseRequest {
                 worker: worker.into(),
+                tags: tags.to_vec(),
             }))
             .await?;
         if r.status() == StatusCode::NO_CONTENT {

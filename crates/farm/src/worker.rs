@@ -60,6 +60,8 @@ pub struct WorkerConfig {
     pub give_up_after: Duration,
     /// A fault to inject, to test that verification catches it.
     pub fault: Option<Fault>,
+    /// What the worker offers: it is lent only tiles of jobs that require none else.
+    pub tags: Vec<String>,
 }
 
 /// A fault a worker can be told to inject, for tests: how a verified job is tested against
@@ -190,7 +192,7 @@ async fn next_lease(
     config: &WorkerConfig,
     unreachable: &mut Unreachable,
 ) -> Result<Option<Lease>, WorkerError> {
-    let answer = client.lease(&config.name).await;
+    let answer = client.lease_tagged(&config.name, &config.tags).await;
     if matches!(answer, Err(ClientError::Http(_))) {
         let since = *unreachable
             .since

@@ -41,6 +41,9 @@ pub enum Error {
     NotSetAside(String),
     #[error("{0}")]
     BadWorkerName(String),
+    /// A worker's tags that are not tags.
+    #[error("{0}")]
+    BadTags(String),
     /// A job whose scene cannot be planned into tiles.
     #[error("{0}")]
     Unplannable(PlanError),
@@ -158,6 +161,9 @@ pub enum PlanError {
     /// A pass schedule that cannot be rendered, or extended as asked.
     #[error("passes: {0}")]
     Passes(String),
+    /// Requirements that are not tags, or a worker cap of none.
+    #[error("{0}")]
+    Requirements(String),
 }
 
 /// Why an uploaded tile was refused (the attempt counts as failed).

@@ -126,6 +126,7 @@ impl Error {
             | Error::BadPrepassName
             | Error::UnwantedPrepass(_)
             | Error::BadWorkerName(_)
+            | Error::BadTags(_)
             | Error::PrepassDigest
             | Error::BrokenUpload(_)
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
@@ -521,7 +522,7 @@ async fn lease_sums(
 
 async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Error> {
     let req: LeaseRequest = parse_json(&body)?;
-    Ok(match c.lease(&req.worker)? {
+    Ok(match c.lease_tagged(&req.worker, &req.tags)? {
         Some(lease) => Json(lease).into_response(),
         None => StatusCode::NO_CONTENT.into_response(),
     })

@@ -65,6 +65,7 @@ impl Coordinator {
             super::webhooks::check_url(url)
                 .map_err(|e| Error::Unplannable(PlanError::Webhook(e)))?;
         }
+        check_requirements(&spec).map_err(|e| Error::Unplannable(PlanError::Requirements(e)))?;
         // With passes, the job's samples per pixel are the last pass's, and are pinned in the
         // spec: they set the renderer's texture footprint for the job's whole life, through
         // stops and extensions.
@@ -256,6 +257,7 @@ impl Coordinator {
                         .map(|t| now.saturating_duration_since(t).as_secs_f64()),
                     set_aside: state.workers.set_aside_reason(name),
                     leases,
+                    tags: r.tags.clone(),
                 }
             })
             .collect()
@@ -273,4 +275,14 @@ impl Coordinator {
         };
         snapshot.render()
     }
+}
+
+/// What a job asks of its workers: tags that are tags (see [`crate::api::check_tags`]), and
+/// a cap of at least one worker.
+fn check_requirements(spec: &JobSpec) -> Result<(), String> {
+    crate::api::check_tags(&spec.requires).map_err(|e| format!("requires: {e}"))?;
+    if spec.max_workers == Some(0) {
+        return Err("max_workers is at least 1".into());
+    }
+    Ok(())
 }

@@ -137,6 +137,8 @@ pub(super) struct WorkerRecord {
     pub last_seen: Option<Instant>,
     /// Why it gets no more leases, if it does not.
     pub set_aside: Option<String>,
+    /// The tags it declared with its last request for work.
+    pub tags: Vec<String>,
 }
 
 /// Workers' records: what they did, when they were last heard from, and whether they are
@@ -168,6 +170,45 @@ impl Workers {
 
     pub fn seen(&mut self, worker: &str, now: Instant) {
         self.record(worker).last_seen = Some(now);
+    }
+
+    /// Notes the tags `worker` declared with a request for work.
+    pub fn declare(&mut self, worker: &str, tags: &[String]) {
+        let r = self.record(worker);
+        if r.tags != tags {
+            r.tags = tags.to_vec();
+        }
+    }
+
+    /// Why no worker heard from can take a job that requires `tags`, if none can: the
+    /// required tags no worker has, or that no one worker has them all. None when some
+    /// worker not set aside has them all, or the job requires none.
+    pub fn none_can_take(&self, tags: &[String]) -> Option<String> {
+        if tags.is_empty() {
+            return None;
+        }
+        let able = self.records.values().filter(|r| r.set_aside.is_none());
+        let has = |r: &WorkerRecord, t: &String| r.tags.contains(t);
+        if able.clone().any(|r| tags.iter().all(|t| has(r, t))) {
+            return None;
+        }
+        let missing: Vec<&str> = tags
+            .iter()
+            .filter(|t| !able.clone().any(|r| has(r, t)))
+            .map(String::as_str)
+            .collect();
+        Some(if missing.is_empty() {
+            format!(
+                "no worker has every tag it requires ({}), though each is some worker's",
+                tags.join(", ")
+            )
+        } else {
+            format!(
+                "no worker has the tag{} {} it requires (kiln worker --tags)",
+                if missing.len() == 1 { "" } else { "s" },
+                missing.join(", ")
+            )
+        })
     }
 
     pub fn failed(&mut self, worker: &str) {

@@ -18,11 +18,18 @@ use kiln_image::{RgbBuffer, Windows};
 use tokio::time::Instant;
 
 impl Coordinator {
-    /// Lends `worker` the next pending tile pass: of the running job of highest priority
-    /// that has one, sharing workers between jobs of equal priority; `None` if there is no
-    /// work now.
+    /// [`Coordinator::lease_tagged`] for a worker that declares no tags.
     pub fn lease(&self, worker: &str) -> Result<Option<Lease>, Error> {
+        self.lease_tagged(worker, &[])
+    }
+
+    /// Lends `worker`, which offers `tags`, the next pending tile pass: of the running job
+    /// of highest priority that has one, whose requirements the worker meets and whose
+    /// worker cap it does not pass, sharing workers between jobs of equal priority; `None`
+    /// if there is no work for it now.
+    pub fn lease_tagged(&self, worker: &str, tags: &[String]) -> Result<Option<Lease>, Error> {
         crate::api::check_worker_name(worker).map_err(Error::BadWorkerName)?;
+        crate::api::check_tags(tags).map_err(Error::BadTags)?;
         let now = self.now();
         let mut state = self.lock();
         let state = &mut *state;
@@ -33,6 +40,7 @@ impl Coordinator {
             });
         }
         state.workers.seen(worker, now);
+        state.workers.declare(worker, tags);
         let ttl = state.leases.ttl();
         // Higher priority first; among equals, the job lent to longest ago (lease ids only
         // grow), so jobs of one priority take turns, tile by tile; then the oldest.
@@ -45,6 +53,11 @@ impl Coordinator {
         order.sort_unstable();
         for (_, _, id) in order {
             let job = state.jobs.get_mut(&id).expect("listed above");
+            if !job.spec.requires.iter().all(|t| tags.contains(t))
+                || at_worker_cap(&state.leases, id, job.spec.max_workers, worker)
+            {
+                continue;
+            }
             let Some((tile, pass)) = job.next_pending(worker) else {
                 continue;
             };
@@ -400,4 +413,20 @@ impl State {
             self.persist(held.job);
         }
     }
+}
+
+/// Whether job `job`, capped at `cap` workers, has its most workers holding its leases
+/// without `worker` (a worker already holding one may take more).
+fn at_worker_cap(leases: &super::leases::Leases, job: u64, cap: Option<u32>, worker: &str) -> bool {
+    let Some(cap) = cap else {
+        return false;
+    };
+    let mut holders = std::collections::BTreeSet::new();
+    for (_, held) in leases.iter().filter(|(_, h)| h.job == job) {
+        if held.worker == worker {
+            return false;
+        }
+        holders.insert(held.worker.as_str());
+    }
+    holders.len() >= cap as usize
 }

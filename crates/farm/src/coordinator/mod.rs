@@ -323,12 +323,18 @@ impl Coordinator {
 
     pub fn status(&self, id: u64) -> Option<JobStatus> {
         let now = self.now();
-        self.lock().jobs.get(&id).map(|j| j.status(now))
+        let state = self.lock();
+        state.jobs.get(&id).map(|j| state.status_of(j, now))
     }
 
     pub fn statuses(&self) -> Vec<JobStatus> {
         let now = self.now();
-        self.lock().jobs.values().map(|j| j.status(now)).collect()
+        let state = self.lock();
+        state
+            .jobs
+            .values()
+            .map(|j| state.status_of(j, now))
+            .collect()
     }
 
     /// What `/healthz` says: "ok", and what keeps work from being kept, if anything.
@@ -353,6 +359,15 @@ impl Coordinator {
 }
 
 impl State {
+    /// A job's status, with why no worker takes it when none of those heard from can.
+    fn status_of(&self, job: &Job, now: Instant) -> JobStatus {
+        let mut status = job.status(now);
+        if job.state == JobState::Running {
+            status.waiting = self.workers.none_can_take(&job.spec.requires);
+        }
+        status
+    }
+
     /// Records a job's state and error in the store. A failure is logged, not returned:
     /// the job goes on in memory, and a restart sees the state last recorded.
     fn persist(&self, id: u64) {

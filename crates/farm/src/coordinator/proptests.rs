@@ -129,6 +129,8 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         };
         let (job, _) = c.create_job(spec, None).await.unwrap();
         let schedule = passes.unwrap_or(vec![1]);

@@ -180,6 +180,7 @@ function drawWorkers(workers) {
       });
       aside.append(" ", again);
     }
+    cell(tr, w.tags && w.tags.length ? w.tags.join(", ") : "–");
     body.appendChild(tr);
   }
 }
@@ -212,6 +213,9 @@ async function drawJob(j) {
   if (j.tile_passes_held) {
     facts.push(["Held", j.tile_passes_held + " tile passes wait for a second worker to check them"]);
   }
+  if (j.requires && j.requires.length) facts.push(["Requires", j.requires.join(", ")]);
+  if (j.max_workers) facts.push(["Workers", "at most " + j.max_workers + " at once"]);
+  if (j.waiting) facts.push(["Waiting", j.waiting]);
   if (j.notice) facts.push(["Notice", j.notice]);
   if (j.webhook) facts.push(["Webhook", j.webhook]);
   const dl = $("job-facts");

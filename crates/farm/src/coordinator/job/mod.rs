@@ -172,6 +172,8 @@ impl Job {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         });
         let state = if state == JobState::Running {
             JobState::Failed
@@ -287,6 +289,9 @@ impl Job {
             },
             priority: self.spec.priority,
             webhook: self.webhook.delivery.describe(),
+            waiting: None,
+            requires: self.spec.requires.clone(),
+            max_workers: self.spec.max_workers,
         }
     }
 

@@ -161,6 +161,8 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -231,6 +233,8 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
                 priority: 0,
                 webhook: None,
                 spectral: None,
+                requires: Vec::new(),
+                max_workers: None,
             };
             let key = key.clone();
             tokio::spawn(async move {
@@ -283,6 +287,8 @@ async fn a_job_scene_must_be_a_digest() {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -356,6 +362,8 @@ async fn a_job_of_too_many_tiles_is_refused_before_it_is_planned() {
         priority: 0,
         webhook: None,
         spectral: None,
+        requires: Vec::new(),
+        max_workers: None,
     };
     let start = std::time::Instant::now();
     let (status, body) = call(
@@ -418,6 +426,8 @@ async fn submissions_plan_a_few_at_a_time_and_the_rest_wait() {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         };
         let app = f.app.clone();
         tokio::spawn(async move {

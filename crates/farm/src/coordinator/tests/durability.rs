@@ -120,6 +120,8 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
             priority: 0,
             webhook: None,
             spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

@@ -21,6 +21,7 @@ mod durability;
 mod lending;
 mod passes;
 mod queue;
+mod requirements;
 mod verify;
 
 const TTL: Duration = Duration::from_secs(20);
@@ -153,6 +154,8 @@ async fn submit_with(
         priority: 0,
         webhook: None,
         spectral: None,
+        requires: Vec::new(),
+        max_workers: None,
     };
     edit(&mut spec);
     let (status, body) = call(

@@ -19,6 +19,8 @@ fn spec(scene: &str) -> JobSpec {
         priority: 2,
         webhook: Some("http://127.0.0.1:9/hook".into()),
         spectral: Some(false),
+        requires: Vec::new(),
+        max_workers: None,
     }
 }
 

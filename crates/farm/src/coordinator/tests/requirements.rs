@@ -1,0 +1,151 @@
+//! What a job asks of its workers: the tags it requires (lent only to workers that offer
+//! every one, and a status that says why no worker takes it), and a cap on how many
+//! workers hold its leases at once; and requirements that are not tags, refused.
+
+use super::*;
+use crate::api::{LeaseRequest, WorkerStatus};
+
+/// A lease for `worker`, which offers `tags`.
+async fn lease_tagged(app: &Router, worker: &str, tags: &[&str]) -> Option<Lease> {
+    let req = LeaseRequest {
+        worker: worker.into(),
+        tags: tags.iter().map(|t| t.to_string()).collect(),
+    };
+    let (status, body) = call(
+        app,
+        "POST",
+        "/v1/leases",
+        None,
+        serde_json::to_vec(&req).unwrap(),
+    )
+    .await;
+    match status {
+        StatusCode::OK => Some(json(&body)),
+        StatusCode::NO_CONTENT => None,
+        s => panic!("lease: {s} {}", String::from_utf8_lossy(&body)),
+    }
+}
+
+fn tags(list: &[&str]) -> Vec<String> {
+    list.iter().map(|t| t.to_string()).collect()
+}
+
+#[tokio::test]
+async fn a_job_is_lent_only_to_workers_with_every_tag_it_requires() {
+    let f = farm(None);
+    let job = submit_with(&f, 32, 16, 16, |s| s.requires = tags(&["gpu", "big-mem"])).await;
+    // Before any worker is heard from, none has the tags.
+    let s = job_status(&f.app, job).await;
+    let waiting = s.waiting.expect("no worker can take it");
+    assert!(waiting.contains("gpu, big-mem"), "{waiting}");
+    assert!(lease_tagged(&f.app, "plain", &[]).await.is_none());
+    assert!(lease_tagged(&f.app, "half", &["gpu"]).await.is_none());
+    let waiting = job_status(&f.app, job).await.waiting.expect("still none");
+    assert!(
+        waiting.contains("big-mem") && !waiting.contains("gpu"),
+        "names only what no worker has: {waiting}"
+    );
+    // Two workers with one tag each: each tag is someone's, but no one has both.
+    assert!(
+        lease_tagged(&f.app, "other-half", &["big-mem"])
+            .await
+            .is_none()
+    );
+    let waiting = job_status(&f.app, job).await.waiting.expect("still none");
+    assert!(waiting.contains("every tag"), "{waiting}");
+    let l = lease_tagged(&f.app, "full", &["x", "big-mem", "gpu"])
+        .await
+        .expect("a worker with every tag takes it");
+    assert_eq!(l.job, job);
+    assert_eq!(job_status(&f.app, job).await.waiting, None);
+    // A job that requires nothing goes to any worker, and the untagged one takes it
+    // while the tagged job still has a tile.
+    let free = submit(&f, 32, 16, 16).await;
+    assert_eq!(lease_tagged(&f.app, "plain", &[]).await.unwrap().job, free);
+    // The workers list shows what each declared.
+    let (_, body) = call(&f.app, "GET", "/v1/workers", None, Body::empty()).await;
+    let workers: Vec<WorkerStatus> = json(&body);
+    let full = workers.iter().find(|w| w.name == "full").unwrap();
+    assert_eq!(full.tags, tags(&["x", "big-mem", "gpu"]));
+}
+
+#[tokio::test]
+async fn a_capped_job_is_lent_to_at_most_its_workers_at_once() {
+    let f = farm(None);
+    let frame = (48, 16);
+    let job = submit_with(&f, 48, 16, 16, |s| s.max_workers = Some(1)).await;
+    let a = lease_tagged(&f.app, "a", &[]).await.expect("three tiles");
+    assert!(
+        lease_tagged(&f.app, "b", &[]).await.is_none(),
+        "a second worker passes the cap"
+    );
+    let a2 = lease_tagged(&f.app, "a", &[])
+        .await
+        .expect("its worker takes more");
+    assert_eq!((a.job, a2.job), (job, job));
+    for l in [&a, &a2] {
+        let (status, _) = upload(&f.app, l.lease, exr(&tile_of(l, frame, 1.0))).await;
+        assert_eq!(status, StatusCode::OK);
+    }
+    // With no lease held, another worker may take the last tile.
+    let b = lease_tagged(&f.app, "b", &[])
+        .await
+        .expect("the cap is free");
+    assert_eq!(b.job, job);
+    assert!(lease_tagged(&f.app, "a", &[]).await.is_none(), "all lent");
+    // Without the cap, two workers share a job.
+    let free = submit(&f, 48, 16, 16).await;
+    assert_eq!(lease_tagged(&f.app, "c", &[]).await.unwrap().job, free);
+    assert_eq!(lease_tagged(&f.app, "d", &[]).await.unwrap().job, free);
+}
+
+#[tokio::test]
+async fn requirements_that_are_not_tags_are_refused_by_name() {
+    let f = farm(None);
+    let scene = upload_scene(&f, 16, 16).await;
+    for (edit, names) in [
+        (
+            Box::new(|s: &mut JobSpec| s.requires = tags(&["gpu", "Big Mem"]))
+                as Box<dyn Fn(&mut JobSpec)>,
+            "'Big Mem'",
+        ),
+        (
+            Box::new(|s: &mut JobSpec| s.max_workers = Some(0)),
+            "max_workers",
+        ),
+    ] {
+        let mut spec: JobSpec =
+            serde_json::from_value(serde_json::json!({ "scene": scene, "spp": 1 })).unwrap();
+        edit(&mut spec);
+        let (status, body) = call(
+            &f.app,
+            "POST",
+            "/v1/jobs",
+            None,
+            serde_json::to_vec(&spec).unwrap(),
+        )
+        .await;
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert!(error_of(&body).contains(names), "{}", error_of(&body));
+    }
+    let (_, body) = call(&f.app, "GET", "/v1/jobs", None, Body::empty()).await;
+    assert!(
+        json::<Vec<JobStatus>>(&body).is_empty(),
+        "nothing was created"
+    );
+    // A worker's tags the same way.
+    let (status, body) = call(
+        &f.app,
+        "POST",
+        "/v1/leases",
+        None,
+        r#"{"worker": "w", "tags": ["ok", "no/slash"]}"#,
+    )
+    .await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(
+        error_of(&body).contains("'no/slash'"),
+        "{}",
+        error_of(&body)
+    );
+}

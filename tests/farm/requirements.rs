@@ -1,0 +1,85 @@
+//! Worker tags and job requirements through the processes: `kiln worker --tags` and
+//! `kiln submit --requires --max-workers`; the tagged worker renders the whole job while an
+//! untagged one waits, and tags that are not tags are refused by name.
+
+use super::Farm;
+use crate::util::{kiln, scene};
+use kiln_farm::api::JobState;
+use std::time::Duration;
+
+#[test]
+fn a_job_that_requires_tags_is_rendered_only_by_the_worker_that_has_them() {
+    let farm = Farm::in_process(None);
+    let plain = farm.worker("plain");
+    let tagged = farm.worker_with("tagged", "cache-tagged", &["--tags", "gpu,big-mem"]);
+    let id = farm.submit(
+        &scene("furnace/scene.pbrt"),
+        &[
+            "--spp",
+            "1",
+            "--resolution",
+            "32x32",
+            "--tile",
+            "16",
+            "--requires",
+            "gpu",
+            "--max-workers",
+            "1",
+        ],
+    );
+    let status = farm.wait_done(id, Duration::from_secs(120));
+    assert_eq!(status.state, JobState::Done, "{status:?}");
+    assert_eq!(
+        (status.requires.clone(), status.max_workers),
+        (vec!["gpu".to_string()], Some(1))
+    );
+    let workers = farm.rt.block_on(farm.client.workers()).unwrap();
+    let done = |name: &str| {
+        workers
+            .iter()
+            .find(|w| w.name == name)
+            .map(|w| (w.tiles_done, w.tags.clone()))
+    };
+    assert_eq!(
+        done("tagged"),
+        Some((4, vec!["gpu".into(), "big-mem".into()]))
+    );
+    // The untagged worker asked for work all along and was given none of it.
+    assert_eq!(done("plain"), Some((0, vec![])), "{}", plain.text());
+    drop((plain, tagged));
+    // A job nobody can take says so.
+    let waiting = farm.submit(
+        &scene("furnace/scene.pbrt"),
+        &[
+            "--spp",
+            "1",
+            "--resolution",
+            "16x16",
+            "--requires",
+            "big-mem,tpu",
+        ],
+    );
+    let why = farm.status(waiting).waiting.expect("no worker has tpu");
+    assert!(why.contains("tpu") && !why.contains("big-mem"), "{why}");
+}
+
+#[test]
+fn tags_that_are_not_tags_are_refused_by_name() {
+    let farm = Farm::in_process(None);
+    let o = kiln()
+        .args(["worker", "--coordinator", &farm.url, "--tags", "ok,Not Ok"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("'Not Ok'"), "{err}");
+    let o = kiln()
+        .arg("submit")
+        .arg(scene("furnace/scene.pbrt"))
+        .args(["--coordinator", &farm.url, "--requires", "a/b"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("'a/b'"), "{err}");
+}
