@@ -106,6 +106,9 @@ fn scale(workers: usize) {
         spectral: None,
         requires: Vec::new(),
         max_workers: None,
+        after: Vec::new(),
+        after_ended: false,
+        hold_on_failure: false,
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let total = rt.block_on(client.status(id)).unwrap().tiles_total;

@@ -61,6 +61,9 @@ fn the_dashboard_works_in_a_real_browser() {
         spectral: None,
         requires: Vec::new(),
         max_workers: None,
+        after: Vec::new(),
+        after_ended: false,
+        hold_on_failure: false,
     };
     // A job of four passes to watch, one below it in priority to stop after its first
     // pass, and one below that to cancel.

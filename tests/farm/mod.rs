@@ -352,6 +352,9 @@ impl Farm {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         }
     }
 

@@ -148,6 +148,9 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         };
         let id = rt.block_on(client.create_job(&spec, None)).unwrap();
         if stop_at_once {

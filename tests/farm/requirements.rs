@@ -1,6 +1,7 @@
-//! Worker tags and job requirements through the processes: `kiln worker --tags` and
-//! `kiln submit --requires --max-workers`; the tagged worker renders the whole job while an
-//! untagged one waits, and tags that are not tags are refused by name.
+//! What a job asks of the farm, through the processes: worker tags and requirements
+//! (`kiln worker --tags`, `kiln submit --requires --max-workers`: the tagged worker renders
+//! the whole job while an untagged one waits), jobs that start after others (`kiln submit
+//! --after`), and tags or jobs that are not, refused by name.
 
 use super::Farm;
 use crate::util::{kiln, scene};
@@ -82,4 +83,36 @@ fn tags_that_are_not_tags_are_refused_by_name() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("'a/b'"), "{err}");
+}
+
+#[test]
+fn a_job_submitted_after_another_waits_for_it_then_renders() {
+    let farm = Farm::in_process(None);
+    let args = ["--spp", "1", "--resolution", "16x16"];
+    let first = farm.submit(&scene("furnace/scene.pbrt"), &args);
+    let after = first.to_string();
+    let second = farm.submit(
+        &scene("furnace/scene.pbrt"),
+        &[&args[..], &["--after", &after]].concat(),
+    );
+    let why = farm
+        .status(second)
+        .waiting
+        .expect("no worker yet, and the first not done");
+    assert!(why.contains(&format!("job {first}")), "{why}");
+    let w = farm.worker("w");
+    for id in [first, second] {
+        let s = farm.wait_done(id, Duration::from_secs(120));
+        assert_eq!(s.state, JobState::Done, "{s:?} {}", w.text());
+    }
+    assert_eq!(farm.status(second).after, vec![first]);
+    let o = kiln()
+        .arg("submit")
+        .arg(scene("furnace/scene.pbrt"))
+        .args(["--coordinator", &farm.url, "--after", "999"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no job 999"), "{err}");
 }

@@ -29,6 +29,9 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
         spectral: None,
         requires: Vec::new(),
         max_workers: None,
+        after: Vec::new(),
+        after_ended: false,
+        hold_on_failure: false,
     };
     let workers = |rt: &tokio::runtime::Runtime| -> Vec<kiln_farm::api::WorkerStatus> {
         let http = reqwest::Client::new();

@@ -80,6 +80,9 @@ fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
         spectral: None,
         requires: Vec::new(),
         max_workers: None,
+        after: Vec::new(),
+        after_ended: false,
+        hold_on_failure: false,
     };
     let bad = JobSpec {
         webhook: Some("ftp://x/".into()),

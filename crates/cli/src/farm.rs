@@ -270,6 +270,16 @@ pub struct JobArgs {
     /// At most this many workers render the job at once.
     #[arg(long)]
     max_workers: Option<u32>,
+    /// Start after these jobs (ids, comma separated) are done.
+    #[arg(long, value_delimiter = ',')]
+    after: Vec<u64>,
+    /// With --after: start once they have ended, done, failed or cancelled.
+    #[arg(long, requires = "after")]
+    after_ended: bool,
+    /// With --after: if one of them fails or is cancelled, wait (for it to be run again
+    /// and done) rather than fail.
+    #[arg(long, requires = "after", conflicts_with = "after_ended")]
+    hold_on_failure: bool,
 }
 
 impl JobArgs {
@@ -319,6 +329,9 @@ async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> 
         spectral: job.spectral(),
         requires: job.requires.clone(),
         max_workers: job.max_workers,
+        after: job.after.clone(),
+        after_ended: job.after_ended,
+        hold_on_failure: job.hold_on_failure,
     };
     // The same scene and settings submitted twice (a retry) make one job.
     let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);

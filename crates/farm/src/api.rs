@@ -49,6 +49,26 @@ pub struct JobSpec {
     /// limit beyond sharing with jobs of equal priority.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_workers: Option<u32>,
+    /// Jobs (at most [`MAX_AFTER`], each created before this one) this one starts after:
+    /// until then it is lent nothing, and its status says what it waits for.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub after: Vec<u64>,
+    /// Start once every job in `after` has ended, done or not; otherwise (the default)
+    /// once every one is done.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub after_ended: bool,
+    /// When a job this one waits on to be done fails or is cancelled: hold (go on waiting,
+    /// for it to be run again and done, or for this job to be cancelled) rather than fail
+    /// too (the default).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub hold_on_failure: bool,
+}
+
+/// The most jobs a job starts after.
+pub const MAX_AFTER: usize = 64;
+
+fn is_false(v: &bool) -> bool {
+    !*v
 }
 
 fn is_zero(v: &i32) -> bool {
@@ -184,6 +204,9 @@ pub struct JobStatus {
     /// The most workers it is lent to at once (its spec's).
     #[serde(default)]
     pub max_workers: Option<u32>,
+    /// The jobs it starts after (its spec's).
+    #[serde(default)]
+    pub after: Vec<u64>,
 }
 
 /// A worker as the coordinator knows it (GET /v1/workers).

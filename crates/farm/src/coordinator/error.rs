@@ -164,6 +164,9 @@ pub enum PlanError {
     /// Requirements that are not tags, or a worker cap of none.
     #[error("{0}")]
     Requirements(String),
+    /// Jobs to start after that do not exist (yet), or too many.
+    #[error("after: {0}")]
+    After(String),
 }
 
 /// Why an uploaded tile was refused (the attempt counts as failed).

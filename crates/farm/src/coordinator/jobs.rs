@@ -66,6 +66,9 @@ impl Coordinator {
                 .map_err(|e| Error::Unplannable(PlanError::Webhook(e)))?;
         }
         check_requirements(&spec).map_err(|e| Error::Unplannable(PlanError::Requirements(e)))?;
+        self.lock()
+            .check_after(&spec.after)
+            .map_err(|e| Error::Unplannable(PlanError::After(e)))?;
         // With passes, the job's samples per pixel are the last pass's, and are pinned in the
         // spec: they set the renderer's texture footprint for the job's whole life, through
         // stops and extensions.

@@ -41,6 +41,9 @@ impl Coordinator {
         }
         state.workers.seen(worker, now);
         state.workers.declare(worker, tags);
+        for job in state.settle_dependents() {
+            self.notify(job);
+        }
         let ttl = state.leases.ttl();
         // Higher priority first; among equals, the job lent to longest ago (lease ids only
         // grow), so jobs of one priority take turns, tile by tile; then the oldest.
@@ -52,6 +55,9 @@ impl Coordinator {
             .collect();
         order.sort_unstable();
         for (_, _, id) in order {
+            if !matches!(state.after_of(&state.jobs[&id]), super::After::Ready) {
+                continue;
+            }
             let job = state.jobs.get_mut(&id).expect("listed above");
             if !job.spec.requires.iter().all(|t| tags.contains(t))
                 || at_worker_cap(&state.leases, id, job.spec.max_workers, worker)

@@ -358,14 +358,96 @@ impl Coordinator {
     }
 }
 
+/// Where a job stands with the jobs it starts after.
+enum After {
+    /// Every one is done (or ended, as the job asks): it may be lent.
+    Ready,
+    /// Why it waits.
+    Waiting(String),
+    /// Why it fails: one it waits on to be done failed or was cancelled.
+    Failed(String),
+}
+
 impl State {
-    /// A job's status, with why no worker takes it when none of those heard from can.
+    /// A job's status, with what it waits for: the jobs it starts after, or a worker that
+    /// can take it when none of those heard from can.
     fn status_of(&self, job: &Job, now: Instant) -> JobStatus {
         let mut status = job.status(now);
         if job.state == JobState::Running {
-            status.waiting = self.workers.none_can_take(&job.spec.requires);
+            status.waiting = match self.after_of(job) {
+                After::Ready => self.workers.none_can_take(&job.spec.requires),
+                After::Waiting(why) | After::Failed(why) => Some(why),
+            };
         }
         status
+    }
+
+    /// Checks the jobs a new job is to start after: at most [`crate::api::MAX_AFTER`], each
+    /// one that exists. (A job can wait only on jobs created before it, so no circle of
+    /// jobs waiting on each other can form.)
+    fn check_after(&self, after: &[u64]) -> Result<(), String> {
+        if after.len() > crate::api::MAX_AFTER {
+            return Err(format!(
+                "{} jobs; a job starts after at most {}",
+                after.len(),
+                crate::api::MAX_AFTER
+            ));
+        }
+        match after.iter().find(|id| !self.jobs.contains_key(id)) {
+            Some(id) => Err(format!(
+                "no job {id} (a job starts only after jobs created before it)"
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// Where `job` stands with the jobs it starts after.
+    fn after_of(&self, job: &Job) -> After {
+        let spec = &job.spec;
+        let mut waits = Vec::new();
+        for id in &spec.after {
+            let state = self.jobs.get(id).map_or(JobState::Failed, |j| j.state);
+            match state {
+                JobState::Done => {}
+                JobState::Running => waits.push(format!("job {id}")),
+                JobState::Failed | JobState::Cancelled if spec.after_ended => {}
+                JobState::Failed | JobState::Cancelled => {
+                    let why = format!("job {id}, which it starts after, {}", state.as_str());
+                    if !spec.hold_on_failure {
+                        return After::Failed(why);
+                    }
+                    waits.push(format!("{why} (held until it is done)"));
+                }
+            }
+        }
+        if waits.is_empty() {
+            return After::Ready;
+        }
+        let until = if spec.after_ended { "ended" } else { "done" };
+        After::Waiting(format!("starts after {} ({until})", waits.join(", ")))
+    }
+
+    /// Fails the running jobs that start after a job that failed or was cancelled (unless
+    /// they hold); returns them.
+    fn settle_dependents(&mut self) -> Vec<u64> {
+        let failing: Vec<(u64, String)> = self
+            .jobs
+            .values()
+            .filter(|j| j.state == JobState::Running && !j.spec.after.is_empty())
+            .filter_map(|j| match self.after_of(j) {
+                After::Failed(why) => Some((j.id, why)),
+                _ => None,
+            })
+            .collect();
+        let mut failed = Vec::new();
+        for (id, why) in failing {
+            if self.jobs.get_mut(&id).is_some_and(|j| j.fail(why.clone())) {
+                tracing::warn!("job {id} failed: {why}");
+                self.persist(id);
+                failed.push(id);
+            }
+        }
+        failed
     }
 
     /// Records a job's state and error in the store. A failure is logged, not returned:
@@ -379,9 +461,10 @@ impl State {
         }
     }
 
-    /// Expires what is due at `now`; returns the jobs that failed for it.
+    /// Expires what is due at `now`, and settles the jobs that start after others; returns
+    /// the jobs that failed for it.
     fn expire_leases(&mut self, now: Instant) -> Vec<u64> {
-        let mut failed = Vec::new();
+        let mut failed = self.settle_dependents();
         for (id, held) in self.leases.expire(now) {
             self.metrics.leases_expired += 1;
             if let Some(job) = self.jobs.get_mut(&held.job)

@@ -131,6 +131,9 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         };
         let (job, _) = c.create_job(spec, None).await.unwrap();
         let schedule = passes.unwrap_or(vec![1]);

@@ -215,6 +215,7 @@ async function drawJob(j) {
   }
   if (j.requires && j.requires.length) facts.push(["Requires", j.requires.join(", ")]);
   if (j.max_workers) facts.push(["Workers", "at most " + j.max_workers + " at once"]);
+  if (j.after && j.after.length) facts.push(["After", j.after.map((id) => "job " + id).join(", ")]);
   if (j.waiting) facts.push(["Waiting", j.waiting]);
   if (j.notice) facts.push(["Notice", j.notice]);
   if (j.webhook) facts.push(["Webhook", j.webhook]);

@@ -174,6 +174,9 @@ impl Job {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         });
         let state = if state == JobState::Running {
             JobState::Failed
@@ -292,6 +295,7 @@ impl Job {
             waiting: None,
             requires: self.spec.requires.clone(),
             max_workers: self.spec.max_workers,
+            after: self.spec.after.clone(),
         }
     }
 
@@ -443,7 +447,7 @@ impl Job {
     }
 
     /// Fails the job, if it is running, for `error`. Returns whether it failed now.
-    fn fail(&mut self, error: String) -> bool {
+    pub fn fail(&mut self, error: String) -> bool {
         if self.state != JobState::Running {
             return false;
         }

@@ -163,6 +163,9 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -235,6 +238,9 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
                 spectral: None,
                 requires: Vec::new(),
                 max_workers: None,
+                after: Vec::new(),
+                after_ended: false,
+                hold_on_failure: false,
             };
             let key = key.clone();
             tokio::spawn(async move {
@@ -289,6 +295,9 @@ async fn a_job_scene_must_be_a_digest() {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -364,6 +373,9 @@ async fn a_job_of_too_many_tiles_is_refused_before_it_is_planned() {
         spectral: None,
         requires: Vec::new(),
         max_workers: None,
+        after: Vec::new(),
+        after_ended: false,
+        hold_on_failure: false,
     };
     let start = std::time::Instant::now();
     let (status, body) = call(
@@ -428,6 +440,9 @@ async fn submissions_plan_a_few_at_a_time_and_the_rest_wait() {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         };
         let app = f.app.clone();
         tokio::spawn(async move {

@@ -122,6 +122,9 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
             spectral: None,
             requires: Vec::new(),
             max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

@@ -16,6 +16,7 @@ use std::path::Path;
 use std::time::Duration;
 use tower::ServiceExt;
 
+mod after;
 mod api;
 mod durability;
 mod lending;
@@ -156,6 +157,9 @@ async fn submit_with(
         spectral: None,
         requires: Vec::new(),
         max_workers: None,
+        after: Vec::new(),
+        after_ended: false,
+        hold_on_failure: false,
     };
     edit(&mut spec);
     let (status, body) = call(

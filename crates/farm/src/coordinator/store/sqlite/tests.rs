@@ -21,6 +21,9 @@ fn spec(scene: &str) -> JobSpec {
         spectral: Some(false),
         requires: Vec::new(),
         max_workers: None,
+        after: Vec::new(),
+        after_ended: false,
+        hold_on_failure: false,
     }
 }
 
