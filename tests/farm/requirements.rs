@@ -47,6 +47,32 @@ fn a_job_that_requires_tags_is_rendered_only_by_the_worker_that_has_them() {
     );
     // The untagged worker asked for work all along and was given none of it.
     assert_eq!(done("plain"), Some((0, vec![])), "{}", plain.text());
+    // The CLI's lists: a table for people, the API's JSON for scripts.
+    let list = |what: &str, json: bool| {
+        let mut cmd = kiln();
+        cmd.args([what, "--coordinator", &farm.url]);
+        if json {
+            cmd.arg("--json");
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let table = list("workers", false);
+    let row = table
+        .lines()
+        .find(|l| l.starts_with("tagged"))
+        .expect(&table);
+    assert!(
+        row.contains("gpu,big-mem") && row.contains(" 4 "),
+        "{table}"
+    );
+    let jobs: Vec<kiln_farm::api::JobStatus> = serde_json::from_str(&list("jobs", true)).unwrap();
+    assert_eq!(
+        (jobs.len(), jobs[0].id, jobs[0].state),
+        (1, id, JobState::Done)
+    );
+    assert!(list("jobs", false).lines().nth(1).unwrap().contains("done"));
     drop((plain, tagged));
     // A job nobody can take says so.
     let waiting = farm.submit(

@@ -4,6 +4,7 @@
 //! exit codes; the work lives in the library crates.
 
 mod farm;
+mod listing;
 mod render;
 
 use clap::{Parser, Subcommand};
@@ -35,6 +36,11 @@ enum Command {
     /// Follow or change a job on a coordinator: status, stop after the pass in progress,
     /// extend with more passes, cancel.
     Job(farm::JobCommandArgs),
+    /// List a coordinator's jobs: state, progress, passes, priority, what each waits for.
+    Jobs(listing::ListArgs),
+    /// List the workers a coordinator has heard from: what each renders, its tags, its
+    /// record.
+    Workers(listing::ListArgs),
     /// Check that a coordinator answers (exit status 0), for container health checks.
     Health(farm::HealthArgs),
 }
@@ -55,6 +61,8 @@ fn main() -> ExitCode {
         Command::Submit(args) => farm::submit(args),
         Command::Health(args) => farm::health(args),
         Command::Job(args) => farm::job(args),
+        Command::Jobs(args) => listing::jobs(args),
+        Command::Workers(args) => listing::workers(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -159,6 +159,15 @@ impl Client {
             .await?)
     }
 
+    /// Every job the coordinator knows.
+    pub async fn jobs(&self) -> Result<Vec<JobStatus>> {
+        Ok(self
+            .send(self.req(Method::GET, "/v1/jobs"))
+            .await?
+            .json()
+            .await?)
+    }
+
     /// Every worker the coordinator has heard from, with what it renders now.
     pub async fn workers(&self) -> Result<Vec<crate::api::WorkerStatus>> {
         Ok(self
