@@ -1,12 +1,15 @@
 //! Property tests of the lease state machine: random sequences of leases, heartbeats,
 //! uploads (right, wrong and damaged), failures, clock jumps past the lease time and
 //! coordinator restarts, run against the coordinator itself on tokio's paused clock, for a
-//! job of one pass and one of three. After any sequence: no operation is an internal error,
-//! no tile pass is ever accepted with bytes other than those first accepted for it, the
-//! samples done are exactly those of the passes accepted, and driving the job on with a
-//! healthy worker ends it: done, its frame holding exactly the bytes accepted for each
-//! tile's last pass, or failed because a tile failed its three attempts or lost its
-//! renderers too often.
+//! job of one pass and one of three, kept to two workers at once, and a second job that
+//! starts after it. After any sequence: no operation is an internal error, no tile pass is
+//! ever accepted with bytes other than those first accepted for it, the samples done are
+//! exactly those of the passes accepted, the first job never has more than two workers
+//! and the second is lent nothing before the first is done; and driving the jobs on with a
+//! healthy worker ends them: the first done, its frame holding exactly the bytes accepted
+//! for each tile's last pass, and the second done after it; or the first failed because a
+//! tile failed its three attempts or lost its renderers too often, and the second failed
+//! for it.
 
 use super::{Config, Coordinator, Error};
 use crate::api::{JobSpec, JobState, Lease};
@@ -130,16 +133,37 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
             webhook: None,
             spectral: None,
             requires: Vec::new(),
-            max_workers: None,
+            max_workers: Some(2),
             after: Vec::new(),
             after_ended: false,
             hold_on_failure: false,
         };
-        let (job, _) = c.create_job(spec, None).await.unwrap();
+        let (job, _) = c.create_job(spec.clone(), None).await.unwrap();
+        let then = JobSpec {
+            spp: Some(1),
+            passes: None,
+            max_workers: None,
+            after: vec![job],
+            ..spec
+        };
+        let (next, _) = c.create_job(then, None).await.unwrap();
         let schedule = passes.unwrap_or(vec![1]);
         let mut held: Vec<Lease> = Vec::new();
-        // The bytes first accepted for each tile pass: (tile, pass).
+        // The bytes first accepted for each tile pass of the first job: (tile, pass).
         let mut accepted: HashMap<(u32, u32), Vec<u8>> = HashMap::new();
+        // The first job's workers at once never pass its cap, and the second job is lent
+        // nothing before the first is done.
+        let check_lent = |c: &Coordinator, l: &Lease| {
+            if l.job == next {
+                assert_eq!(c.status(job).unwrap().state, JobState::Done, "lent before its job");
+            }
+            let holders = c
+                .worker_statuses()
+                .iter()
+                .filter(|w| w.leases.iter().any(|h| h.job == job))
+                .count();
+            assert!(holders <= 2, "{holders} workers hold the capped job's leases");
+        };
         // The samples per pixel of a tile's passes accepted so far.
         let samples_done = |accepted: &HashMap<(u32, u32), Vec<u8>>| -> u64 {
             (0..6u32)
@@ -157,7 +181,10 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
         for op in ops {
             match op {
                 Op::Lease(w) => match c.lease(&format!("w{w}")) {
-                    Ok(Some(l)) => held.push(l),
+                    Ok(Some(l)) => {
+                        check_lent(&c, &l);
+                        held.push(l);
+                    }
                     Ok(None) => {}
                     Err(e) => assert_not_internal(&Err(e)),
                 },
@@ -179,7 +206,7 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
                     };
                     let r = upload(&c, &l, bytes.clone(), digest).await;
                     assert_not_internal(&r);
-                    if r.is_ok() {
+                    if r.is_ok() && l.job == job {
                         let first = accepted
                             .entry((l.tile_index, l.pass.index))
                             .or_insert_with(|| bytes.clone());
@@ -208,19 +235,21 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
             // not.
             assert_eq!(c.status(job).unwrap().samples_done, samples_done(&accepted));
         }
-        // A healthy worker drives the job to its end.
+        // A healthy worker drives the jobs to their ends.
         for _ in 0..100 {
-            if c.status(job).unwrap().state != JobState::Running {
+            let running = |id| c.status(id).unwrap().state == JobState::Running;
+            if !running(job) && !running(next) {
                 break;
             }
             tokio::time::advance(TTL * 2).await;
             c.expire_leases();
             while let Ok(Some(l)) = c.lease("healthy") {
+                check_lent(&c, &l);
                 let right = tile_bytes(&l, right_value(&l));
                 let digest = crate::bundle::digest_of(&right);
                 let r = upload(&c, &l, right.clone(), digest).await;
                 assert_not_internal(&r);
-                if r.is_ok() {
+                if r.is_ok() && l.job == job {
                     let first = accepted
                         .entry((l.tile_index, l.pass.index))
                         .or_insert_with(|| right.clone());
@@ -229,8 +258,10 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
             }
         }
         let s = c.status(job).unwrap();
+        let after = c.status(next).unwrap();
         match s.state {
             JobState::Done => {
+                assert_eq!(after.state, JobState::Done, "{after:?}");
                 let frame = kiln_image::decode_exr(&c.result(job).await.unwrap().bytes().await.unwrap()).unwrap();
                 let last = schedule.len() as u32 - 1;
                 assert_eq!(
@@ -252,6 +283,9 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
                 }
             }
             JobState::Failed => {
+                assert_eq!(after.state, JobState::Failed);
+                let why = after.error.unwrap_or_default();
+                assert!(why.contains(&format!("job {job}")) && why.contains("failed"), "{why}");
                 let error = s.error.unwrap_or_default();
                 assert!(
                     error.contains("failed 3 times")
