@@ -45,6 +45,11 @@ fn a_job_that_requires_tags_is_rendered_only_by_the_worker_that_has_them() {
         done("tagged"),
         Some((4, vec!["gpu".into(), "big-mem".into()]))
     );
+    // Workers offer the machine's memory unless told otherwise (Linux says how much).
+    if std::path::Path::new("/proc/meminfo").exists() {
+        assert!(workers.iter().all(|w| w.memory_mib.is_some_and(|m| m > 0)));
+    }
+    assert!(status.memory_mib >= 16, "{status:?}");
     // The untagged worker asked for work all along and was given none of it.
     assert_eq!(done("plain"), Some((0, vec![])), "{}", plain.text());
     // The CLI's lists: a table for people, the API's JSON for scripts.
@@ -100,6 +105,13 @@ fn tags_that_are_not_tags_are_refused_by_name() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("'Not Ok'"), "{err}");
+    let o = kiln()
+        .args(["worker", "--coordinator", &farm.url, "--memory", "lots"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("'lots'"), "{err}");
     let o = kiln()
         .arg("submit")
         .arg(scene("furnace/scene.pbrt"))

@@ -159,6 +159,39 @@ pub struct WorkerArgs {
     /// the tiles of jobs whose requirements (kiln submit --requires) it has, every one.
     #[arg(long, value_delimiter = ',')]
     tags: Vec<String>,
+    /// The memory this worker offers (e.g. 16G, 512M; a plain number is MiB): it is lent
+    /// only jobs whose scenes are estimated to need no more. Default: the machine's.
+    #[arg(long, value_parser = parse_memory)]
+    memory: Option<u64>,
+}
+
+/// A memory size in MiB from `16G`, `512M` or `512`.
+fn parse_memory(s: &str) -> std::result::Result<u64, String> {
+    let t = s.trim();
+    let (number, unit) = match t.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
+        Some((i, _)) => t.split_at(i),
+        None => (t, ""),
+    };
+    let scale = match unit.trim().to_ascii_uppercase().as_str() {
+        "" | "M" | "MB" | "MIB" => 1,
+        "G" | "GB" | "GIB" => 1024,
+        "T" | "TB" | "TIB" => 1024 * 1024,
+        _ => return Err(format!("memory '{s}' is not a size such as 16G or 512M")),
+    };
+    number
+        .parse::<u64>()
+        .ok()
+        .and_then(|n| n.checked_mul(scale))
+        .filter(|&n| n > 0)
+        .ok_or_else(|| format!("memory '{s}' is not a size such as 16G or 512M"))
+}
+
+/// The machine's memory in MiB, as Linux reports it (None elsewhere).
+fn machine_memory_mib() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024)
 }
 
 fn parse_fault(s: &str) -> std::result::Result<worker::Fault, String> {
@@ -204,6 +237,7 @@ pub fn worker(args: WorkerArgs) -> Result<()> {
         give_up_after: Duration::from_secs_f64(args.give_up_after.max(0.0)),
         fault: args.inject_fault,
         tags: args.tags,
+        memory_mib: args.memory.or_else(machine_memory_mib),
     };
     rt.block_on(async move {
         let stop = Arc::new(worker::Stop::default());

@@ -207,6 +207,10 @@ pub struct JobStatus {
     /// The jobs it starts after (its spec's).
     #[serde(default)]
     pub after: Vec<u64>,
+    /// The memory a worker is estimated to need for it, in MiB, from its scene when it
+    /// was planned: it is lent only to workers that offer at least this much.
+    #[serde(default)]
+    pub memory_mib: u64,
 }
 
 /// A worker as the coordinator knows it (GET /v1/workers).
@@ -225,6 +229,9 @@ pub struct WorkerStatus {
     /// The tags it declared with its last request for work.
     #[serde(default)]
     pub tags: Vec<String>,
+    /// The memory it offered then, in MiB (None: not said).
+    #[serde(default)]
+    pub memory_mib: Option<u64>,
 }
 
 /// A lease a worker holds, as [`WorkerStatus`] lists it.
@@ -298,6 +305,10 @@ pub struct LeaseRequest {
     /// `requires` it has, every one.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub tags: Vec<String>,
+    /// The memory it offers, in MiB: it is lent only tiles of jobs estimated to need no
+    /// more. Absent: not said (any job).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory_mib: Option<u64>,
 }
 
 /// The longest tag, in bytes.

@@ -187,16 +187,18 @@ impl Client {
     }
 
     pub async fn lease(&self, worker: &str) -> Result<Option<Lease>> {
-        self.lease_tagged(worker, &[]).await
+        self.lease_for(&LeaseRequest {
+            worker: worker.into(),
+            tags: Vec::new(),
+            memory_mib: None,
+        })
+        .await
     }
 
-    /// A lease for `worker`, which offers `tags` (see [`crate::api::LeaseRequest`]).
-    pub async fn lease_tagged(&self, worker: &str, tags: &[String]) -> Result<Option<Lease>> {
+    /// A lease for the worker that `req` names, offering its tags and memory.
+    pub async fn lease_for(&self, req: &LeaseRequest) -> Result<Option<Lease>> {
         let r = self
-            .send(self.req(Method::POST, "/v1/leases").json(&LeaseRequest {
-                worker: worker.into(),
-                tags: tags.to_vec(),
-            }))
+            .send(self.req(Method::POST, "/v1/leases").json(req))
             .await?;
         if r.status() == StatusCode::NO_CONTENT {
             return Ok(None);

@@ -62,6 +62,9 @@ pub struct WorkerConfig {
     pub fault: Option<Fault>,
     /// What the worker offers: it is lent only tiles of jobs that require none else.
     pub tags: Vec<String>,
+    /// The memory it offers, in MiB: it is lent only tiles of jobs estimated to need no
+    /// more (None: not said).
+    pub memory_mib: Option<u64>,
 }
 
 /// A fault a worker can be told to inject, for tests: how a verified job is tested against
@@ -192,7 +195,13 @@ async fn next_lease(
     config: &WorkerConfig,
     unreachable: &mut Unreachable,
 ) -> Result<Option<Lease>, WorkerError> {
-    let answer = client.lease_tagged(&config.name, &config.tags).await;
+    let answer = client
+        .lease_for(&crate::api::LeaseRequest {
+            worker: config.name.clone(),
+            tags: config.tags.clone(),
+            memory_mib: config.memory_mib,
+        })
+        .await;
     if matches!(answer, Err(ClientError::Http(_))) {
         let since = *unreachable
             .since

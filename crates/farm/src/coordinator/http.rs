@@ -522,7 +522,7 @@ async fn lease_sums(
 
 async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Error> {
     let req: LeaseRequest = parse_json(&body)?;
-    Ok(match c.lease_tagged(&req.worker, &req.tags)? {
+    Ok(match c.lease_for(&req)? {
         Some(lease) => Json(lease).into_response(),
         None => StatusCode::NO_CONTENT.into_response(),
     })

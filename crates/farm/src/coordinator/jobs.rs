@@ -261,6 +261,7 @@ impl Coordinator {
                     set_aside: state.workers.set_aside_reason(name),
                     leases,
                     tags: r.tags.clone(),
+                    memory_mib: r.memory_mib,
                 }
             })
             .collect()

@@ -139,6 +139,8 @@ pub(super) struct WorkerRecord {
     pub set_aside: Option<String>,
     /// The tags it declared with its last request for work.
     pub tags: Vec<String>,
+    /// The memory it offered then, in MiB (None: not said, taken as enough).
+    pub memory_mib: Option<u64>,
 }
 
 /// Workers' records: what they did, when they were last heard from, and whether they are
@@ -172,24 +174,39 @@ impl Workers {
         self.record(worker).last_seen = Some(now);
     }
 
-    /// Notes the tags `worker` declared with a request for work.
-    pub fn declare(&mut self, worker: &str, tags: &[String]) {
+    /// Notes what `worker` offered with a request for work: its tags and memory.
+    pub fn declare(&mut self, worker: &str, tags: &[String], memory_mib: Option<u64>) {
         let r = self.record(worker);
         if r.tags != tags {
             r.tags = tags.to_vec();
         }
+        r.memory_mib = memory_mib;
     }
 
-    /// Why no worker heard from can take a job that requires `tags`, if none can: the
-    /// required tags no worker has, or that no one worker has them all. None when some
-    /// worker not set aside has them all, or the job requires none.
-    pub fn none_can_take(&self, tags: &[String]) -> Option<String> {
-        if tags.is_empty() {
-            return None;
-        }
+    /// Why no worker heard from can take a job that requires `tags` and `memory_mib` MiB,
+    /// if none can: the required tags no worker has, that no one worker has them all, or
+    /// that none with them offers the memory. None when some worker not set aside can, or
+    /// the job requires no tag and no worker offers too little memory.
+    pub fn none_can_take(&self, tags: &[String], memory_mib: u64) -> Option<String> {
         let able = self.records.values().filter(|r| r.set_aside.is_none());
         let has = |r: &WorkerRecord, t: &String| r.tags.contains(t);
-        if able.clone().any(|r| tags.iter().all(|t| has(r, t))) {
+        let tagged = able.clone().filter(|r| tags.iter().all(|t| has(r, t)));
+        let enough = |r: &WorkerRecord| r.memory_mib.is_none_or(|m| m >= memory_mib);
+        if tagged.clone().any(enough) {
+            return None;
+        }
+        if let Some(most) = tagged.clone().filter_map(|r| r.memory_mib).max() {
+            return Some(format!(
+                "it needs about {memory_mib} MiB and the most a worker{} offers is {most} MiB (kiln worker --memory)",
+                if tags.is_empty() {
+                    ""
+                } else {
+                    " with its tags"
+                }
+            ));
+        }
+        if tags.is_empty() {
+            // No worker heard from yet.
             return None;
         }
         let missing: Vec<&str> = tags

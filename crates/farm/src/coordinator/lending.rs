@@ -11,23 +11,30 @@ use super::job::{Hold, Landed};
 use super::store::{StoreError, WebhookOutcome};
 use super::verify::{Candidate, MAX_CANDIDATES, Verdict};
 use super::{Coordinator, Error, Health, State};
-use crate::api::{JobState, Lease};
+use crate::api::{JobState, Lease, LeaseRequest};
 use crate::bundle;
 use axum::body::Bytes;
 use kiln_image::{RgbBuffer, Windows};
 use tokio::time::Instant;
 
 impl Coordinator {
-    /// [`Coordinator::lease_tagged`] for a worker that declares no tags.
+    /// [`Coordinator::lease_for`] a worker that offers no tags and says nothing of its
+    /// memory.
     pub fn lease(&self, worker: &str) -> Result<Option<Lease>, Error> {
-        self.lease_tagged(worker, &[])
+        self.lease_for(&LeaseRequest {
+            worker: worker.into(),
+            tags: Vec::new(),
+            memory_mib: None,
+        })
     }
 
-    /// Lends `worker`, which offers `tags`, the next pending tile pass: of the running job
-    /// of highest priority that has one, whose requirements the worker meets and whose
-    /// worker cap it does not pass, sharing workers between jobs of equal priority; `None`
-    /// if there is no work for it now.
-    pub fn lease_tagged(&self, worker: &str, tags: &[String]) -> Result<Option<Lease>, Error> {
+    /// Lends the worker that asks, offering its tags and memory, the next pending tile
+    /// pass: of the running job of highest priority that has one, whose requirements the
+    /// worker meets (every tag, the memory estimated) and whose worker cap it does not
+    /// pass, sharing workers between jobs of equal priority; `None` if there is no work
+    /// for it now.
+    pub fn lease_for(&self, req: &LeaseRequest) -> Result<Option<Lease>, Error> {
+        let (worker, tags) = (req.worker.as_str(), &req.tags);
         crate::api::check_worker_name(worker).map_err(Error::BadWorkerName)?;
         crate::api::check_tags(tags).map_err(Error::BadTags)?;
         let now = self.now();
@@ -40,7 +47,7 @@ impl Coordinator {
             });
         }
         state.workers.seen(worker, now);
-        state.workers.declare(worker, tags);
+        state.workers.declare(worker, tags, req.memory_mib);
         for job in state.settle_dependents() {
             self.notify(job);
         }
@@ -60,6 +67,7 @@ impl Coordinator {
             }
             let job = state.jobs.get_mut(&id).expect("listed above");
             if !job.spec.requires.iter().all(|t| tags.contains(t))
+                || req.memory_mib.is_some_and(|m| m < job.memory_mib)
                 || at_worker_cap(&state.leases, id, job.spec.max_workers, worker)
             {
                 continue;

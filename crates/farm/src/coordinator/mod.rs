@@ -375,7 +375,9 @@ impl State {
         let mut status = job.status(now);
         if job.state == JobState::Running {
             status.waiting = match self.after_of(job) {
-                After::Ready => self.workers.none_can_take(&job.spec.requires),
+                After::Ready => self
+                    .workers
+                    .none_can_take(&job.spec.requires, job.memory_mib),
                 After::Waiting(why) | After::Failed(why) => Some(why),
             };
         }

@@ -180,7 +180,9 @@ function drawWorkers(workers) {
       });
       aside.append(" ", again);
     }
-    cell(tr, w.tags && w.tags.length ? w.tags.join(", ") : "–");
+    const offers = [...(w.tags || [])];
+    if (w.memory_mib) offers.push(Math.round(w.memory_mib / 1024) + " GiB");
+    cell(tr, offers.length ? offers.join(", ") : "–");
     body.appendChild(tr);
   }
 }
@@ -215,6 +217,7 @@ async function drawJob(j) {
   }
   if (j.requires && j.requires.length) facts.push(["Requires", j.requires.join(", ")]);
   if (j.max_workers) facts.push(["Workers", "at most " + j.max_workers + " at once"]);
+  if (j.memory_mib) facts.push(["Memory", "about " + j.memory_mib + " MiB a worker"]);
   if (j.after && j.after.length) facts.push(["After", j.after.map((id) => "job " + id).join(", ")]);
   if (j.waiting) facts.push(["Waiting", j.waiting]);
   if (j.notice) facts.push(["Notice", j.notice]);

@@ -13,6 +13,7 @@ mod integrator;
 mod lights;
 mod materials;
 mod media;
+mod memory;
 mod shapes;
 
 pub use camera::*;

@@ -69,6 +69,9 @@ pub(super) struct Job {
     /// take turns by it.
     pub last_lent: u64,
     rate: Rate,
+    /// The memory a worker is estimated to need for the job's scene, in MiB (0 where it
+    /// could not be planned).
+    pub memory_mib: u64,
 }
 
 /// What can hold a job's work back for a while.
@@ -154,7 +157,9 @@ impl Job {
             sums,
             legacy: false,
         };
-        Ok(Job::with(id, spec, state, tiles, schedule, frame, verify))
+        let mut job = Job::with(id, spec, state, tiles, schedule, frame, verify);
+        job.memory_mib = desc.memory_estimate().div_ceil(1 << 20);
+        Ok(job)
     }
 
     /// A job that cannot be planned again at a restart (its record or its scene bundle is
@@ -224,6 +229,7 @@ impl Job {
             webhook: WebhookState::default(),
             last_lent: 0,
             rate: Rate::default(),
+            memory_mib: 0,
         }
     }
 
@@ -296,6 +302,7 @@ impl Job {
             requires: self.spec.requires.clone(),
             max_workers: self.spec.max_workers,
             after: self.spec.after.clone(),
+            memory_mib: self.memory_mib,
         }
     }
 

@@ -1,15 +1,27 @@
 //! What a job asks of its workers: the tags it requires (lent only to workers that offer
-//! every one, and a status that says why no worker takes it), and a cap on how many
-//! workers hold its leases at once; and requirements that are not tags, refused.
+//! every one, and a status that says why no worker takes it), the memory its scene is
+//! estimated to need, and a cap on how many workers hold its leases at once; and
+//! requirements that are not tags, refused.
 
 use super::*;
 use crate::api::{LeaseRequest, WorkerStatus};
 
 /// A lease for `worker`, which offers `tags`.
 async fn lease_tagged(app: &Router, worker: &str, tags: &[&str]) -> Option<Lease> {
+    lease_offering(app, worker, tags, None).await
+}
+
+/// A lease for `worker`, which offers `tags` and `memory_mib`.
+async fn lease_offering(
+    app: &Router,
+    worker: &str,
+    tags: &[&str],
+    memory_mib: Option<u64>,
+) -> Option<Lease> {
     let req = LeaseRequest {
         worker: worker.into(),
         tags: tags.iter().map(|t| t.to_string()).collect(),
+        memory_mib,
     };
     let (status, body) = call(
         app,
@@ -67,6 +79,39 @@ async fn a_job_is_lent_only_to_workers_with_every_tag_it_requires() {
     let workers: Vec<WorkerStatus> = json(&body);
     let full = workers.iter().find(|w| w.name == "full").unwrap();
     assert_eq!(full.tags, tags(&["x", "big-mem", "gpu"]));
+}
+
+#[tokio::test]
+async fn a_job_goes_only_to_workers_that_offer_the_memory_its_scene_needs() {
+    let f = farm(None);
+    let job = submit(&f, 32, 16, 16).await;
+    // The tiny scene's estimate is the process's own share.
+    let need = job_status(&f.app, job).await.memory_mib;
+    assert_eq!(need, 16);
+    assert!(
+        lease_offering(&f.app, "small", &[], Some(8))
+            .await
+            .is_none()
+    );
+    let waiting = job_status(&f.app, job)
+        .await
+        .waiting
+        .expect("no worker has the memory");
+    assert!(
+        waiting.contains("16 MiB") && waiting.contains("8 MiB"),
+        "{waiting}"
+    );
+    let l = lease_offering(&f.app, "big", &[], Some(16))
+        .await
+        .expect("enough");
+    assert_eq!(l.job, job);
+    assert_eq!(job_status(&f.app, job).await.waiting, None);
+    // A worker that says nothing of its memory is taken at its word.
+    assert!(lease_offering(&f.app, "silent", &[], None).await.is_some());
+    let (_, body) = call(&f.app, "GET", "/v1/workers", None, Body::empty()).await;
+    let workers: Vec<WorkerStatus> = json(&body);
+    let small = workers.iter().find(|w| w.name == "small").unwrap();
+    assert_eq!(small.memory_mib, Some(8));
 }
 
 #[tokio::test]
