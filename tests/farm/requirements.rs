@@ -8,6 +8,14 @@ use crate::util::{kiln, scene};
 use kiln_farm::api::JobState;
 use std::time::Duration;
 
+/// Runs `kiln` with `args`, which must fail with a message holding `names`.
+fn assert_refused(args: &[&str], names: &str) {
+    let o = kiln().args(args).output().unwrap();
+    assert!(!o.status.success(), "{args:?} succeeded");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains(names), "{err}");
+}
+
 #[test]
 fn a_job_that_requires_tags_is_rendered_only_by_the_worker_that_has_them() {
     let farm = Farm::in_process(None);
@@ -98,29 +106,21 @@ fn a_job_that_requires_tags_is_rendered_only_by_the_worker_that_has_them() {
 #[test]
 fn tags_that_are_not_tags_are_refused_by_name() {
     let farm = Farm::in_process(None);
-    let o = kiln()
-        .args(["worker", "--coordinator", &farm.url, "--tags", "ok,Not Ok"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("'Not Ok'"), "{err}");
-    let o = kiln()
-        .args(["worker", "--coordinator", &farm.url, "--memory", "lots"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("'lots'"), "{err}");
-    let o = kiln()
-        .arg("submit")
-        .arg(scene("furnace/scene.pbrt"))
-        .args(["--coordinator", &farm.url, "--requires", "a/b"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("'a/b'"), "{err}");
+    let url = farm.url.as_str();
+    assert_refused(
+        &["worker", "--coordinator", url, "--tags", "ok,Not Ok"],
+        "'Not Ok'",
+    );
+    assert_refused(
+        &["worker", "--coordinator", url, "--memory", "lots"],
+        "'lots'",
+    );
+    let furnace = scene("furnace/scene.pbrt");
+    let furnace = furnace.to_str().unwrap();
+    assert_refused(
+        &["submit", furnace, "--coordinator", url, "--requires", "a/b"],
+        "'a/b'",
+    );
 }
 
 #[test]
@@ -144,13 +144,15 @@ fn a_job_submitted_after_another_waits_for_it_then_renders() {
         assert_eq!(s.state, JobState::Done, "{s:?} {}", w.text());
     }
     assert_eq!(farm.status(second).after, vec![first]);
-    let o = kiln()
-        .arg("submit")
-        .arg(scene("furnace/scene.pbrt"))
-        .args(["--coordinator", &farm.url, "--after", "999"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("no job 999"), "{err}");
+    let furnace = scene("furnace/scene.pbrt");
+    let url = farm.url.as_str();
+    let args = [
+        "submit",
+        furnace.to_str().unwrap(),
+        "--coordinator",
+        url,
+        "--after",
+        "999",
+    ];
+    assert_refused(&args, "no job 999");
 }

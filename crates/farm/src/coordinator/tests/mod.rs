@@ -162,14 +162,7 @@ async fn submit_with(
         hold_on_failure: false,
     };
     edit(&mut spec);
-    let (status, body) = call(
-        &f.app,
-        "POST",
-        "/v1/jobs",
-        None,
-        serde_json::to_vec(&spec).unwrap(),
-    )
-    .await;
+    let (status, body) = post_job(f, &spec).await;
     assert_eq!(
         status,
         StatusCode::CREATED,
@@ -177,6 +170,33 @@ async fn submit_with(
         String::from_utf8_lossy(&body)
     );
     json::<crate::api::JobCreated>(&body).id
+}
+
+/// POSTs `spec` as a new job: (status, body).
+async fn post_job(f: &Farm, spec: &JobSpec) -> (StatusCode, Bytes) {
+    call(
+        &f.app,
+        "POST",
+        "/v1/jobs",
+        None,
+        serde_json::to_vec(spec).unwrap(),
+    )
+    .await
+}
+
+/// Asserts that `spec` is refused as unplannable with a message holding `names`, and that
+/// no job was created for it.
+async fn assert_refused(f: &Farm, spec: &JobSpec, names: &str) {
+    let before = call(&f.app, "GET", "/v1/jobs", None, Body::empty()).await.1;
+    let (status, body) = post_job(f, spec).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+    assert!(error_of(&body).contains(names), "{}", error_of(&body));
+    let after = call(&f.app, "GET", "/v1/jobs", None, Body::empty()).await.1;
+    assert_eq!(
+        json::<Vec<JobStatus>>(&before).len(),
+        json::<Vec<JobStatus>>(&after).len(),
+        "nothing was created"
+    );
 }
 
 async fn lease(app: &Router, worker: &str) -> Option<Lease> {
