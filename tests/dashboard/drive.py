@@ -156,6 +156,11 @@ def run(driver, a):
     )
     show.send_keys(Keys.ENTER)
     wait_for("the job panel", lambda: driver.find_element(By.ID, "job").is_displayed())
+    # What the job needs of a worker, and what the workers offer (their machine's memory).
+    memory = wait_for("the job's memory", lambda: fact(driver, "memory"))
+    if not (memory.startswith("about ") and memory.endswith(" MiB a worker")):
+        fail(f"the job's memory fact says {memory!r}")
+    wait_for("a worker's memory", lambda: any("GiB" in c for c in cells(driver, "workers", 7)))
     frame = driver.find_element(By.ID, "frame")
     wait_for("a frame", lambda: frame_pixels(driver))
     seen_passes, pixels, states, etas, rendering = set(), [], [], set(), set()
