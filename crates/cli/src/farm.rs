@@ -310,8 +310,8 @@ pub struct JobArgs {
     /// With --after: start once they have ended, done, failed or cancelled.
     #[arg(long, requires = "after")]
     after_ended: bool,
-    /// With --after: if one of them fails or is cancelled, wait (for it to be run again
-    /// and done) rather than fail.
+    /// With --after: if one of them fails or is cancelled, hold (stay waiting, for someone
+    /// to cancel this job) rather than fail.
     #[arg(long, requires = "after", conflicts_with = "after_ended")]
     hold_on_failure: bool,
 }

@@ -57,9 +57,9 @@ pub struct JobSpec {
     /// once every one is done.
     #[serde(default, skip_serializing_if = "is_false")]
     pub after_ended: bool,
-    /// When a job this one waits on to be done fails or is cancelled: hold (go on waiting,
-    /// for it to be run again and done, or for this job to be cancelled) rather than fail
-    /// too (the default).
+    /// When a job this one waits on to be done fails or is cancelled: hold (stay waiting,
+    /// its status naming that job, until this one is cancelled: a failed or cancelled job
+    /// does not run again) rather than fail too (the default).
     #[serde(default, skip_serializing_if = "is_false")]
     pub hold_on_failure: bool,
 }

@@ -418,7 +418,7 @@ impl State {
                     if !spec.hold_on_failure {
                         return After::Failed(why);
                     }
-                    waits.push(format!("{why} (held until it is done)"));
+                    waits.push(format!("{why} (held: cancel this job to end it)"));
                 }
             }
         }
