@@ -19,18 +19,10 @@ pub struct ListArgs {
 pub fn jobs(args: ListArgs) -> Result<()> {
     let client = Client::new(&args.coordinator, args.token.clone());
     let jobs = crate::farm::runtime()?.block_on(client.jobs())?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&jobs)?);
-        return Ok(());
-    }
-    let rows = jobs.iter().map(job_row).collect();
-    print_table(
-        &[
-            "JOB", "STATE", "PROGRESS", "SPP", "PASSES", "PRIORITY", "NOTE",
-        ],
-        rows,
-    );
-    Ok(())
+    let header = [
+        "JOB", "STATE", "PROGRESS", "SPP", "PASSES", "PRIORITY", "NOTE",
+    ];
+    list(&args, &jobs, &header, job_row)
 }
 
 fn job_row(j: &JobStatus) -> Vec<String> {
@@ -55,23 +47,30 @@ fn job_row(j: &JobStatus) -> Vec<String> {
 pub fn workers(args: ListArgs) -> Result<()> {
     let client = Client::new(&args.coordinator, args.token.clone());
     let workers = crate::farm::runtime()?.block_on(client.workers())?;
+    let header = [
+        "WORKER",
+        "RENDERING",
+        "TILES",
+        "FAILURES",
+        "HEARD",
+        "TAGS",
+        "SET ASIDE",
+    ];
+    list(&args, &workers, &header, worker_row)
+}
+
+/// `items` as the API's JSON with `--json`, else as a table of `header` and their rows.
+fn list<T: serde::Serialize>(
+    args: &ListArgs,
+    items: &[T],
+    header: &[&str],
+    row: impl Fn(&T) -> Vec<String>,
+) -> Result<()> {
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&workers)?);
-        return Ok(());
+        println!("{}", serde_json::to_string_pretty(items)?);
+    } else {
+        print_table(header, items.iter().map(row).collect());
     }
-    let rows = workers.iter().map(worker_row).collect();
-    print_table(
-        &[
-            "WORKER",
-            "RENDERING",
-            "TILES",
-            "FAILURES",
-            "HEARD",
-            "TAGS",
-            "SET ASIDE",
-        ],
-        rows,
-    );
     Ok(())
 }
 

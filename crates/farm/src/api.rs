@@ -311,6 +311,17 @@ pub struct LeaseRequest {
     pub memory_mib: Option<u64>,
 }
 
+impl LeaseRequest {
+    /// A request from `worker` that offers no tags and says nothing of its memory.
+    pub fn plain(worker: &str) -> LeaseRequest {
+        LeaseRequest {
+            worker: worker.into(),
+            tags: Vec::new(),
+            memory_mib: None,
+        }
+    }
+}
+
 /// The longest tag, in bytes.
 pub const MAX_TAG: usize = 64;
 
@@ -327,11 +338,9 @@ pub fn check_tags(tags: &[String]) -> Result<(), String> {
     let allowed = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || "-_.".contains(c);
     for tag in tags {
         if tag.is_empty() || tag.len() > MAX_TAG || !tag.chars().all(allowed) {
-            let shown: String = tag.chars().take(40).collect();
             return Err(format!(
-                "tag '{}{}' is not 1 to {MAX_TAG} of a-z, 0-9 and - _ .",
-                shown.escape_debug(),
-                if tag.chars().count() > 40 { "..." } else { "" }
+                "tag {} is not 1 to {MAX_TAG} of a-z, 0-9 and - _ .",
+                quoted(tag)
             ));
         }
     }
@@ -347,14 +356,19 @@ pub const MAX_WORKER_NAME: usize = 128;
 pub fn check_worker_name(name: &str) -> Result<(), String> {
     let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-' | ':' | '@');
     if name.is_empty() || name.len() > MAX_WORKER_NAME || !name.chars().all(allowed) {
-        let shown: String = name.chars().take(40).collect();
         return Err(format!(
-            "worker name '{}{}' is not 1 to {MAX_WORKER_NAME} of letters, digits and . _ - : @",
-            shown.escape_debug(),
-            if name.chars().count() > 40 { "..." } else { "" }
+            "worker name {} is not 1 to {MAX_WORKER_NAME} of letters, digits and . _ - : @",
+            quoted(name)
         ));
     }
     Ok(())
+}
+
+/// A name a client gave, quoted for a message: at most 40 characters of it, escaped.
+fn quoted(name: &str) -> String {
+    let shown: String = name.chars().take(40).collect();
+    let more = if name.chars().count() > 40 { "..." } else { "" };
+    format!("'{}{more}'", shown.escape_debug())
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]

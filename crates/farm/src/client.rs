@@ -187,12 +187,7 @@ impl Client {
     }
 
     pub async fn lease(&self, worker: &str) -> Result<Option<Lease>> {
-        self.lease_for(&LeaseRequest {
-            worker: worker.into(),
-            tags: Vec::new(),
-            memory_mib: None,
-        })
-        .await
+        self.lease_for(&LeaseRequest::plain(worker)).await
     }
 
     /// A lease for the worker that `req` names, offering its tags and memory.

@@ -21,11 +21,7 @@ impl Coordinator {
     /// [`Coordinator::lease_for`] a worker that offers no tags and says nothing of its
     /// memory.
     pub fn lease(&self, worker: &str) -> Result<Option<Lease>, Error> {
-        self.lease_for(&LeaseRequest {
-            worker: worker.into(),
-            tags: Vec::new(),
-            memory_mib: None,
-        })
+        self.lease_for(&LeaseRequest::plain(worker))
     }
 
     /// Lends the worker that asks, offering its tags and memory, the next pending tile
