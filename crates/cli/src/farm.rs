@@ -329,8 +329,11 @@ impl JobArgs {
 
 #[derive(clap::Args)]
 pub struct SubmitArgs {
-    /// The pbrt-v4 scene file; it and every file it refers to are uploaded.
-    scene: PathBuf,
+    /// The pbrt-v4 scene file; it and every file it refers to are uploaded. Several files
+    /// (or a quoted glob, 'shot/f*.pbrt') make one job of many frames, a shot: every file
+    /// lies beside or below the first's folder.
+    #[arg(required = true, num_args = 1..)]
+    scenes: Vec<PathBuf>,
     #[arg(long)]
     coordinator: String,
     #[command(flatten)]
@@ -340,16 +343,20 @@ pub struct SubmitArgs {
     /// Wait for the render, showing progress, and download the result.
     #[arg(long)]
     wait: bool,
-    /// Where --wait writes the merged EXR.
+    /// Where --wait writes the merged EXR; for a shot, the folder that receives one EXR per
+    /// frame, named after its scene file (default: job-ID).
     #[arg(short, long)]
     output: Option<PathBuf>,
     #[arg(long, short)]
     quiet: bool,
 }
 
-/// Packs, uploads and creates the job; returns its id.
-async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> Result<u64> {
-    let bundle = kiln_farm::bundle::pack(scene)?;
+/// Packs, uploads and creates the job of `frames` (one, or a shot's); returns its id.
+async fn submit_job(client: &Client, frames: &[PathBuf], job: &JobArgs) -> Result<u64> {
+    let (bundle, names) = match frames {
+        [scene] => (kiln_farm::bundle::pack(scene)?, Vec::new()),
+        _ => kiln_farm::bundle::pack_frames(frames)?,
+    };
     let spec = JobSpec {
         scene: bundle.digest.clone(),
         spp: job.spp,
@@ -366,6 +373,7 @@ async fn submit_job(client: &Client, scene: &std::path::Path, job: &JobArgs) -> 
         after: job.after.clone(),
         after_ended: job.after_ended,
         hold_on_failure: job.hold_on_failure,
+        frames: names,
     };
     // The same scene and settings submitted twice (a retry) make one job.
     let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);
@@ -437,7 +445,7 @@ async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: boo
 
 /// Writes `bytes` to `path` through a temporary file renamed over it: a reader sees the old
 /// file or the new one, never half of one.
-fn write_replacing(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn write_replacing(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
     let tmp = path.with_extension("partial");
     std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
@@ -491,13 +499,24 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
     let rt = runtime()?;
     rt.block_on(async {
         let client = Client::new(&args.coordinator, args.token.clone());
-        let id = submit_job(&client, &args.scene, &args.job).await?;
+        let frames = crate::shot::expand(&args.scenes)?;
+        let id = submit_job(&client, &frames, &args.job).await?;
         println!("kiln submit: job {id}");
-        if args.wait {
-            let out = args
-                .output
-                .clone()
-                .unwrap_or_else(|| PathBuf::from(format!("job-{id}.exr")));
+        if !args.wait {
+            return Ok(());
+        }
+        let out = args.output.clone();
+        if frames.len() > 1 {
+            let dir = out.unwrap_or_else(|| PathBuf::from(format!("job-{id}")));
+            let outputs = crate::shot::outputs(&frames, &dir)?;
+            crate::shot::wait_for_shot(&client, id, &outputs, args.quiet).await?;
+            eprintln!(
+                "kiln submit: wrote {} frames into {}",
+                outputs.len(),
+                dir.display()
+            );
+        } else {
+            let out = out.unwrap_or_else(|| PathBuf::from(format!("job-{id}.exr")));
             wait_for(&client, id, &out, args.quiet).await?;
             eprintln!("kiln submit: wrote {}", out.display());
         }
@@ -539,8 +558,9 @@ pub fn health(args: HealthArgs) -> Result<()> {
 
 #[derive(clap::Args)]
 pub struct FarmArgs {
-    /// The pbrt-v4 scene file.
-    scene: PathBuf,
+    /// The pbrt-v4 scene file; several (or a quoted glob) render a shot of many frames.
+    #[arg(required = true, num_args = 1..)]
+    scenes: Vec<PathBuf>,
     /// Local worker processes.
     #[arg(long, default_value_t = 2)]
     workers: usize,
@@ -549,10 +569,11 @@ pub struct FarmArgs {
     threads_per_worker: Option<usize>,
     #[command(flatten)]
     job: JobArgs,
-    /// Output EXR (default: the Film's filename).
+    /// Output EXR (default: the Film's filename); for a shot, the folder that receives one
+    /// EXR per frame, named after its scene file (default: the current folder).
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Also write an sRGB PNG preview.
+    /// Also write an sRGB PNG preview (of one frame; a shot's are on the dashboard).
     #[arg(long)]
     preview: Option<PathBuf>,
     #[arg(long, short)]
@@ -570,12 +591,26 @@ pub fn farm(args: FarmArgs) -> Result<()> {
              this farm's workers are this machine's own"
         );
     }
-    let desc = kiln_scene::load_file(&args.scene)?;
-    let output = args.output.clone().unwrap_or_else(|| {
-        let mut p = PathBuf::from(&desc.film.filename);
-        p.set_extension("exr");
-        p
-    });
+    let frames = crate::shot::expand(&args.scenes)?;
+    let shot = frames.len() > 1;
+    if shot && args.preview.is_some() {
+        bail!("--preview writes one frame's; a shot's frames are each an EXR in the -o folder");
+    }
+    let output = match &args.output {
+        Some(o) => o.clone(),
+        None if shot => PathBuf::from("."),
+        None => {
+            let desc = kiln_scene::load_file(&frames[0])?;
+            let mut p = PathBuf::from(&desc.film.filename);
+            p.set_extension("exr");
+            p
+        }
+    };
+    let outputs = if shot {
+        crate::shot::outputs(&frames, &output)?
+    } else {
+        vec![output.clone()]
+    };
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let threads = args
         .threads_per_worker
@@ -623,8 +658,12 @@ pub fn farm(args: FarmArgs) -> Result<()> {
         }
         let client = Client::new(&url, None);
         let outcome = async {
-            let id = submit_job(&client, &args.scene, &args.job).await?;
-            wait_for(&client, id, &output, args.quiet).await
+            let id = submit_job(&client, &frames, &args.job).await?;
+            if shot {
+                crate::shot::wait_for_shot(&client, id, &outputs, args.quiet).await
+            } else {
+                wait_for(&client, id, &output, args.quiet).await
+            }
         }
         .await;
         for child in &mut children {
@@ -643,9 +682,13 @@ pub fn farm(args: FarmArgs) -> Result<()> {
         let frame = kiln_image::decode_exr(&std::fs::read(&output)?)?;
         kiln_image::write_png(preview, &frame, 0.0)?;
     }
+    let wrote = if shot {
+        format!("{} frames into {}", outputs.len(), output.display())
+    } else {
+        output.display().to_string()
+    };
     eprintln!(
-        "kiln farm: wrote {} in {:.2} s",
-        output.display(),
+        "kiln farm: wrote {wrote} in {:.2} s",
         start.elapsed().as_secs_f64()
     );
     Ok(())

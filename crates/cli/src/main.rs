@@ -6,6 +6,7 @@
 mod farm;
 mod listing;
 mod render;
+mod shot;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -62,10 +62,19 @@ pub struct JobSpec {
     /// does not run again) rather than fail too (the default).
     #[serde(default, skip_serializing_if = "is_false")]
     pub hold_on_failure: bool,
+    /// A shot: the frames' scene files, paths relative to the bundle (at most
+    /// [`MAX_FRAMES`]), in the shot's order. Each frame is rendered as `kiln render` renders
+    /// its file, and every frame must have the same film size. Empty: one frame, the
+    /// bundle's scene file.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<String>,
 }
 
 /// The most jobs a job starts after.
 pub const MAX_AFTER: usize = 64;
+
+/// The most frames a job (a shot) has.
+pub const MAX_FRAMES: usize = 10_000;
 
 fn is_false(v: &bool) -> bool {
     !*v
@@ -80,6 +89,29 @@ fn default_tile() -> u32 {
 }
 
 impl JobSpec {
+    /// A job of the bundle with digest `scene`, rendered with the scene's own settings in
+    /// tiles of 32 pixels, one frame, no requirements.
+    pub fn new(scene: &str) -> JobSpec {
+        JobSpec {
+            scene: scene.into(),
+            spp: None,
+            resolution: None,
+            tile: default_tile(),
+            seed: None,
+            passes: None,
+            verify: None,
+            priority: 0,
+            webhook: None,
+            spectral: None,
+            requires: Vec::new(),
+            max_workers: None,
+            after: Vec::new(),
+            after_ended: false,
+            hold_on_failure: false,
+            frames: Vec::new(),
+        }
+    }
+
     /// What the job changes in its scene: the samples per pixel are the last pass's when
     /// passes are given.
     pub fn overrides(&self) -> kiln_scene::Overrides {
@@ -93,6 +125,49 @@ impl JobSpec {
             spectral: self.spectral,
         }
     }
+
+    /// How many frames the job renders.
+    pub fn frame_count(&self) -> usize {
+        self.frames.len().max(1)
+    }
+
+    /// Frame `frame`'s scene file, relative to the bundle; `None` for the bundle's own
+    /// scene file (a job of one frame).
+    pub fn frame_scene(&self, frame: usize) -> Option<&str> {
+        self.frames.get(frame).map(String::as_str)
+    }
+
+    /// The prefix of frame `frame`'s shared pre-pass names (see [`prepass_prefix`]): a
+    /// shot's frames each have their own photon maps.
+    pub fn prepass_prefix(&self, frame: usize) -> String {
+        let o = self.overrides();
+        match self.frame_scene(frame) {
+            None => prepass_prefix(&o),
+            Some(scene) => {
+                let inputs = format!(
+                    "photons-v1 {:?} {:?} {:?} frame {scene}",
+                    o.resolution, o.spp, o.seed
+                );
+                crate::bundle::digest_of(inputs.as_bytes())[..16].to_string()
+            }
+        }
+    }
+}
+
+/// One frame of a job, as GET /v1/jobs/{id}/frames lists it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameStatus {
+    /// Its place in the shot, from 0.
+    pub index: u32,
+    /// Its scene file in the bundle (empty for a job of one frame: the bundle's own).
+    pub scene: String,
+    pub tiles_total: u32,
+    pub tiles_done: u32,
+    /// Fraction of its samples done, 0 to 1.
+    pub progress: f64,
+    /// Passes merged into its result (`/v1/jobs/{id}/frames/{index}/result.exr`).
+    pub passes_done: u32,
+    pub samples_per_pixel_done: u32,
 }
 
 /// The samples a lease renders: each pixel of its tile from `from` samples (the running
@@ -211,6 +286,13 @@ pub struct JobStatus {
     /// was planned: it is lent only to workers that offer at least this much.
     #[serde(default)]
     pub memory_mib: u64,
+    /// The frames it renders (1 unless it is a shot: see `/v1/jobs/{id}/frames`).
+    #[serde(default = "one")]
+    pub frame_count: u32,
+}
+
+fn one() -> u32 {
+    1
 }
 
 /// A worker as the coordinator knows it (GET /v1/workers).
@@ -232,6 +314,17 @@ pub struct WorkerStatus {
     /// The memory it offered then, in MiB (None: not said).
     #[serde(default)]
     pub memory_mib: Option<u64>,
+    /// What its geometry cache has done, as it last said.
+    #[serde(default)]
+    pub geometry: Option<GeometryCounts>,
+}
+
+/// A worker's geometry cache: mesh files read and parsed, and meshes taken from the cache
+/// instead (a shot's frames that include the same geometry), since it started.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GeometryCounts {
+    pub loads: u64,
+    pub reused: u64,
 }
 
 /// A lease a worker holds, as [`WorkerStatus`] lists it.
@@ -240,6 +333,9 @@ pub struct WorkerLease {
     pub job: u64,
     pub tile_index: u32,
     pub pass: PassRange,
+    /// The frame of a shot the tile is of.
+    #[serde(default)]
+    pub frame: u32,
 }
 
 /// A tile's pixels in frame coordinates: the wire form of [`kiln_render::TileRect`].
@@ -296,6 +392,10 @@ pub struct Lease {
     pub pass: PassRange,
     /// Milliseconds the lease lasts without a heartbeat.
     pub ttl_ms: u64,
+    /// The frame the tile is of: its scene is `spec.frames[frame]` in a shot (a job of one
+    /// frame has only frame 0, the bundle's scene file).
+    #[serde(default)]
+    pub frame: u32,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -309,6 +409,9 @@ pub struct LeaseRequest {
     /// more. Absent: not said (any job).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub memory_mib: Option<u64>,
+    /// What its geometry cache has done so far (shown in its status).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<GeometryCounts>,
 }
 
 impl LeaseRequest {
@@ -318,6 +421,7 @@ impl LeaseRequest {
             worker: worker.into(),
             tags: Vec::new(),
             memory_mib: None,
+            geometry: None,
         }
     }
 }

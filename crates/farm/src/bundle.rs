@@ -82,6 +82,54 @@ pub fn pack(scene: &Path) -> Result<Bundle, BundleError> {
     Ok(encode(&files))
 }
 
+/// Parses a shot's frames (so a bad one fails here, naming its file and line) and packs
+/// them with every file they read, in one bundle: its scene file is the first frame, and
+/// every file lies beside or below the first frame's folder. Returns the bundle and each
+/// frame's path in it, in the order given. The frames' meshes are read once.
+pub fn pack_frames(frames: &[PathBuf]) -> Result<(Bundle, Vec<String>), BundleError> {
+    let first = frames
+        .first()
+        .ok_or_else(|| BundleError::Corrupt("no frames".into()))?;
+    let base = first.parent().unwrap_or(Path::new("")).to_path_buf();
+    let root = if base.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        base.clone()
+    };
+    let meshes = std::sync::Arc::new(kiln_scene::MeshCache::new(1 << 30));
+    let relative = |f: &Path| -> Result<String, BundleError> {
+        let rel = f
+            .strip_prefix(&base)
+            .map_err(|_| BundleError::Outside(f.to_path_buf()))?;
+        Ok(rel.to_string_lossy().replace('\\', "/"))
+    };
+    let mut entries: Vec<(String, PathBuf)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    let mut names = Vec::with_capacity(frames.len());
+    let mut read = Vec::new();
+    for frame in frames {
+        let desc = kiln_scene::load_file_within_sharing(frame, &root, Some(meshes.clone()))?;
+        let name = relative(frame)?;
+        if seen.insert(name.clone()) {
+            entries.push((name.clone(), frame.clone()));
+        }
+        names.push(name);
+        read.extend(desc.files);
+    }
+    for f in &read {
+        let rel = relative(f)?;
+        if seen.insert(rel.clone()) {
+            entries.push((rel, f.clone()));
+        }
+    }
+    let mut files = Vec::with_capacity(entries.len());
+    for (rel, path) in entries {
+        let data = std::fs::read(&path).map_err(|cause| BundleError::Io { path, cause })?;
+        files.push((rel, data));
+    }
+    Ok((encode(&files), names))
+}
+
 /// A bundle of these (relative name, contents) entries, the first being the scene file.
 pub fn encode(files: &[(String, Vec<u8>)]) -> Bundle {
     let mut bytes = Vec::new();

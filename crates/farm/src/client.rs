@@ -186,6 +186,26 @@ impl Client {
             .to_vec())
     }
 
+    /// Each frame's progress (one for a job of one frame).
+    pub async fn frames(&self, job: u64) -> Result<Vec<crate::api::FrameStatus>> {
+        Ok(self
+            .send(self.req(Method::GET, &format!("/v1/jobs/{job}/frames")))
+            .await?
+            .json()
+            .await?)
+    }
+
+    /// Frame `frame`'s merged EXR.
+    pub async fn frame_result(&self, job: u64, frame: u32) -> Result<Vec<u8>> {
+        let path = format!("/v1/jobs/{job}/frames/{frame}/result.exr");
+        Ok(self
+            .send(self.req(Method::GET, &path))
+            .await?
+            .bytes()
+            .await?
+            .to_vec())
+    }
+
     pub async fn lease(&self, worker: &str) -> Result<Option<Lease>> {
         self.lease_for(&LeaseRequest::plain(worker)).await
     }

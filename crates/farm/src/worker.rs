@@ -1,6 +1,6 @@
 //! A worker: leases tiles, renders them with `kiln_render::render_tile`, returns EXRs.
 
-use crate::api::{JobSpec, Lease, PrepassClaim, prepass_prefix};
+use crate::api::{GeometryCounts, JobSpec, Lease, PrepassClaim};
 use crate::bundle;
 use crate::client::{Client, ClientError};
 use kiln_render::shared::{Shared, SharedPrepass};
@@ -123,17 +123,18 @@ pub async fn run(config: WorkerConfig, stop: Arc<Stop>) -> Result<u64, WorkerErr
                 message: e.to_string(),
             })?,
     );
-    let mut scenes = Scenes::default();
+    let mut scenes = Scenes::new(mesh_budget(config.memory_mib));
     let mut rendered = 0u64;
     let mut unreachable = Unreachable::default();
     while !stop.after_tile.load(Ordering::SeqCst) && !stop.now.load(Ordering::SeqCst) {
-        let Some(lease) = next_lease(&client, &config, &mut unreachable).await? else {
+        let counts = scenes.geometry();
+        let Some(lease) = next_lease(&client, &config, counts, &mut unreachable).await? else {
             continue;
         };
         // Loading may take a while (a big scene, photon maps built or waited for): the
         // lease is kept alive meanwhile, and one lost on the way is not rendered.
         let (beat, lost) = keep_alive(&client, &lease);
-        let loaded = scenes.get(&client, &config, &lease.spec).await;
+        let loaded = scenes.get(&client, &config, &lease).await;
         beat.abort();
         let loaded = match loaded {
             Ok(_) if lost.load(Ordering::SeqCst) => continue,
@@ -193,6 +194,7 @@ impl Unreachable {
 async fn next_lease(
     client: &Client,
     config: &WorkerConfig,
+    geometry: GeometryCounts,
     unreachable: &mut Unreachable,
 ) -> Result<Option<Lease>, WorkerError> {
     let answer = client
@@ -200,6 +202,7 @@ async fn next_lease(
             worker: config.name.clone(),
             tags: config.tags.clone(),
             memory_mib: config.memory_mib,
+            geometry: Some(geometry),
         })
         .await;
     if matches!(answer, Err(ClientError::Http(_))) {
@@ -242,33 +245,73 @@ async fn next_lease(
     }
 }
 
-/// Scenes loaded for the last few job specs.
-#[derive(Default)]
-struct Scenes(HashMap<String, Arc<Loaded>>);
+/// The bytes of meshes a worker keeps for the next frame of a shot: a quarter of the memory
+/// it offers, or 2 GiB if it says none.
+fn mesh_budget(memory_mib: Option<u64>) -> u64 {
+    memory_mib.map_or(2 << 30, |m| (m << 20) / 4)
+}
+
+/// Scenes loaded for the last few job specs and frames, and the meshes the frames of a shot
+/// share (loaded once while its frames follow each other).
+struct Scenes {
+    loaded: HashMap<String, Arc<Loaded>>,
+    meshes: Arc<kiln_scene::MeshCache>,
+}
 
 impl Scenes {
+    fn new(mesh_budget: u64) -> Scenes {
+        Scenes {
+            loaded: HashMap::new(),
+            meshes: Arc::new(kiln_scene::MeshCache::new(mesh_budget)),
+        }
+    }
+
+    /// What the geometry cache has done so far.
+    fn geometry(&self) -> GeometryCounts {
+        GeometryCounts {
+            loads: self.meshes.loads(),
+            reused: self.meshes.reused(),
+        }
+    }
+
     async fn get(
         &mut self,
         client: &Client,
         config: &WorkerConfig,
-        spec: &JobSpec,
+        lease: &Lease,
     ) -> Result<Arc<Loaded>, LoadError> {
         // What the renderer is built from: a job's passes (stopped early, extended) do not
         // change it.
-        let key = format!("{} {:?} {:?}", spec.scene, spec.overrides(), spec.tile);
-        let loaded = match self.0.get(&key) {
+        let spec = &lease.spec;
+        let frame = lease.frame as usize;
+        let key = format!(
+            "{} {:?} {:?} {:?}",
+            spec.scene,
+            spec.frame_scene(frame),
+            spec.overrides(),
+            spec.tile
+        );
+        let loaded = match self.loaded.get(&key) {
             Some(l) => l.clone(),
-            None => Arc::new(load(client, config, spec).await?),
+            None => Arc::new(load(client, config, spec, frame, &self.meshes).await?),
         };
-        if self.0.len() >= 4 {
-            self.0.clear();
+        if self.loaded.len() >= 4 {
+            self.loaded.clear();
         }
-        self.0.insert(key, loaded.clone());
+        self.loaded.insert(key, loaded.clone());
         Ok(loaded)
     }
 }
 
-async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<Loaded, LoadError> {
+/// Loads frame `frame` of `spec` (downloading and unpacking its bundle if this worker has
+/// not yet), taking the meshes it reads from `meshes` where they are kept.
+async fn load(
+    client: &Client,
+    config: &WorkerConfig,
+    spec: &JobSpec,
+    frame: usize,
+    meshes: &Arc<kiln_scene::MeshCache>,
+) -> Result<Loaded, LoadError> {
     let scene_path = match bundle::cached_scene(&config.cache_dir, &spec.scene) {
         Some(path) => path,
         None => {
@@ -292,6 +335,11 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
             .map_err(LoadError::Bundle)?
         }
     };
+    let root = config.cache_dir.join(&spec.scene);
+    let scene_path = match spec.frame_scene(frame) {
+        Some(name) => root.join(name),
+        None => scene_path,
+    };
     if config.fault == Some(Fault::AbortOnMarkedScene)
         && std::fs::read_to_string(&scene_path).is_ok_and(|t| t.contains(ABORT_MARKER))
     {
@@ -299,15 +347,15 @@ async fn load(client: &Client, config: &WorkerConfig, spec: &JobSpec) -> Result<
         std::process::abort();
     }
     let overrides = spec.overrides();
-    let root = config.cache_dir.join(&spec.scene);
     let share: Arc<dyn SharedPrepass> = Arc::new(CoordinatorShare {
         client: client.clone(),
         runtime: tokio::runtime::Handle::current(),
         scene: spec.scene.clone(),
-        prefix: prepass_prefix(&overrides),
+        prefix: spec.prepass_prefix(frame),
     });
+    let meshes = meshes.clone();
     tokio::task::spawn_blocking(move || {
-        let mut desc = kiln_scene::load_file_within(&scene_path, &root)
+        let mut desc = kiln_scene::load_file_within_sharing(&scene_path, &root, Some(meshes))
             .map_err(|e| LoadError::Scene(bundle::relative_message(&e, &root)))?;
         desc.apply_overrides(&overrides)
             .map_err(LoadError::Overrides)?;

@@ -42,5 +42,6 @@ pub mod voxel_grid;
 
 pub use description::*;
 pub use error::{Diagnostic, Loc, SceneError, Severity};
-pub use parser::{load_file, load_file_within, load_str};
+pub use files::mesh_cache::MeshCache;
+pub use parser::{load_file, load_file_within, load_file_within_sharing, load_str};
 pub use textures::*;

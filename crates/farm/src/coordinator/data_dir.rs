@@ -137,11 +137,14 @@ impl DataDir {
         self.root.join("kiln.sqlite")
     }
 
-    pub fn result_path(&self, job: u64) -> PathBuf {
-        self.root
-            .join("jobs")
-            .join(job.to_string())
-            .join("result.exr")
+    /// Where job `job`'s frame `frame` is merged: `jobs/<id>/result.exr` for the first (a
+    /// job of one frame has only it), `jobs/<id>/frame-<k>.exr` for the others of a shot.
+    pub fn result_path(&self, job: u64, frame: u32) -> PathBuf {
+        let name = match frame {
+            0 => "result.exr".to_string(),
+            k => format!("frame-{k}.exr"),
+        };
+        self.root.join("jobs").join(job.to_string()).join(name)
     }
 
     /// Keeps a bundle (unpacked, with its bytes for workers) unless it is kept already, and
@@ -176,9 +179,15 @@ impl DataDir {
     /// Writes a job's merged EXR after pass `pass` beside its result, synced, and returns
     /// where: [`DataDir::publish_result`] then renames it over the result, so a reader or a
     /// crash sees one whole file or the other. Blocking.
-    pub fn stage_result(&self, job: u64, pass: u32, bytes: &[u8]) -> Result<PathBuf, Error> {
+    pub fn stage_result(
+        &self,
+        job: u64,
+        frame: u32,
+        pass: u32,
+        bytes: &[u8],
+    ) -> Result<PathBuf, Error> {
         let path = self
-            .result_path(job)
+            .result_path(job, frame)
             .with_extension(format!("pass-{pass}.tmp"));
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -194,8 +203,8 @@ impl DataDir {
     }
 
     /// Makes a staged merge the job's result (a rename: quick, and atomic).
-    pub fn publish_result(&self, job: u64, staged: &Path) -> Result<(), Error> {
-        let path = self.result_path(job);
+    pub fn publish_result(&self, job: u64, frame: u32, staged: &Path) -> Result<(), Error> {
+        let path = self.result_path(job, frame);
         std::fs::rename(staged, &path).map_err(|e| Error::io(&path, e))
     }
 }

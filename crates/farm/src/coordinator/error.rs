@@ -37,6 +37,8 @@ pub enum Error {
     UnknownScene(String),
     #[error("no job {0}")]
     UnknownJob(u64),
+    #[error("job {id} has no frame {frame} (frames count from 0)")]
+    UnknownFrame { id: u64, frame: u32 },
     #[error("no worker '{0}' is set aside")]
     NotSetAside(String),
     #[error("{0}")]
@@ -167,6 +169,10 @@ pub enum PlanError {
     /// Jobs to start after that do not exist (yet), or too many.
     #[error("after: {0}")]
     After(String),
+    /// A shot's frame list that names no scene of the bundle, or frames that differ where
+    /// they must agree.
+    #[error("frames: {0}")]
+    Frames(String),
 }
 
 /// Why an uploaded tile was refused (the attempt counts as failed).

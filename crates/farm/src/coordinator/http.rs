@@ -40,6 +40,12 @@ pub fn app(c: Coordinator) -> Router {
         .route("/v1/jobs/{id}/events", get(job_events))
         .route("/v1/jobs/{id}/result.exr", get(job_result))
         .route("/v1/jobs/{id}/preview.png", get(job_preview))
+        .route("/v1/jobs/{id}/frames", get(job_frames))
+        .route("/v1/jobs/{id}/frames/{frame}/result.exr", get(frame_result))
+        .route(
+            "/v1/jobs/{id}/frames/{frame}/preview.png",
+            get(frame_preview),
+        )
         .route("/v1/jobs/{id}/cancel", post(cancel_job))
         .route("/v1/jobs/{id}/stop", post(stop_job))
         .route("/v1/jobs/{id}/extend", post(extend_job))
@@ -113,6 +119,7 @@ impl Error {
             Error::NoRoute
             | Error::UnknownScene(_)
             | Error::UnknownJob(_)
+            | Error::UnknownFrame { .. }
             | Error::NotSetAside(_)
             | Error::UnknownPrepass(_)
             | Error::NoSums(_) => StatusCode::NOT_FOUND,
@@ -467,11 +474,52 @@ async fn job_preview(
     query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Response, Error> {
     let id = parse_id(&id)?;
-    let exposure = match query {
-        Ok(q) if q.exposure.is_finite() && q.exposure.abs() <= 20.0 => q.exposure,
-        _ => return Err(Error::BadExposure),
-    };
-    let png = c.preview(id, exposure).await?;
+    let png = c.preview(id, exposure_of(query)?).await?;
+    Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
+}
+
+/// The exposure a preview asks for: a number of stops from -20 to 20.
+fn exposure_of(
+    query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
+) -> Result<f32, Error> {
+    match query {
+        Ok(q) if q.exposure.is_finite() && q.exposure.abs() <= 20.0 => Ok(q.exposure),
+        _ => Err(Error::BadExposure),
+    }
+}
+
+/// Each frame's progress (GET /v1/jobs/{id}/frames).
+async fn job_frames(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Json<Vec<FrameStatus>>, Error> {
+    c.frames(parse_id(&id)?).map(Json)
+}
+
+/// A frame's id and index from the path, each a number.
+fn parse_frame(id: &str, frame: &str) -> Result<(u64, u32), Error> {
+    let frame = frame.parse().map_err(|_| Error::BadId(frame.to_string()))?;
+    Ok((parse_id(id)?, frame))
+}
+
+/// A frame's merged EXR (GET /v1/jobs/{id}/frames/{frame}/result.exr).
+async fn frame_result(
+    State(c): State<Coordinator>,
+    UrlPath((id, frame)): UrlPath<(String, String)>,
+) -> Result<Response, Error> {
+    let (id, frame) = parse_frame(&id, &frame)?;
+    let result = c.frame_result(id, frame).await?;
+    Ok(send_file(result, "image/x-exr", None))
+}
+
+/// A frame so far as a PNG (GET /v1/jobs/{id}/frames/{frame}/preview.png).
+async fn frame_preview(
+    State(c): State<Coordinator>,
+    UrlPath((id, frame)): UrlPath<(String, String)>,
+    query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
+) -> Result<Response, Error> {
+    let (id, frame) = parse_frame(&id, &frame)?;
+    let png = c.frame_preview(id, frame, exposure_of(query)?).await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
 

@@ -8,7 +8,7 @@ use super::job::Job;
 use super::metrics::Snapshot;
 use super::store::WebhookOutcome;
 use super::{Coordinator, Error, PlanError, Stored};
-use crate::api::{JobSpec, JobState, JobStatus, WorkerLease, WorkerStatus};
+use crate::api::{FrameStatus, JobSpec, JobState, JobStatus, WorkerLease, WorkerStatus};
 
 impl Coordinator {
     /// Keeps an uploaded scene bundle; returns its digest.
@@ -181,20 +181,28 @@ impl Coordinator {
         Ok(status)
     }
 
-    /// The merged EXR of a job's last merged pass (a done job's whole render).
+    /// The merged EXR of a job's last merged pass (a done job's whole render); of a shot,
+    /// its first frame's.
     pub async fn result(&self, id: u64) -> Result<Stored, Error> {
-        let (has, state) = self
-            .lock()
-            .jobs
-            .get(&id)
-            .map(|j| (j.has_result(), j.state))
-            .ok_or(Error::UnknownJob(id))?;
+        self.frame_result(id, 0).await
+    }
+
+    /// The merged EXR of frame `frame`'s last merged pass.
+    pub async fn frame_result(&self, id: u64, frame: u32) -> Result<Stored, Error> {
+        let (has, state) = {
+            let state = self.lock();
+            let job = state.jobs.get(&id).ok_or(Error::UnknownJob(id))?;
+            if frame as usize >= job.frame_count() {
+                return Err(Error::UnknownFrame { id, frame });
+            }
+            (job.has_result(frame as usize), job.state)
+        };
         // A job that ended keeps the result it had, whether or not its tiles could be
         // read back at a restart.
         if !has && state == JobState::Running {
             return Err(Error::NotDone { id, state });
         }
-        let path = self.files().result_path(id);
+        let path = self.files().result_path(id, frame);
         match Stored::open(&path).await {
             Ok(stored) => Ok(stored),
             // An ended job that never merged a pass has none (one that did and lost the
@@ -206,17 +214,51 @@ impl Coordinator {
         }
     }
 
-    /// The frame so far as an sRGB PNG, `exposure` stops brighter.
+    /// The frame so far as an sRGB PNG, `exposure` stops brighter; of a shot, its first
+    /// frame.
     pub async fn preview(&self, id: u64, exposure: f32) -> Result<Vec<u8>, Error> {
-        let frame = self
-            .lock()
-            .jobs
-            .get(&id)
-            .map(|j| j.frame_so_far())
-            .ok_or(Error::UnknownJob(id))?;
-        tokio::task::spawn_blocking(move || kiln_image::encode_png(&frame, exposure))
+        self.frame_preview(id, 0, exposure).await
+    }
+
+    /// Frame `frame` so far as an sRGB PNG, `exposure` stops brighter: from memory while it
+    /// renders, from its result file once it is finished.
+    pub async fn frame_preview(
+        &self,
+        id: u64,
+        frame: u32,
+        exposure: f32,
+    ) -> Result<Vec<u8>, Error> {
+        let so_far = {
+            let state = self.lock();
+            let job = state.jobs.get(&id).ok_or(Error::UnknownJob(id))?;
+            if frame as usize >= job.frame_count() {
+                return Err(Error::UnknownFrame { id, frame });
+            }
+            job.frame_so_far(frame as usize)
+        };
+        let picture = match so_far {
+            Some(p) => p,
+            None => {
+                let path = self.files().result_path(id, frame);
+                let bytes = tokio::fs::read(&path)
+                    .await
+                    .map_err(|e| Error::io(&path, e))?;
+                let decoded = tokio::task::spawn_blocking(move || kiln_image::decode_exr(&bytes))
+                    .await?
+                    .map_err(Error::Image)?;
+                std::sync::Arc::new(decoded)
+            }
+        };
+        tokio::task::spawn_blocking(move || kiln_image::encode_png(&picture, exposure))
             .await?
             .map_err(Error::Image)
+    }
+
+    /// Each frame's progress (a job of one frame has one).
+    pub fn frames(&self, id: u64) -> Result<Vec<FrameStatus>, Error> {
+        let state = self.lock();
+        let job = state.jobs.get(&id).ok_or(Error::UnknownJob(id))?;
+        Ok(job.frame_statuses())
     }
 
     /// Trusts `worker` again after it was set aside (an operator found and fixed its
@@ -248,6 +290,7 @@ impl Coordinator {
                         job: h.job,
                         tile_index: h.tile as u32,
                         pass: h.pass,
+                        frame: state.jobs.get(&h.job).map_or(0, |j| j.frame_of(h.tile)) as u32,
                     })
                     .collect();
                 leases.sort_by_key(|l| (l.job, l.tile_index));
@@ -262,6 +305,7 @@ impl Coordinator {
                     leases,
                     tags: r.tags.clone(),
                     memory_mib: r.memory_mib,
+                    geometry: r.geometry,
                 }
             })
             .collect()

@@ -141,6 +141,8 @@ pub(super) struct WorkerRecord {
     pub tags: Vec<String>,
     /// The memory it offered then, in MiB (None: not said, taken as enough).
     pub memory_mib: Option<u64>,
+    /// What its geometry cache had done, as it last said.
+    pub geometry: Option<crate::api::GeometryCounts>,
 }
 
 /// Workers' records: what they did, when they were last heard from, and whether they are
@@ -181,6 +183,13 @@ impl Workers {
             r.tags = tags.to_vec();
         }
         r.memory_mib = memory_mib;
+    }
+
+    /// Notes what `worker`'s geometry cache has done, if it said.
+    pub fn geometry(&mut self, worker: &str, counts: Option<crate::api::GeometryCounts>) {
+        if counts.is_some() {
+            self.record(worker).geometry = counts;
+        }
     }
 
     /// Why no worker heard from can take a job that requires `tags` and `memory_mib` MiB,

@@ -44,6 +44,7 @@ impl Coordinator {
         }
         state.workers.seen(worker, now);
         state.workers.declare(worker, tags, req.memory_mib);
+        state.workers.geometry(worker, req.geometry);
         for job in state.settle_dependents() {
             self.notify(job);
         }
@@ -80,9 +81,10 @@ impl Coordinator {
                 job: job.id,
                 spec: job.spec.clone(),
                 tile_index: tile as u32,
-                tile: job.tiles[tile].into(),
+                tile: job.rect(tile).into(),
                 pass,
                 ttl_ms: ttl.as_millis() as u64,
+                frame: job.frame_of(tile) as u32,
             }));
         }
         Ok(None)
@@ -152,8 +154,8 @@ impl Coordinator {
         let landed = self.lock().commit_tile(lease, &exr, tile, now)?;
         self.notify(job);
         // A pass's last tile's upload is answered once the frame is written (off the lock).
-        if let Landed::Pass { pass, frame } = landed {
-            self.merge(job, pass, frame).await;
+        if let Landed::Pass { index, pass, frame } = landed {
+            self.merge(job, index, pass, frame).await;
         }
         Ok(())
     }
@@ -362,18 +364,21 @@ impl State {
     /// An upload under an unknown or expired lease: fine if it is the very tile already
     /// kept for its place (a worker whose lease expired finished anyway), else a conflict.
     fn judge_stale(&self, lease: u64, tile: &Windows, exr: &[u8]) -> Result<(), Error> {
+        let mut relent = false;
         for job in self.jobs.values() {
-            let Some(idx) = job.find_tile(tile) else {
-                continue;
-            };
-            if self.store.holds_tile(job.id, idx, exr)? {
-                return Ok(());
-            }
-            if !job.is_finished(idx) {
-                return Err(Error::Relent(lease));
+            // One tile per frame of a shot has these windows.
+            for idx in job.find_tiles(tile) {
+                if self.store.holds_tile(job.id, idx, exr)? {
+                    return Ok(());
+                }
+                relent |= !job.is_finished(idx);
             }
         }
-        Err(Error::StaleTile(lease))
+        Err(if relent {
+            Error::Relent(lease)
+        } else {
+            Error::StaleTile(lease)
+        })
     }
 
     /// Notes how keeping a tile of `job` in the store went. A failure (a full disk) holds

@@ -281,12 +281,14 @@ impl Coordinator {
             job.verification.verified = verified;
             // The last complete pass is merged again: the coordinator may have stopped
             // before writing it. (A job that ended keeps its result as it is.)
-            let merge = (job.state == JobState::Running)
-                .then(|| job.to_merge())
-                .flatten();
+            let merge = if job.state == JobState::Running {
+                job.to_merge()
+            } else {
+                Vec::new()
+            };
             self.lock().jobs.insert(id, job);
-            if let Some((pass, frame)) = merge {
-                self.merge_blocking(id, pass, &frame);
+            for m in merge {
+                self.merge_blocking(id, m.index, m.pass, &m.frame);
             }
         }
         Ok(())

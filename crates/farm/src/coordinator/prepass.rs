@@ -17,7 +17,7 @@
 
 use super::data_dir::{hex, receive_upload};
 use super::{Coordinator, Error, Stored};
-use crate::api::{PrepassClaim, is_prepass_of, prepass_prefix};
+use crate::api::{PrepassClaim, is_prepass_of};
 use crate::bundle;
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
@@ -62,8 +62,10 @@ impl Coordinator {
     /// must not store files under names of its choosing.
     fn check_wanted(&self, scene: &str, name: &str) -> Result<(), Error> {
         let state = self.lock();
+        // Each frame of a shot has pre-passes of its own.
         let wanted = state.jobs.values().any(|j| {
-            j.spec.scene == scene && is_prepass_of(name, &prepass_prefix(&j.spec.overrides()))
+            j.spec.scene == scene
+                && (0..j.spec.frame_count()).any(|k| is_prepass_of(name, &j.spec.prepass_prefix(k)))
         });
         if wanted {
             Ok(())

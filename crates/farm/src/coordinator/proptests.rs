@@ -1,13 +1,13 @@
 //! Property tests of the lease state machine: random sequences of leases, heartbeats,
 //! uploads (right, wrong and damaged), failures, clock jumps past the lease time and
 //! coordinator restarts, run against the coordinator itself on tokio's paused clock, for a
-//! job of one pass and one of three, kept to two workers at once, and a second job that
-//! starts after it. After any sequence: no operation is an internal error, no tile pass is
+//! shot of two frames in one pass and one in three, kept to two workers at once, and a
+//! second job that starts after it. After any sequence: no operation is an internal error, no tile pass is
 //! ever accepted with bytes other than those first accepted for it, the samples done are
 //! exactly those of the passes accepted, the first job never has more than two workers
 //! and the second is lent nothing before the first is done; and driving the jobs on with a
-//! healthy worker ends them: the first done, its frame holding exactly the bytes accepted
-//! for each tile's last pass, and the second done after it; or the first failed because a
+//! healthy worker ends them: the first done, each of its frames holding exactly the bytes
+//! accepted for each of its tiles' last pass, and the second done after it; or the first failed because a
 //! tile failed its three attempts or lost its renderers too often, and the second failed
 //! for it.
 
@@ -23,6 +23,8 @@ use std::time::Duration;
 const TTL: Duration = Duration::from_secs(10);
 /// A 24 x 16 frame of 8-pixel tiles: six tiles.
 const FRAME: (u32, u32) = (24, 16);
+/// The first job is a shot of two frames: twelve tiles.
+const TILES: u32 = 12;
 
 #[derive(Debug, Clone)]
 enum Op {
@@ -111,17 +113,16 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
         let mut c = open(&data);
         let scene = dir.path().join("scene");
         std::fs::create_dir_all(&scene).unwrap();
-        std::fs::write(
-            scene.join("scene.pbrt"),
-            format!(
-                "Film \"rgb\" \"integer xresolution\" [ {} ] \"integer yresolution\" [ {} ]\nWorldBegin\n",
-                FRAME.0, FRAME.1
-            ),
-        )
-        .unwrap();
-        let bundle = crate::bundle::pack(&scene.join("scene.pbrt")).unwrap();
+        let film = format!(
+            "Film \"rgb\" \"integer xresolution\" [ {} ] \"integer yresolution\" [ {} ]\nWorldBegin\n",
+            FRAME.0, FRAME.1
+        );
+        std::fs::write(scene.join("scene.pbrt"), &film).unwrap();
+        std::fs::write(scene.join("second.pbrt"), format!("{film}LightSource \"infinite\"\n")).unwrap();
+        let (bundle, frames) = crate::bundle::pack_frames(&[scene.join("scene.pbrt"), scene.join("second.pbrt")]).unwrap();
         let digest = c.save_scene(Bytes::from(bundle.bytes)).await.unwrap();
         let spec = JobSpec {
+            frames,
             scene: digest,
             spp: passes.is_none().then_some(1),
             resolution: None,
@@ -144,6 +145,7 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
             passes: None,
             max_workers: None,
             after: vec![job],
+            frames: Vec::new(),
             ..spec
         };
         let (next, _) = c.create_job(then, None).await.unwrap();
@@ -166,7 +168,7 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
         };
         // The samples per pixel of a tile's passes accepted so far.
         let samples_done = |accepted: &HashMap<(u32, u32), Vec<u8>>| -> u64 {
-            (0..6u32)
+            (0..TILES)
                 .map(|t| {
                     let passes = accepted.keys().filter(|(tile, _)| *tile == t).count();
                     64 * passes.checked_sub(1).map_or(0, |p| u64::from(schedule[p]))
@@ -262,7 +264,12 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
         match s.state {
             JobState::Done => {
                 assert_eq!(after.state, JobState::Done, "{after:?}");
-                let frame = kiln_image::decode_exr(&c.result(job).await.unwrap().bytes().await.unwrap()).unwrap();
+                let mut frames = Vec::new();
+                for k in 0..2 {
+                    let file = c.frame_result(job, k).await.unwrap().bytes().await.unwrap();
+                    frames.push(kiln_image::decode_exr(&file).unwrap());
+                }
+                assert_eq!(s.frame_count, 2);
                 let last = schedule.len() as u32 - 1;
                 assert_eq!(
                     accepted.len() as u32,
@@ -271,6 +278,7 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
                 );
                 for ((idx, _), bytes) in accepted.iter().filter(|((_, p), _)| *p == last) {
                     let tile = kiln_image::decode_exr(bytes).unwrap();
+                    let frame = &frames[*idx as usize / 6];
                     for y in 0..tile.height {
                         for x in 0..tile.width {
                             assert_eq!(

@@ -7,6 +7,7 @@ use std::path::Path;
 
 pub mod images;
 pub mod measured;
+pub mod mesh_cache;
 pub mod nanovdb;
 pub mod obj;
 pub mod ply;

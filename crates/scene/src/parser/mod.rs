@@ -28,6 +28,7 @@ mod textures;
 
 use crate::description::*;
 use crate::error::{Diagnostic, Loc, Result, SceneError, Severity};
+use crate::files::mesh_cache::MeshCache;
 use crate::lexer::{Token, TokenKind, tokenize};
 use crate::params::ParamSet;
 use crate::textures::*;
@@ -56,10 +57,21 @@ pub fn load_str(text: &str, file: &Path, base_dir: &Path) -> Result<SceneDescrip
 /// goes through this, so a scene cannot make a coordinator or a worker read, and quote in
 /// an error, a file of the machine it runs on.
 pub fn load_file_within(path: &Path, root: &Path) -> Result<SceneDescription> {
+    load_file_within_sharing(path, root, None)
+}
+
+/// [`load_file_within`], taking the meshes it reads from files from `meshes` where they
+/// are kept there (a shot's frames that include the same geometry), and keeping them there.
+pub fn load_file_within_sharing(
+    path: &Path,
+    root: &Path,
+    meshes: Option<Arc<MeshCache>>,
+) -> Result<SceneDescription> {
     let text = crate::files::read_text(path, &Loc::synthetic("command line"))?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut parser = Parser::new(&base_dir);
     parser.root = Some(normalize(root));
+    parser.meshes = meshes;
     load(&text, path, parser)
 }
 
@@ -91,6 +103,8 @@ fn normalize(path: &Path) -> PathBuf {
 
 struct Parser {
     base_dir: PathBuf,
+    /// Where meshes read from files are shared with other scenes, if anywhere.
+    meshes: Option<Arc<MeshCache>>,
     /// The folder every file the scene names must lie in, when loading is confined.
     root: Option<PathBuf>,
     warnings: Vec<Diagnostic>,
@@ -148,6 +162,7 @@ impl Parser {
         };
         Parser {
             base_dir: base_dir.to_path_buf(),
+            meshes: None,
             root: None,
             warnings: Vec::new(),
             gs: GraphicsState {

@@ -6,6 +6,7 @@ use super::curves::curve_from_params;
 use crate::description::*;
 use crate::error::{Loc, Result, SceneError};
 use crate::files;
+use crate::files::mesh_cache::MeshFormat;
 use crate::params::ParamSet;
 use crate::textures::FloatValue;
 use std::sync::Arc;
@@ -107,11 +108,11 @@ impl Parser {
             .ok_or_else(|| SceneError::at(loc, format!("{ty}: \"string filename\" is required")))?;
         let path = self.resolve_file(&name, loc)?;
         if ty != "plymesh" {
-            let mesh = files::obj::read_obj(&path, loc)?;
-            return Ok((ShapeKind::Mesh(Arc::new(mesh)), None));
+            let mesh = self.read_mesh(MeshFormat::Obj, &path, loc)?;
+            return Ok((ShapeKind::Mesh(mesh), None));
         }
         let displacement = self.mesh_displacement(params, loc)?;
-        let mesh = files::ply::read_ply(&path, loc)?;
+        let mesh = self.read_mesh(MeshFormat::Ply, &path, loc)?;
         if displacement.is_some() && mesh.uvs.is_none() {
             return Err(SceneError::at(
                 loc,
@@ -120,7 +121,23 @@ impl Parser {
                 ),
             ));
         }
-        Ok((ShapeKind::Mesh(Arc::new(mesh)), displacement))
+        Ok((ShapeKind::Mesh(mesh), displacement))
+    }
+
+    /// The mesh in `path`: from the shared cache if the scene is loaded with one.
+    fn read_mesh(
+        &self,
+        format: MeshFormat,
+        path: &std::path::Path,
+        loc: &Loc,
+    ) -> Result<Arc<crate::mesh::TriangleMeshData>> {
+        match &self.meshes {
+            Some(cache) => cache.get(format, path, loc),
+            None => Ok(Arc::new(match format {
+                MeshFormat::Ply => files::ply::read_ply(path, loc)?,
+                MeshFormat::Obj => files::obj::read_obj(path, loc)?,
+            })),
+        }
     }
 }
 

@@ -17,15 +17,18 @@ pub(super) struct Frames {
     black: Arc<RgbBuffer>,
     /// Passes merged into the result file.
     pub written: u32,
+    /// Its last pass is merged and its pictures are let go: its result file is the frame.
+    pub released: bool,
 }
 
 impl Frames {
-    pub fn new(black: RgbBuffer) -> Frames {
+    pub fn new(black: Arc<RgbBuffer>) -> Frames {
         Frames {
             complete: None,
             building: BTreeMap::new(),
-            black: Arc::new(black),
+            black,
             written: 0,
+            released: false,
         }
     }
 
@@ -58,6 +61,8 @@ impl Frames {
         tile: &RgbBuffer,
         tiles: usize,
     ) -> Result<bool, kiln_image::ImageError> {
+        // A released frame extended by more passes starts its next from black.
+        self.released = false;
         let start = self.so_far();
         let entry = self.building.entry(pass).or_insert_with(|| (start, 0));
         Arc::make_mut(&mut entry.0).paste(tile)?;
@@ -76,6 +81,18 @@ impl Frames {
     pub fn clear(&mut self) {
         self.complete = None;
         self.building.clear();
+        self.released = false;
+    }
+
+    /// Lets the pictures go once the last pass is in the result file (a shot of many
+    /// frames would otherwise hold every finished frame in memory); what the frame looks
+    /// like is read from that file from then on.
+    pub fn release(&mut self) {
+        self.building.clear();
+        if let Some((pass, _)) = self.complete {
+            self.complete = Some((pass, self.black.clone()));
+        }
+        self.released = true;
     }
 
     /// The black frame a restore starts pasting from.

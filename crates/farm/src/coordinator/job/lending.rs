@@ -15,6 +15,8 @@ pub(super) struct Lending {
     queue: VecDeque<usize>,
     /// Tiles two passes ahead of the slowest, waiting for it.
     parked: Vec<usize>,
+    /// Every tile, in the order they are first lent in.
+    order: Vec<usize>,
     /// Failed attempts at each tile's current pass.
     attempts: Vec<u32>,
     /// The workers whose leases on each tile's current pass expired, in order.
@@ -40,12 +42,15 @@ pub struct Expiries {
 }
 
 impl Lending {
-    /// `tiles` tiles, none started, all queued.
-    pub fn new(tiles: usize) -> Lending {
+    /// The tiles `order` lists (each of 0 to its length once), none started, all queued in
+    /// that order.
+    pub fn new(order: Vec<usize>) -> Lending {
+        let tiles = order.len();
         Lending {
             done: vec![0; tiles],
             lent: vec![None; tiles],
-            queue: (0..tiles).collect(),
+            queue: order.iter().copied().collect(),
+            order,
             parked: Vec::new(),
             attempts: vec![0; tiles],
             expired: vec![Vec::new(); tiles],
@@ -175,7 +180,10 @@ impl Lending {
     /// Every tile with passes left and no lease queued afresh, in order (after `lent` was
     /// reset, for a restore, or with more passes).
     pub fn requeue(&mut self, passes: usize) {
-        self.queue = (0..self.done.len())
+        self.queue = self
+            .order
+            .iter()
+            .copied()
             .filter(|&i| (self.done[i] as usize) < passes && self.lent[i].is_none())
             .collect();
     }

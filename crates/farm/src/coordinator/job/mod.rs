@@ -9,9 +9,13 @@
 //! pass p is lent before any tile's pass p + 2. When the last tile of a pass comes back
 //! the whole frame at that pass is complete and is merged.
 //!
+//! A job may be a shot of many frames (`shot.rs`): each frame has the same tiles, a tile's
+//! index in the job is its frame's times the tiles a frame has plus its own, and each
+//! frame is pasted and merged into a result file of its own.
+//!
 //! The state is split by concern, each part with its own file: the schedule of passes
-//! (`schedule.rs`), lending the tiles (`lending.rs`), the frames (`frames.rs`), restoring
-//! them from the store (`restore.rs`); verification's state is `verify.rs`'s
+//! (`schedule.rs`), lending the tiles (`lending.rs`), the frames (`frames.rs`), the shot's
+//! frames and their order (`shot.rs`), restoring them from the store (`restore.rs`); verification's state is `verify.rs`'s
 //! [`Verification`], the webhook's `webhooks.rs`'s [`WebhookState`].
 //!
 //! Bookkeeping only: it reads the scene once to plan the tiles, and otherwise must never do
@@ -21,12 +25,13 @@ mod frames;
 mod lending;
 mod restore;
 mod schedule;
+mod shot;
 
 use super::error::{PlanError, TileRejected};
 use super::verify::{Candidate, Verdict, Verification};
 use super::webhooks::WebhookState;
 use super::{MAX_TILE_ATTEMPTS, MAX_TILE_EXPIRIES};
-use crate::api::{JobSpec, JobState, JobStatus, PassRange, Rect};
+use crate::api::{FrameStatus, JobSpec, JobState, JobStatus, PassRange, Rect};
 use crate::bundle;
 use frames::Frames;
 use kiln_image::{RgbBuffer, Windows};
@@ -59,10 +64,12 @@ pub(super) struct Job {
     /// Writes of a merged frame that failed in a row.
     merge_failures: u32,
     pub merge_seconds: Option<f64>,
-    pub tiles: Vec<TileRect>,
+    /// One frame's tiles (every frame of a shot has these).
+    tiles: Vec<TileRect>,
     schedule: Schedule,
     lending: Lending,
-    frames: Frames,
+    /// Per frame of the shot, its pictures.
+    frames: Vec<Frames>,
     pub verification: Verification,
     pub webhook: WebhookState,
     /// The id of the last lease this job granted (0 for none): jobs of equal priority
@@ -99,8 +106,13 @@ pub(super) enum Landed {
     Nothing,
     /// The tile moved on by a pass.
     Tile,
-    /// It was the last tile of pass `pass`: the frame at that pass is complete.
-    Pass { pass: u32, frame: Arc<RgbBuffer> },
+    /// It was the last tile of frame `index`'s pass `pass`: the frame at that pass is
+    /// complete.
+    Pass {
+        index: u32,
+        pass: u32,
+        frame: Arc<RgbBuffer>,
+    },
 }
 
 impl Job {
@@ -116,15 +128,24 @@ impl Job {
         if spec.tile == 0 {
             return Err(PlanError::ZeroTile);
         }
+        shot::check_frames(&spec)?;
         let scene = bundle::cached_scene(scenes, &spec.scene)
             .ok_or_else(|| PlanError::NoScene(spec.scene.clone()))?;
         let root = scenes.join(&spec.scene);
-        let mut desc = kiln_scene::load_file_within(&scene, &root)
-            .map_err(|e| PlanError::Scene(bundle::relative_message(&e, &root)))?;
-        desc.apply_overrides(&spec.overrides())
-            .map_err(PlanError::Overrides)?;
-        desc.check_frame_size(max_frame_pixels)
-            .map_err(PlanError::Overrides)?;
+        // A shot's frames are loaded one after the other, sharing their meshes, and each
+        // checked against the first; the estimate is the largest frame's.
+        let meshes = Arc::new(kiln_scene::MeshCache::new(shot::PLAN_MESH_BUDGET));
+        let load = |k: usize| {
+            let path = shot::frame_path(&scene, &root, &spec, k)?;
+            shot::load(&path, &root, &spec, k, max_frame_pixels, &meshes)
+        };
+        let desc = load(0)?;
+        let mut memory = desc.memory_estimate();
+        for k in 1..spec.frame_count() {
+            let other = load(k)?;
+            shot::check_alike(&desc, &other, &spec, k)?;
+            memory = memory.max(other.memory_estimate());
+        }
         // The colour mode is pinned as planned, so that a job stored now renders its last
         // tile as its first even if a later Kiln changes the default. (Jobs stored before
         // modes were pinned take the scene's choice as this Kiln makes it.)
@@ -158,7 +179,7 @@ impl Job {
             legacy: false,
         };
         let mut job = Job::with(id, spec, state, tiles, schedule, frame, verify);
-        job.memory_mib = desc.memory_estimate().div_ceil(1 << 20);
+        job.memory_mib = memory.div_ceil(1 << 20);
         Ok(job)
     }
 
@@ -167,21 +188,8 @@ impl Job {
     /// still running has failed; a finished one keeps its state (its frame is a file).
     pub fn damaged(id: u64, spec: Option<JobSpec>, state: JobState, reason: String) -> Job {
         let spec = spec.unwrap_or(JobSpec {
-            scene: String::new(),
-            spp: None,
-            resolution: None,
             tile: 1,
-            seed: None,
-            passes: None,
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
-            max_workers: None,
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
+            ..JobSpec::new("")
         });
         let state = if state == JobState::Running {
             JobState::Failed
@@ -210,7 +218,8 @@ impl Job {
         black: RgbBuffer,
         verify: f64,
     ) -> Job {
-        let n = tiles.len();
+        let (n, count) = (tiles.len(), spec.frame_count());
+        let black = Arc::new(black);
         Job {
             id,
             spec,
@@ -223,9 +232,9 @@ impl Job {
             merge_seconds: None,
             tiles,
             schedule,
-            lending: Lending::new(n),
-            frames: Frames::new(black),
-            verification: Verification::new(verify, n),
+            lending: Lending::new(shot::lending_order(n, count)),
+            frames: (0..count).map(|_| Frames::new(black.clone())).collect(),
+            verification: Verification::new(verify, n * count),
             webhook: WebhookState::default(),
             last_lent: 0,
             rate: Rate::default(),
@@ -234,20 +243,52 @@ impl Job {
     }
 
     fn samples_done(&self) -> u64 {
-        (0..self.tiles.len())
+        self.samples_done_in(0..self.lending.done.len())
+    }
+
+    /// Samples done by the tiles `tiles` (job-wide indices).
+    fn samples_done_in(&self, tiles: std::ops::Range<usize>) -> u64 {
+        tiles
             .map(|i| {
-                self.tiles[i].pixel_count()
+                self.rect(i).pixel_count()
                     * u64::from(self.schedule.samples_after(self.lending.done[i]))
             })
             .sum()
+    }
+
+    /// Where tile `idx` (of any frame) lies in its frame.
+    pub fn rect(&self, idx: usize) -> TileRect {
+        self.tiles[idx % self.tiles.len()]
+    }
+
+    /// The frame tile `idx` is of.
+    pub fn frame_of(&self, idx: usize) -> usize {
+        idx / self.tiles.len().max(1)
+    }
+
+    /// How many tiles the job has, every frame's together.
+    pub fn tile_count(&self) -> usize {
+        self.lending.done.len()
+    }
+
+    /// The job-wide indices of frame `frame`'s tiles.
+    fn tiles_of(&self, frame: usize) -> std::ops::Range<usize> {
+        let n = self.tiles.len();
+        frame * n..(frame + 1) * n
+    }
+
+    /// Passes every frame has merged into its result.
+    fn passes_written(&self) -> u32 {
+        self.frames.iter().map(|f| f.written).min().unwrap_or(0)
     }
 
     /// Progress as the API reports it; the rate counts samples since the job's first lease
     /// after it was created, the coordinator resumed it, or it was extended.
     pub fn status(&self, now: Instant) -> JobStatus {
         let last = self.schedule.last_samples();
-        let samples_total: u64 =
-            self.tiles.iter().map(|t| t.pixel_count()).sum::<u64>() * u64::from(last);
+        let samples_total: u64 = self.tiles.iter().map(|t| t.pixel_count()).sum::<u64>()
+            * self.frames.len() as u64
+            * u64::from(last);
         let samples_done = self.samples_done().min(samples_total);
         let rate = self.rate.started.map_or(0.0, |started| {
             let secs = now.saturating_duration_since(started).as_secs_f64();
@@ -260,16 +301,17 @@ impl Job {
         } else {
             samples_done as f64 / samples_total as f64
         };
-        let finished = (0..self.tiles.len())
+        let finished = (0..self.tile_count())
             .filter(|&t| self.is_finished(t))
             .count();
-        let (width, height) = self.frames.size();
+        let (width, height) = self.frames[0].size();
+        let written = self.passes_written();
         JobStatus {
             id: self.id,
             state: self.state,
             width,
             height,
-            tiles_total: self.tiles.len() as u32,
+            tiles_total: self.tile_count() as u32,
             tiles_done: finished as u32,
             samples_total,
             samples_done,
@@ -281,8 +323,8 @@ impl Job {
             error: self.error.clone(),
             merge_seconds: self.merge_seconds,
             passes: self.schedule.passes.clone(),
-            passes_done: self.frames.written,
-            samples_per_pixel_done: self.schedule.samples_after(self.frames.written),
+            passes_done: written,
+            samples_per_pixel_done: self.schedule.samples_after(written),
             tile_passes_verified: self.verification.verified,
             tile_passes_held: self.verification.held() as u32,
             notice: if self.held_back.is_empty() {
@@ -303,18 +345,53 @@ impl Job {
             max_workers: self.spec.max_workers,
             after: self.spec.after.clone(),
             memory_mib: self.memory_mib,
+            frame_count: self.frames.len() as u32,
         }
     }
 
-    /// The frame as far as it has come: the newest pass some tiles have finished, over the
-    /// last complete one (black before any tile is back).
-    pub fn frame_so_far(&self) -> Arc<RgbBuffer> {
-        self.frames.so_far()
+    /// Each frame's progress, in the shot's order.
+    pub fn frame_statuses(&self) -> Vec<FrameStatus> {
+        let per_frame = self.tiles.iter().map(|t| t.pixel_count()).sum::<u64>()
+            * u64::from(self.schedule.last_samples());
+        (0..self.frames.len())
+            .map(|k| {
+                let tiles = self.tiles_of(k);
+                let done = self.samples_done_in(tiles.clone()).min(per_frame);
+                let written = self.frames[k].written;
+                FrameStatus {
+                    index: k as u32,
+                    scene: self.spec.frame_scene(k).unwrap_or_default().to_string(),
+                    tiles_total: self.tiles.len() as u32,
+                    tiles_done: tiles.filter(|&t| self.is_finished(t)).count() as u32,
+                    progress: if per_frame == 0 {
+                        1.0
+                    } else {
+                        done as f64 / per_frame as f64
+                    },
+                    passes_done: written,
+                    samples_per_pixel_done: self.schedule.samples_after(written),
+                }
+            })
+            .collect()
     }
 
-    /// Whether passes are merged into the result file: a result can be downloaded.
-    pub fn has_result(&self) -> bool {
-        self.frames.written > 0
+    /// How many frames the job has.
+    pub fn frame_count(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Frame `frame` as far as it has come: the newest pass some tiles have finished, over
+    /// the last complete one (black before any tile is back); `None` once its last pass is
+    /// merged (its result file is the picture) or if there is no such frame.
+    pub fn frame_so_far(&self, frame: usize) -> Option<Arc<RgbBuffer>> {
+        let f = self.frames.get(frame)?;
+        (!f.released).then(|| f.so_far())
+    }
+
+    /// Whether passes of frame `frame` are merged into its result file: it can be
+    /// downloaded.
+    pub fn has_result(&self, frame: usize) -> bool {
+        self.frames.get(frame).is_some_and(|f| f.written > 0)
     }
 
     /// The next tile to lend `worker` and the pass it is to render, taken off the queue.
@@ -412,19 +489,20 @@ impl Job {
             return false;
         };
         let died = self.lending.expired_on(tile).join(", ");
-        let t = self.tiles[tile];
+        let t = self.rect(tile);
+        let at = self.frame_named(tile);
         let done = &self.lending.done;
         let holds_up = self.lending.finished() > 0
-            && (0..self.tiles.len())
+            && (0..self.tile_count())
                 .all(|o| o == tile || self.is_finished(o) || done[o] > done[tile]);
         let reason = if n.stalled >= MAX_TILE_ATTEMPTS && !holds_up {
             format!(
-                "{} renderers in a row died, hung or lost their link rendering tile {tile} ({}x{} at {},{}) while no tile of the job was done; leases of {died} expired on this pass, the last {worker}'s: a scene that crashes or hangs its renderer does this",
+                "{} renderers in a row died, hung or lost their link rendering tile {tile} ({}x{} at {},{}{at}) while no tile of the job was done; leases of {died} expired on this pass, the last {worker}'s: a scene that crashes or hangs its renderer does this",
                 n.stalled, t.width, t.height, t.x0, t.y0
             )
         } else if n.total >= MAX_TILE_EXPIRIES {
             format!(
-                "{} renderers died, hung or lost their link rendering tile {tile} ({}x{} at {},{}) while the rest of the job went on; leases of {died} expired on this pass, the last {worker}'s: a scene that crashes or hangs its renderer on this tile does this",
+                "{} renderers died, hung or lost their link rendering tile {tile} ({}x{} at {},{}{at}) while the rest of the job went on; leases of {died} expired on this pass, the last {worker}'s: a scene that crashes or hangs its renderer on this tile does this",
                 n.total, t.width, t.height, t.x0, t.y0
             )
         } else {
@@ -446,11 +524,21 @@ impl Job {
         if attempts < MAX_TILE_ATTEMPTS {
             return false;
         }
-        let t = self.tiles[tile];
+        let t = self.rect(tile);
+        let at = self.frame_named(tile);
         self.fail(format!(
-            "tile {tile} ({}x{} at {},{}) failed {MAX_TILE_ATTEMPTS} times; last: {reason}",
+            "tile {tile} ({}x{} at {},{}{at}) failed {MAX_TILE_ATTEMPTS} times; last: {reason}",
             t.width, t.height, t.x0, t.y0
         ))
+    }
+
+    /// `, frame K (its scene)` for a tile of a shot's frame; nothing for a job of one frame.
+    fn frame_named(&self, tile: usize) -> String {
+        let k = self.frame_of(tile);
+        self.spec
+            .frame_scene(k)
+            .map(|s| format!(", frame {} ({s})", k + 1))
+            .unwrap_or_default()
     }
 
     /// Fails the job, if it is running, for `error`. Returns whether it failed now.
@@ -466,19 +554,24 @@ impl Job {
     /// Where tile `idx` lies and what its pass `pass` must hold: what an upload must match.
     pub fn spot(&self, idx: usize, pass: PassRange) -> TileSpot {
         TileSpot {
-            frame: self.frames.size(),
-            window: self.tiles[idx].into(),
+            frame: self.frames[0].size(),
+            window: self.rect(idx).into(),
             sums: self.schedule.sums.map(|g| (g, pass.to)),
         }
     }
 
-    /// Which of this job's tiles has the windows `tile`.
-    pub fn find_tile(&self, tile: &Windows) -> Option<usize> {
-        if (tile.frame_width, tile.frame_height) != self.frames.size() {
-            return None;
+    /// Which of this job's tiles have the windows `tile`: one per frame of the shot.
+    pub fn find_tiles(&self, tile: &Windows) -> Vec<usize> {
+        if (tile.frame_width, tile.frame_height) != self.frames[0].size() {
+            return Vec::new();
         }
         let window = data_window(tile);
-        self.tiles.iter().position(|&r| Rect::from(r) == window)
+        let Some(t) = self.tiles.iter().position(|&r| Rect::from(r) == window) else {
+            return Vec::new();
+        };
+        (0..self.frames.len())
+            .map(|k| k * self.tiles.len() + t)
+            .collect()
     }
 
     /// A checked tile of pass `pass` came back: pasted into that pass's frame, and the tile
@@ -498,23 +591,30 @@ impl Job {
             }
             return Ok(Landed::Nothing);
         }
-        // A pass other tiles are past with no frame building for it (their rows of it were
-        // forgotten; this tile starts again behind them) is never whole: nothing to paste.
-        let whole_possible = self.frames.is_building(pass)
-            || !done.iter().enumerate().any(|(i, &d)| i != idx && d > pass);
-        let full = whole_possible && self.frames.paste(pass, tile, self.tiles.len())?;
+        // A pass other tiles of the frame are past with no frame building for it (their
+        // rows of it were forgotten; this tile starts again behind them) is never whole:
+        // nothing to paste.
+        let k = self.frame_of(idx);
+        let whole_possible = self.frames[k].is_building(pass)
+            || !self.tiles_of(k).any(|i| i != idx && done[i] > pass);
+        let n = self.tiles.len();
+        let full = whole_possible && self.frames[k].paste(pass, tile, n)?;
         self.verification.set_unchecked_by(idx, unchecked_by);
         self.lending.advance(idx, self.schedule.len());
         if !full {
             return Ok(Landed::Tile);
         }
-        let frame = self.frames.finish(pass);
-        // The frontier moved: the tiles waiting for it may go on.
+        let frame = self.frames[k].finish(pass);
+        // The frontier may have moved: the tiles waiting for it may go on.
         self.lending.release_parked();
-        Ok(Landed::Pass { pass, frame })
+        Ok(Landed::Pass {
+            index: k as u32,
+            pass,
+            frame,
+        })
     }
 
-    /// The merged frame of pass `pass` could not be written (`why`, without server paths):
+    /// A merged frame of pass `pass` could not be written (`why`, without server paths):
     /// the job waits and writes it again after `base`, doubling with each failure in a row
     /// to at most a minute. Returns the wait.
     pub fn merge_failed(&mut self, pass: u32, why: &str, now: Instant, base: Duration) -> Duration {
@@ -538,22 +638,34 @@ impl Job {
         self.state == JobState::Running && self.merge_retry.is_some_and(|at| at <= now)
     }
 
-    /// Takes the retry: the complete pass to write again.
-    pub fn take_merge_retry(&mut self) -> Option<(u32, Arc<RgbBuffer>)> {
+    /// Takes the retry: the complete passes to write again.
+    pub fn take_merge_retry(&mut self) -> Vec<ToMerge> {
         self.merge_retry = None;
         self.to_merge()
     }
 
-    /// Records that pass `pass` is merged into the result file; returns whether it was the
-    /// last pass (the job is done).
-    pub fn merged(&mut self, pass: u32) -> bool {
+    /// Records that frame `frame`'s pass `pass` is merged into its result file; returns
+    /// whether every frame's last pass is (the job is done). A frame whose last pass is
+    /// merged lets its pictures go: its result file is what it shows from then on.
+    pub fn merged(&mut self, frame: usize, pass: u32) -> bool {
         if self.merge_failures > 0 {
             self.merge_failures = 0;
             self.merge_retry = None;
             self.held_back.remove(&Hold::Merge);
         }
-        self.frames.merged(pass);
-        self.frames.written as usize >= self.schedule.len()
+        let passes = self.schedule.len();
+        let f = &mut self.frames[frame];
+        f.merged(pass);
+        if f.written as usize >= passes {
+            f.release();
+        }
+        self.passes_written() as usize >= passes
+    }
+
+    /// Whether every frame has merged pass `pass` (nothing continues from the passes
+    /// before it any more).
+    pub fn merged_everywhere(&self, pass: u32) -> bool {
+        self.passes_written() > pass
     }
 
     /// Samples per pixel at the end of the last pass.
@@ -566,19 +678,31 @@ impl Job {
         self.schedule.samples_of_pass(pass)
     }
 
-    /// Whether every tile has done pass `pass` (or a later one).
-    pub fn has_complete(&self, pass: u32) -> bool {
-        self.frames.has_complete(pass)
+    /// Whether every tile of frame `frame` has done pass `pass` (or a later one).
+    pub fn has_complete(&self, frame: usize, pass: u32) -> bool {
+        self.frames[frame].has_complete(pass)
     }
 
-    /// Whether the result file already holds pass `pass` or a later one.
-    pub fn is_written(&self, pass: u32) -> bool {
-        self.frames.written > pass
+    /// Whether frame `frame`'s result file already holds pass `pass` or a later one.
+    pub fn is_written(&self, frame: usize, pass: u32) -> bool {
+        self.frames[frame].written > pass
     }
 
-    /// The complete pass to merge after a restore, if the result file may lack it.
-    pub fn to_merge(&self) -> Option<(u32, Arc<RgbBuffer>)> {
-        self.frames.complete()
+    /// The complete passes to merge (after a restore, or a failed write), of the frames
+    /// whose result files may lack them.
+    pub fn to_merge(&self) -> Vec<ToMerge> {
+        self.frames
+            .iter()
+            .enumerate()
+            .filter_map(|(k, f)| {
+                let (pass, frame) = f.complete()?;
+                (f.written <= pass).then_some(ToMerge {
+                    index: k as u32,
+                    pass,
+                    frame,
+                })
+            })
+            .collect()
     }
 
     /// Counts the rate afresh from the next lease (the samples done so far were done
@@ -598,7 +722,9 @@ impl Job {
             return false;
         }
         self.schedule.passes.truncate(f + 1);
-        self.frames.stop_after(f as u32);
+        for frames in &mut self.frames {
+            frames.stop_after(f as u32);
+        }
         self.set_spec_passes();
         true
     }
@@ -668,6 +794,14 @@ fn check_tile_count(width: u32, height: u32, tile: u32) -> Result<(), PlanError>
         max: MAX_TILES,
         least,
     })
+}
+
+/// A complete pass of one frame to merge into its result file.
+pub(super) struct ToMerge {
+    /// The frame's index in the shot.
+    pub index: u32,
+    pub pass: u32,
+    pub frame: Arc<RgbBuffer>,
 }
 
 /// A tile's place: its frame's size, its window in it, and the running sums it must carry

@@ -17,7 +17,9 @@ impl Job {
     /// readable row for (one that cannot be read, or is not this job's, does not count),
     /// and the frames are pasted together again from the rows of the passes in progress.
     pub fn restore(&mut self, rows: Vec<KeptTile>) {
-        self.frames.clear();
+        for frames in &mut self.frames {
+            frames.clear();
+        }
         let mut kept = self.readable(rows);
         // Each tile resumes after its last row; rows below a gap are of no use (nothing
         // continues from them), and a tile whose last row cannot be pasted starts again.
@@ -33,7 +35,9 @@ impl Job {
             rows.retain(|&p, _| p >= first);
             self.lending.done[idx] = last + 1;
         }
-        self.paste_restored(&kept);
+        for k in 0..self.frames.len() {
+            self.paste_restored(&kept, k);
+        }
         for (idx, rows) in kept.iter_mut().enumerate() {
             let last = self.lending.done[idx].checked_sub(1);
             let by = last
@@ -46,14 +50,16 @@ impl Job {
         // A job that ended had its last complete pass merged before it ended; a running
         // one is merged again on resume, which records it.
         if self.state != JobState::Running {
-            self.frames.written_as_complete();
+            for frames in &mut self.frames {
+                frames.written_as_complete();
+            }
         }
     }
 
     /// The rows that are this job's and can be read and pasted, by tile and pass. A tile
     /// kept before passes existed marks the job as such.
     fn readable(&mut self, rows: Vec<KeptTile>) -> Rows {
-        let n = self.tiles.len();
+        let n = self.tile_count();
         let mut kept: Rows = vec![BTreeMap::new(); n];
         for row in rows {
             let idx = row.idx;
@@ -82,17 +88,20 @@ impl Job {
         kept
     }
 
-    /// The frames of the passes from the slowest tile's on, pasted from the rows. A pass
-    /// some tile is past without a row for it (the store forgot it once a later pass was
-    /// merged, and the tiles that start again after a worker was set aside are behind it)
-    /// is never whole, and never merged: the next merged pass is the first that every tile
-    /// reaches with its row.
-    fn paste_restored(&mut self, kept: &Rows) {
-        let n = self.tiles.len();
-        let done = &self.lending.done;
-        let frontier = self.lending.frontier();
+    /// Frame `frame`'s pictures of the passes from its slowest tile's on, pasted from the
+    /// rows. A pass some tile is past without a row for it (the store forgot it once a
+    /// later pass was merged, and the tiles that start again after a worker was set aside
+    /// are behind it) is never whole, and never merged: the next merged pass is the first
+    /// that every tile of the frame reaches with its row.
+    fn paste_restored(&mut self, kept: &Rows, frame: usize) {
+        let tiles = self.tiles_of(frame);
+        let n = tiles.len();
+        let done = &self.lending.done[tiles.clone()];
+        let kept = &kept[tiles];
+        let frontier = done.iter().copied().min().unwrap_or(0);
         let newest = done.iter().copied().max().unwrap_or(0);
-        let mut picture = self.frames.black();
+        let frames = &mut self.frames[frame];
+        let mut picture = frames.black();
         for pass in frontier.saturating_sub(1)..newest {
             let with_row: Vec<usize> = (0..n).filter(|&i| kept[i].contains_key(&pass)).collect();
             if with_row.is_empty() {
@@ -110,9 +119,9 @@ impl Job {
             picture = Arc::new(frame);
             let past = (0..n).filter(|&i| done[i] > pass).count();
             if count == n {
-                self.frames.restored(pass, picture.clone(), None);
+                frames.restored(pass, picture.clone(), None);
             } else if count == past {
-                self.frames.restored(pass, picture.clone(), Some(count));
+                frames.restored(pass, picture.clone(), Some(count));
             }
         }
     }
@@ -125,6 +134,8 @@ impl Job {
             self.verification.forget_tile(t);
         }
         self.restore(rows);
-        self.frames.written = 0;
+        for frames in &mut self.frames {
+            frames.written = 0;
+        }
     }
 }

@@ -23,6 +23,7 @@ mod lending;
 mod passes;
 mod queue;
 mod requirements;
+mod shots;
 mod verify;
 
 const TTL: Duration = Duration::from_secs(20);
@@ -145,6 +146,7 @@ async fn submit_with(
     edit: impl FnOnce(&mut JobSpec),
 ) -> u64 {
     let mut spec = JobSpec {
+        frames: Vec::new(),
         scene: upload_scene(f, width, height).await,
         spp: Some(1),
         resolution: None,

@@ -19,6 +19,7 @@ async fn lease_offering(
     memory_mib: Option<u64>,
 ) -> Option<Lease> {
     let req = LeaseRequest {
+        geometry: None,
         worker: worker.into(),
         tags: tags.iter().map(|t| t.to_string()).collect(),
         memory_mib,
