@@ -4,7 +4,8 @@
 //! it stops a job after its first pass before it starts, watches another go through its
 //! passes to done while the frame's pixels change and its ETA and the worker's tile show,
 //! moves the exposure, downloads the EXR, extends the job, downloads the stopped job's
-//! PNG, cancels a third job, and checks a narrow screen, a frame and a screenshot that are
+//! PNG, cancels a third job, shows a shot's strip of frames and downloads its third frame,
+//! and checks a narrow screen, a frame and a screenshot that are
 //! not blank and a console without errors. Where Chromium or Selenium is missing it
 //! prints SKIPPED.
 
@@ -77,6 +78,43 @@ fn the_dashboard_works_in_a_real_browser() {
     let cancel = rt
         .block_on(client.create_job(&spec(vec![4096], -2), None))
         .unwrap();
+    // A shot of three small frames sharing a mesh, rendered first.
+    let shot_dir = dir.path().join("shot");
+    std::fs::create_dir_all(&shot_dir).unwrap();
+    std::fs::write(
+        shot_dir.join("ball.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n-2 -1 -2\n2 -1 -2\n2 -1 2\n-2 -1 2\n3 0 2 1\n3 0 3 2\n",
+    )
+    .unwrap();
+    let frames: Vec<std::path::PathBuf> = (0..3)
+        .map(|k| {
+            let path = shot_dir.join(format!("f{k}.pbrt"));
+            let c = [0.8, 0.2 + 0.3 * k as f32, 0.2];
+            std::fs::write(
+                &path,
+                format!(
+                    "LookAt 0 1 -4  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 50\nFilm \"rgb\" \"integer xresolution\" [ 64 ] \"integer yresolution\" [ 48 ]\nWorldBegin\nLightSource \"infinite\" \"rgb L\" [0.6 0.7 0.8]\nShape \"plymesh\" \"string filename\" \"ball.ply\"\nMaterial \"diffuse\" \"rgb reflectance\" [{} {} {}]\nShape \"sphere\" \"float radius\" 0.8\n",
+                    c[0], c[1], c[2]
+                ),
+            )
+            .unwrap();
+            path
+        })
+        .collect();
+    let (bundle, names) = kiln_farm::bundle::pack_frames(&frames).unwrap();
+    let shot_digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
+    let shot_job = rt
+        .block_on(client.create_job(
+            &JobSpec {
+                spp: Some(4),
+                tile: 32,
+                priority: 1,
+                frames: names,
+                ..JobSpec::new(&shot_digest)
+            },
+            None,
+        ))
+        .unwrap();
     let shot = dir.path().join("dashboard.png");
     let mut driver = Command::new("python3")
         .arg(repo().join("tests/dashboard/drive.py"))
@@ -88,9 +126,13 @@ fn the_dashboard_works_in_a_real_browser() {
             &stop.to_string(),
             "--cancel",
             &cancel.to_string(),
+            "--shot",
+            &shot_job.to_string(),
         ])
         .arg("--screenshot")
         .arg(&shot)
+        .arg("--shot-screenshot")
+        .arg(dir.path().join("dashboard-shot.png"))
         .stdout(Stdio::piped())
         .stderr(std::fs::File::create(dir.path().join("drive.err")).unwrap())
         .spawn()
@@ -123,9 +165,15 @@ fn the_dashboard_works_in_a_real_browser() {
     );
     let s = rt.block_on(client.status(cancel)).unwrap();
     assert_eq!(s.state, JobState::Cancelled);
+    let s = rt.block_on(client.status(shot_job)).unwrap();
+    assert_eq!((s.state, s.frame_count), (JobState::Done, 3));
     assert!(std::fs::metadata(&shot).unwrap().len() > 10_000);
     // The README's picture comes from here: KILN_DASHBOARD_SCREENSHOT=docs/src/dashboard.png.
     if let Ok(keep) = std::env::var("KILN_DASHBOARD_SCREENSHOT") {
         std::fs::copy(&shot, keep).unwrap();
+    }
+    // And the manual's picture of a shot: KILN_DASHBOARD_SHOT_SCREENSHOT=docs/src/dashboard-shot.png.
+    if let Ok(keep) = std::env::var("KILN_DASHBOARD_SHOT_SCREENSHOT") {
+        std::fs::copy(dir.path().join("dashboard-shot.png"), keep).unwrap();
     }
 }

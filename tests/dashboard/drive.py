@@ -5,7 +5,9 @@ prints "dashboard: signed in", the test's cue to start the worker), watches a jo
 through its passes to done while its frame's pixels change, its ETA and the worker's
 current tile show, moves the exposure, downloads the EXR, extends the job by its form,
 stops a second job after its pass in progress and downloads its PNG, cancels a third,
-checks a narrow screen, a frame that is not blank and a console without errors. Prints what
+shows a shot's strip of frame thumbnails with their progress, picks its third frame and
+downloads that frame's EXR, checks a narrow screen, a frame that is not blank and a console
+without errors. Prints what
 it saw; exits 1 with the reason on any failure."""
 
 import argparse
@@ -109,7 +111,9 @@ def main():
     p.add_argument("--watch", type=int, required=True, help="the job to follow to done")
     p.add_argument("--stop", type=int, required=True, help="the job to stop after its first pass")
     p.add_argument("--cancel", type=int, required=True, help="the job to cancel")
+    p.add_argument("--shot", type=int, required=True, help="a shot of three frames")
     p.add_argument("--screenshot", required=True)
+    p.add_argument("--shot-screenshot", required=True, help="where the shot's view is saved")
     p.add_argument("--chromium", default="/usr/bin/chromium")
     p.add_argument("--chromedriver", default="/usr/bin/chromedriver")
     a = p.parse_args()
@@ -284,6 +288,37 @@ def run(driver, a):
     if row_state != "cancelled":
         fail(f"the job list says {row_state!r}")
     print(f"dashboard: job {a.cancel} cancelled", flush=True)
+
+    # A shot: a strip of three thumbnails, each frame finished; its third frame shown and
+    # downloaded; the worker's meshes counted.
+    show_job(driver, a.shot)
+    thumbs = "#strip button.thumb"
+    wait_for("the shot's strip", lambda: len(driver.find_elements(By.CSS_SELECTOR, thumbs)) == 3)
+    wait_for(
+        "every frame finished, its thumbnail drawn",
+        lambda: driver.execute_script(
+            f"return [...document.querySelectorAll('{thumbs}')].every("
+            "b => b.querySelector('progress').value === 1 && b.querySelector('img').naturalWidth > 0)"
+        ),
+        limit=120,
+    )
+    driver.find_element(By.CSS_SELECTOR, 'button[aria-label="Show frame 3"]').click()
+    wait_for("frame 3 shown", lambda: driver.find_element(By.ID, "frame").get_attribute("data-frame") == "2")
+    frames = wait_for("the frames fact", lambda: (t := fact(driver, "frames")) and "frame 3 shown" in t and t)
+    if not frames.startswith("3, 3 finished"):
+        fail(f"the shot's frames fact says {frames!r}")
+    wait_for("frame 3's pixels", lambda: frame_pixels(driver))
+    driver.find_element(By.ID, "download-exr").send_keys(Keys.ENTER)
+    wait_for(
+        "frame 3's EXR",
+        lambda: f"Downloaded job {a.shot} frame 3's EXR" in driver.find_element(By.ID, "message").text,
+    )
+    with open(a.shot_screenshot, "wb") as f:
+        f.write(driver.get_screenshot_as_png())
+    meshes = cells(driver, "workers", 8)
+    if not any(m.endswith(" reused") for m in meshes):
+        fail(f"the workers table does not count the meshes read and reused: {meshes}")
+    print(f"dashboard: shot {a.shot}: 3 frames in the strip, frame 3 shown and downloaded; meshes {meshes}", flush=True)
 
     # Workers are listed with what they did.
     done = cells(driver, "workers", 3)

@@ -149,5 +149,19 @@ fn a_48_frame_shot_on_3_workers_reads_its_shared_mesh_once_per_worker() {
         busy >= 2,
         "the shot was spread over the workers: {counts:?}"
     );
+    // The CLI's tables say the same: the job's frames, each worker's meshes.
+    let table = |what: &str| {
+        let o = kiln()
+            .args([what, "--coordinator", &farm.url])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let jobs = table("jobs");
+    let row = jobs.lines().nth(1).unwrap_or_default();
+    assert!(row.contains("done") && row.contains(" 48 "), "{jobs}");
+    let listed = table("workers");
+    assert!(listed.contains("1 read, "), "{listed}");
     drop(workers);
 }

@@ -20,7 +20,7 @@ pub fn jobs(args: ListArgs) -> Result<()> {
     let client = Client::new(&args.coordinator, args.token.clone());
     let jobs = crate::farm::runtime()?.block_on(client.jobs())?;
     let header = [
-        "JOB", "STATE", "PROGRESS", "SPP", "PASSES", "PRIORITY", "NOTE",
+        "JOB", "STATE", "FRAMES", "PROGRESS", "SPP", "PASSES", "PRIORITY", "NOTE",
     ];
     list(&args, &jobs, &header, job_row)
 }
@@ -36,6 +36,7 @@ fn job_row(j: &JobStatus) -> Vec<String> {
     vec![
         j.id.to_string(),
         j.state.as_str().to_string(),
+        j.frame_count.to_string(),
         format!("{:.0}%", j.progress * 100.0),
         format!("{}/{last}", j.samples_per_pixel_done),
         format!("{}/{}", j.passes_done, j.passes.len()),
@@ -54,6 +55,7 @@ pub fn workers(args: ListArgs) -> Result<()> {
         "FAILURES",
         "HEARD",
         "TAGS",
+        "MESHES",
         "SET ASIDE",
     ];
     list(&args, &workers, &header, worker_row)
@@ -77,6 +79,7 @@ fn list<T: serde::Serialize>(
 fn worker_row(w: &WorkerStatus) -> Vec<String> {
     let rendering = match w.leases.as_slice() {
         [] => "idle".to_string(),
+        [l] if l.frame > 0 => format!("job {} frame {} tile {}", l.job, l.frame + 1, l.tile_index),
         [l] => format!("job {} tile {}", l.job, l.tile_index),
         ls => format!("job {} ({} tiles)", ls[0].job, ls.len()),
     };
@@ -88,6 +91,9 @@ fn worker_row(w: &WorkerStatus) -> Vec<String> {
         w.last_seen_seconds
             .map_or("never".into(), |s| format!("{s:.0} s ago")),
         w.tags.join(","),
+        w.geometry.map_or(String::new(), |g| {
+            format!("{} read, {} reused", g.loads, g.reused)
+        }),
         w.set_aside.clone().unwrap_or_default(),
     ]
 }

@@ -1,5 +1,6 @@
 // Kiln's farm dashboard: signs in with the coordinator's token, then polls the HTTP API
-// (GET /v1/jobs, /v1/workers) once a second and draws what it says. Images and downloads
+// (GET /v1/jobs, /v1/workers, and a shot's /v1/jobs/{id}/frames) once a second and draws
+// what it says: a shot's frames as a strip of thumbnails, each with its progress. Images and downloads
 // are fetched with the token and shown through object URLs, since an <img> or <a> cannot
 // send an Authorization header. No framework, no build step: this file is served as is.
 "use strict";
@@ -10,10 +11,16 @@ const $ = (id) => document.getElementById(id);
 const state = {
   token: sessionStorage.getItem("kiln-token"),
   selected: null, // the job shown
+  frame: 0, // the frame of the shot shown
   shown: null, // what the frame on screen was drawn from
   frameUrl: null,
+  thumbs: [], // per frame of the shown shot: { key, url } of its thumbnail
+  frames: null, // the shown shot's frames, as last listed
   timer: null,
 };
+
+/// Thumbnails fetched per poll at most: a long shot's fill in over a few seconds.
+const THUMBS_PER_POLL = 8;
 
 /// Calls the API; returns the response, or throws an Error with the server's message.
 async function api(method, path, body) {
@@ -131,7 +138,7 @@ function drawJobs(jobs) {
     const pick = document.createElement("button");
     pick.type = "button";
     pick.className = "link";
-    pick.textContent = "Job " + j.id;
+    pick.textContent = "Job " + j.id + (j.frame_count > 1 ? ` (${j.frame_count} frames)` : "");
     pick.setAttribute("aria-label", "Show job " + j.id);
     pick.addEventListener("click", () => select(j.id));
     cell(tr, pick);
@@ -183,6 +190,8 @@ function drawWorkers(workers) {
     const offers = [...(w.tags || [])];
     if (w.memory_mib) offers.push(Math.round(w.memory_mib / 1024) + " GiB");
     cell(tr, offers.length ? offers.join(", ") : "–");
+    const g = w.geometry;
+    cell(tr, g && g.loads + g.reused > 0 ? `${g.loads} read, ${g.reused} reused` : "–");
     body.appendChild(tr);
   }
 }
@@ -192,6 +201,12 @@ function drawWorkers(workers) {
 function select(id) {
   state.selected = id;
   state.shown = null;
+  state.frame = 0;
+  state.frames = null;
+  for (const t of state.thumbs) if (t && t.url) URL.revokeObjectURL(t.url);
+  state.thumbs = [];
+  $("strip").replaceChildren();
+  $("strip").hidden = true;
   $("job").hidden = false;
   $("job-title").textContent = "Job " + id;
   for (const tr of $("jobs").tBodies[0].rows) {
@@ -202,6 +217,9 @@ function select(id) {
 }
 
 async function drawJob(j) {
+  const shot = j.frame_count > 1;
+  state.frames = shot ? await api("GET", `/v1/jobs/${j.id}/frames`).then((r) => r.json()) : null;
+  if (state.frame >= j.frame_count) state.frame = 0;
   const facts = [
     ["State", j.state + (j.error ? ": " + j.error : "")],
     ["Frame", j.width + " × " + j.height + ", " + j.tiles_done + " / " + j.tiles_total + " tiles"],
@@ -212,6 +230,10 @@ async function drawJob(j) {
     ["Verified", j.tile_passes_verified + " tile passes"],
     ["Failures", String(j.failures)],
   ];
+  if (shot) {
+    const finished = state.frames.filter((f) => f.passes_done >= j.passes.length).length;
+    facts.splice(2, 0, ["Frames", `${j.frame_count}, ${finished} finished (frame ${state.frame + 1} shown)`]);
+  }
   if (j.tile_passes_held) {
     facts.push(["Held", j.tile_passes_held + " tile passes wait for a second worker to check them"]);
   }
@@ -235,25 +257,89 @@ async function drawJob(j) {
   const running = j.state === "running";
   $("stop").disabled = !running || j.passes_done + 1 >= j.passes.length;
   $("cancel").disabled = !running;
-  $("download-exr").setAttribute("aria-disabled", String(j.passes_done === 0));
-  // A new frame when tiles or passes land, or the exposure moved.
-  const key = [j.id, j.samples_done, j.passes_done, j.state, $("exposure").value].join(":");
+  const merged = shot ? state.frames[state.frame].passes_done : j.passes_done;
+  $("download-exr").setAttribute("aria-disabled", String(merged === 0));
+  if (shot) await drawStrip(j);
+  // A new frame when tiles or passes land, the frame shown changed, or the exposure moved.
+  const key = [j.id, state.frame, j.samples_done, j.passes_done, j.state, $("exposure").value].join(":");
   if (key !== state.shown) {
     state.shown = key;
-    await drawFrame(j.id);
+    await drawFrame(j.id, shot);
   }
 }
 
-async function drawFrame(id) {
+/// The path of the shown frame's `file` (result.exr or preview.png): a shot's frame's, or
+/// the job's own.
+function framePath(id, shot, file) {
+  return shot ? `/v1/jobs/${id}/frames/${state.frame}/${file}` : `/v1/jobs/${id}/${file}`;
+}
+
+/// A shot's strip: a thumbnail per frame with its progress; a click shows that frame.
+/// The buttons are made once and updated in place; thumbnails are fetched again when
+/// their frame moved on, a few per poll.
+async function drawStrip(j) {
+  const strip = $("strip");
+  strip.hidden = false;
+  if (strip.children.length !== state.frames.length) {
+    strip.replaceChildren();
+    for (const f of state.frames) {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.className = "thumb";
+      b.setAttribute("role", "listitem");
+      b.setAttribute("aria-label", `Show frame ${f.index + 1}`);
+      b.dataset.frame = f.index;
+      const img = document.createElement("img");
+      img.alt = `Frame ${f.index + 1}` + (f.scene ? ` (${f.scene})` : "");
+      const bar = document.createElement("progress");
+      bar.max = 1;
+      const label = document.createElement("span");
+      label.textContent = String(f.index + 1);
+      b.append(img, bar, label);
+      b.addEventListener("click", () => {
+        state.frame = f.index;
+        state.shown = null;
+        poll();
+      });
+      strip.appendChild(b);
+    }
+  }
+  let fetched = 0;
+  for (const f of state.frames) {
+    const b = strip.children[f.index];
+    b.setAttribute("aria-pressed", String(f.index === state.frame));
+    b.title = `${f.scene}: ${Math.floor(f.progress * 100)}%, ${f.passes_done} passes merged`;
+    const bar = b.querySelector("progress");
+    bar.value = f.progress;
+    const key = [f.tiles_done, f.passes_done, f.progress, $("exposure").value].join(":");
+    const had = state.thumbs[f.index];
+    if ((had && had.key === key) || fetched >= THUMBS_PER_POLL) continue;
+    fetched++;
+    try {
+      const path = `/v1/jobs/${j.id}/frames/${f.index}/preview.png?exposure=${$("exposure").value}`;
+      const blob = await (await api("GET", path)).blob();
+      if (state.selected !== j.id) return;
+      if (had && had.url) URL.revokeObjectURL(had.url);
+      const url = URL.createObjectURL(blob);
+      state.thumbs[f.index] = { key, url };
+      b.querySelector("img").src = url;
+    } catch (e) {
+      say(`Cannot load frame ${f.index + 1}: ` + e.message);
+    }
+  }
+}
+
+async function drawFrame(id, shot) {
   const exposure = $("exposure").value;
   try {
-    const r = await api("GET", `/v1/jobs/${id}/preview.png?exposure=${exposure}`);
+    const r = await api("GET", framePath(id, shot, `preview.png?exposure=${exposure}`));
     const blob = await r.blob();
     if (state.selected !== id) return;
     const url = URL.createObjectURL(blob);
     const img = $("frame");
     img.src = url;
     img.dataset.job = id;
+    img.dataset.frame = state.frame;
     if (state.frameUrl) URL.revokeObjectURL(state.frameUrl);
     state.frameUrl = url;
   } catch (e) {
@@ -274,17 +360,20 @@ async function act(what, path, body, done) {
 async function download(kind) {
   const id = state.selected;
   if (id === null) return;
-  const path = kind === "exr" ? `/v1/jobs/${id}/result.exr` : `/v1/jobs/${id}/preview.png?exposure=${$("exposure").value}`;
+  const shot = state.frames !== null;
+  const file = kind === "exr" ? "result.exr" : `preview.png?exposure=${$("exposure").value}`;
+  const path = framePath(id, shot, file);
+  const name = shot ? `job ${id} frame ${state.frame + 1}` : `job ${id}`;
   try {
     const blob = await (await api("GET", path)).blob();
     const a = document.createElement("a");
     a.href = URL.createObjectURL(blob);
-    a.download = `job-${id}.${kind}`;
+    a.download = (shot ? `job-${id}-frame-${state.frame + 1}` : `job-${id}`) + `.${kind}`;
     document.body.appendChild(a);
     a.click();
     a.remove();
     setTimeout(() => URL.revokeObjectURL(a.href), 10000);
-    say(`Downloaded job ${id}'s ${kind.toUpperCase()}.`);
+    say(`Downloaded ${name}'s ${kind.toUpperCase()}.`);
   } catch (e) {
     say("Download failed: " + e.message);
   }
