@@ -94,6 +94,7 @@ fn scale(workers: usize) {
     let bundle = kiln_farm::bundle::pack(&scene_dir.join("frame.pbrt")).unwrap();
     let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
     let spec = JobSpec {
+        owner: None,
         frames: Vec::new(),
         scene: digest,
         spp: Some(1),

@@ -50,6 +50,7 @@ fn the_dashboard_works_in_a_real_browser() {
     let (rt, client, url, dir) = (&farm.rt, &farm.client, &farm.url, &farm.dir);
     let digest = farm.upload(&scene("materials/scene.pbrt"));
     let spec = |passes: Vec<u32>, priority: i32| JobSpec {
+        owner: None,
         frames: Vec::new(),
         scene: digest.clone(),
         spp: None,

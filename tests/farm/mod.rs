@@ -16,6 +16,7 @@ mod failures;
 mod limits;
 mod passes;
 mod requirements;
+mod roles;
 mod shots;
 mod verify;
 mod webhooks;
@@ -341,6 +342,7 @@ impl Farm {
     /// A job spec for the scene `digest` with Kiln's defaults (tiles of 32, one pass).
     pub fn spec(digest: &str) -> JobSpec {
         JobSpec {
+            owner: None,
             frames: Vec::new(),
             scene: digest.to_string(),
             spp: None,

@@ -136,6 +136,7 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
     // Stopped mid-run, after its first pass merged, and at once, before any tile.
     for stop_at_once in [false, true] {
         let spec = JobSpec {
+            owner: None,
             frames: Vec::new(),
             scene: digest.clone(),
             spp: None,

@@ -17,6 +17,7 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
     let path = scene("materials/scene.pbrt");
     let digest = farm.upload(&path);
     let spec = |passes: Vec<u32>| JobSpec {
+        owner: None,
         frames: Vec::new(),
         scene: digest.clone(),
         spp: None,

@@ -68,6 +68,7 @@ fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
     let (rt, client) = (&farm.rt, &farm.client);
     let digest = farm.upload(&scene("furnace/scene.pbrt"));
     let spec = |hook: &str| JobSpec {
+        owner: None,
         frames: Vec::new(),
         scene: digest.clone(),
         spp: Some(1),

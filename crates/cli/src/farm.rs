@@ -358,6 +358,7 @@ async fn submit_job(client: &Client, frames: &[PathBuf], job: &JobArgs) -> Resul
         _ => kiln_farm::bundle::pack_frames(frames)?,
     };
     let spec = JobSpec {
+        owner: None,
         scene: bundle.digest.clone(),
         spp: job.spp,
         resolution: job.resolution,

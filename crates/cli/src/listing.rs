@@ -99,7 +99,7 @@ fn worker_row(w: &WorkerStatus) -> Vec<String> {
 }
 
 /// Columns padded to their widest cell, the last left ragged.
-fn print_table(header: &[&str], rows: Vec<Vec<String>>) {
+pub(crate) fn print_table(header: &[&str], rows: Vec<Vec<String>>) {
     let mut widths: Vec<usize> = header.iter().map(|h| h.len()).collect();
     for row in &rows {
         for (w, cell) in widths.iter_mut().zip(row) {

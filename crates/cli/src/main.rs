@@ -7,6 +7,7 @@ mod farm;
 mod listing;
 mod render;
 mod shot;
+mod tokens;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -42,6 +43,9 @@ enum Command {
     /// List the workers a coordinator has heard from: what each renders, its tags, its
     /// record.
     Workers(listing::ListArgs),
+    /// Issue, list and revoke a coordinator's tokens: submitters' and workers' credentials
+    /// (the admin's token is the coordinator's --token).
+    Tokens(tokens::TokensArgs),
     /// Check that a coordinator answers (exit status 0), for container health checks.
     Health(farm::HealthArgs),
 }
@@ -64,6 +68,7 @@ fn main() -> ExitCode {
         Command::Job(args) => farm::job(args),
         Command::Jobs(args) => listing::jobs(args),
         Command::Workers(args) => listing::workers(args),
+        Command::Tokens(args) => tokens::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

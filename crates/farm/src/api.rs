@@ -68,6 +68,10 @@ pub struct JobSpec {
     /// bundle's scene file.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub frames: Vec<String>,
+    /// The submitter whose token created the job (set by the coordinator, whatever a
+    /// client sends): a submitter sees and changes only its own jobs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub owner: Option<String>,
 }
 
 /// The most jobs a job starts after.
@@ -109,6 +113,7 @@ impl JobSpec {
             after_ended: false,
             hold_on_failure: false,
             frames: Vec::new(),
+            owner: None,
         }
     }
 
@@ -289,6 +294,9 @@ pub struct JobStatus {
     /// The frames it renders (1 unless it is a shot: see `/v1/jobs/{id}/frames`).
     #[serde(default = "one")]
     pub frame_count: u32,
+    /// The submitter that created it (none: the admin).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub owner: Option<String>,
 }
 
 fn one() -> u32 {
@@ -473,6 +481,66 @@ fn quoted(name: &str) -> String {
     let shown: String = name.chars().take(40).collect();
     let more = if name.chars().count() > 40 { "..." } else { "" };
     format!("'{}{more}'", shown.escape_debug())
+}
+
+/// What a token may do. The coordinator's own token (`--token`) is the admin's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Role {
+    /// Everything: every job and worker, and issuing and revoking tokens.
+    Admin,
+    /// Uploads scenes, creates jobs, and sees, follows, stops, extends and cancels its own.
+    Submitter,
+    /// One worker: leases, heartbeats, uploads and failures of its own leases, under the
+    /// name the credential was issued for, and the scenes and pre-passes they need.
+    Worker,
+}
+
+impl Role {
+    /// The role's name, as its JSON spells it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::Admin => "admin",
+            Role::Submitter => "submitter",
+            Role::Worker => "worker",
+        }
+    }
+}
+
+/// A token to issue (POST /v1/tokens, admin only): its role and whose it is (a submitter's
+/// or a worker's name, checked as worker names are).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TokenRequest {
+    pub role: Role,
+    pub name: String,
+}
+
+/// A token as the coordinator lists it: never its secret, which only the answer to its
+/// issue holds.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TokenInfo {
+    pub id: u64,
+    pub role: Role,
+    pub name: String,
+    pub revoked: bool,
+}
+
+/// A token just issued: its secret, shown this once (the coordinator keeps only its hash).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TokenIssued {
+    #[serde(flatten)]
+    pub info: TokenInfo,
+    pub token: String,
+}
+
+/// Who a token is (POST /v1/token/check): whether it is valid, and its role and name.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TokenCheck {
+    pub valid: bool,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub role: Option<Role>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]

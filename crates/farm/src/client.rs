@@ -186,6 +186,37 @@ impl Client {
             .to_vec())
     }
 
+    /// Issues a token (admin only): its secret is in the answer only.
+    pub async fn issue_token(
+        &self,
+        req: &crate::api::TokenRequest,
+    ) -> Result<crate::api::TokenIssued> {
+        Ok(self
+            .send(self.req(Method::POST, "/v1/tokens").json(req))
+            .await?
+            .json()
+            .await?)
+    }
+
+    /// Every token issued, without secrets (admin only).
+    pub async fn tokens(&self) -> Result<Vec<crate::api::TokenInfo>> {
+        Ok(self
+            .send(self.req(Method::GET, "/v1/tokens"))
+            .await?
+            .json()
+            .await?)
+    }
+
+    /// Revokes token `id` (admin only).
+    pub async fn revoke_token(&self, id: u64) -> Result<crate::api::TokenInfo> {
+        let path = format!("/v1/tokens/{id}/revoke");
+        Ok(self
+            .send(self.req(Method::POST, &path))
+            .await?
+            .json()
+            .await?)
+    }
+
     /// Each frame's progress (one for a job of one frame).
     pub async fn frames(&self, job: u64) -> Result<Vec<crate::api::FrameStatus>> {
         Ok(self

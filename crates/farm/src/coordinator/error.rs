@@ -37,6 +37,14 @@ pub enum Error {
     UnknownScene(String),
     #[error("no job {0}")]
     UnknownJob(u64),
+    /// A token's role does not allow the request, or a worker's credential is another's.
+    #[error("{0}")]
+    Forbidden(String),
+    #[error("no token {0}")]
+    UnknownToken(u64),
+    /// A token asked for with a name that is not one.
+    #[error("{0}")]
+    BadToken(String),
     #[error("job {id} has no frame {frame} (frames count from 0)")]
     UnknownFrame { id: u64, frame: u32 },
     #[error("no worker '{0}' is set aside")]

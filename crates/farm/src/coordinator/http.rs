@@ -1,13 +1,17 @@
-//! The coordinator's HTTP API: [`app`]'s routes, the bearer-token middleware, the
-//! handlers, and how an [`Error`] becomes a response.
+//! The coordinator's HTTP API: [`app`]'s routes, the bearer-token middleware (who the
+//! request is from, and whether its role may call the route: `credentials.rs`), the
+//! handlers (each job a submitter's own, each lease a worker's own), and how an [`Error`]
+//! becomes a response.
 //!
 //! Handlers only parse requests, call the [`Coordinator`] handle and shape answers. They
 //! must never touch SQLite, the data directory or the lock directly. Every error body is
 //! `{"error": message}`: the client's mistakes with their own status and message, internal
 //! failures logged here once and answered with a bare 500.
 
+use super::credentials::{self, Principal};
 use super::{Coordinator, Error};
 use crate::api::*;
+use axum::Extension;
 use axum::body::Bytes;
 use axum::extract::{DefaultBodyLimit, Path as UrlPath, Request, State};
 use axum::http::{HeaderMap, StatusCode, header};
@@ -51,6 +55,8 @@ pub fn app(c: Coordinator) -> Router {
         .route("/v1/jobs/{id}/extend", post(extend_job))
         .route("/v1/workers", get(list_workers))
         .route("/v1/workers/{name}/reinstate", post(reinstate_worker))
+        .route("/v1/tokens", post(issue_token).get(list_tokens))
+        .route("/v1/tokens/{id}/revoke", post(revoke_token))
         .route("/v1/leases", post(lease))
         .route("/v1/leases/{id}/heartbeat", post(heartbeat))
         .route(
@@ -120,6 +126,7 @@ impl Error {
             | Error::UnknownScene(_)
             | Error::UnknownJob(_)
             | Error::UnknownFrame { .. }
+            | Error::UnknownToken(_)
             | Error::NotSetAside(_)
             | Error::UnknownPrepass(_)
             | Error::NoSums(_) => StatusCode::NOT_FOUND,
@@ -134,6 +141,7 @@ impl Error {
             | Error::UnwantedPrepass(_)
             | Error::BadWorkerName(_)
             | Error::BadTags(_)
+            | Error::BadToken(_)
             | Error::PrepassDigest
             | Error::BrokenUpload(_)
             | Error::RejectedTile(_) => StatusCode::BAD_REQUEST,
@@ -144,7 +152,7 @@ impl Error {
             | Error::UnknownLease(_)
             | Error::StaleTile(_)
             | Error::Relent(_) => StatusCode::CONFLICT,
-            Error::SetAside { .. } => StatusCode::FORBIDDEN,
+            Error::SetAside { .. } | Error::Forbidden(_) => StatusCode::FORBIDDEN,
             Error::JobEnded(_) => StatusCode::GONE,
             Error::Store(_)
             | Error::LostJobs(_)
@@ -170,29 +178,60 @@ impl IntoResponse for Error {
     }
 }
 
+/// Who the request is from (the admin for a coordinator without a token; else the bearer
+/// token's owner, or 401), and whether that role may call the route (403 if not); the
+/// principal goes on to the handler.
 async fn require_token(
     State(c): State<Coordinator>,
-    req: Request,
+    mut req: Request,
     next: Next,
 ) -> Result<Response, Error> {
-    if let Some(token) = &c.config().token {
-        let given = req
-            .headers()
-            .get(header::AUTHORIZATION)
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "));
-        if !given.is_some_and(|g| same_secret(g, token)) {
-            return Err(Error::Unauthorized);
+    let who = match &c.config().token {
+        None => Principal::admin(),
+        Some(_) => {
+            let given = req
+                .headers()
+                .get(header::AUTHORIZATION)
+                .and_then(|v| v.to_str().ok())
+                .and_then(|v| v.strip_prefix("Bearer "));
+            given
+                .and_then(|g| c.principal(g))
+                .ok_or(Error::Unauthorized)?
         }
+    };
+    let (method, path) = (req.method().as_str(), req.uri().path());
+    if !credentials::may(who.role, method, path) {
+        return Err(Error::Forbidden(format!(
+            "a {} token may not {method} {}",
+            who.role.as_str(),
+            path.chars().take(200).collect::<String>()
+        )));
     }
+    req.extensions_mut().insert(who);
     Ok(next.run(req).await)
 }
 
-/// Compares a given token with the coordinator's in time that does not depend on where
-/// they first differ.
-fn same_secret(given: &str, token: &str) -> bool {
-    let (a, b) = (given.as_bytes(), token.as_bytes());
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |d, (x, y)| d | (x ^ y)) == 0
+/// Job `id` as `who` may see it: a submitter sees only its own (another's is answered as no
+/// such job, so ids say nothing of others' work).
+fn own_job(c: &Coordinator, who: &Principal, id: u64) -> Result<u64, Error> {
+    if who.role == Role::Submitter && c.job_owner(id)?.as_deref() != Some(who.name.as_str()) {
+        return Err(Error::UnknownJob(id));
+    }
+    Ok(id)
+}
+
+/// Lease `lease` as `who` may touch it: a worker's credential only its own leases.
+fn own_lease(c: &Coordinator, who: &Principal, lease: u64) -> Result<u64, Error> {
+    if who.role == Role::Worker
+        && let Some(holder) = c.lease_holder(lease)
+        && holder != who.name
+    {
+        return Err(Error::Forbidden(format!(
+            "lease {lease} is another worker's, not {}'s",
+            who.name
+        )));
+    }
+    Ok(lease)
 }
 
 /// The dashboard's sign-in: whether a token is the coordinator's, answered 200 either way
@@ -203,12 +242,16 @@ async fn check_token(State(c): State<Coordinator>, body: Bytes) -> Result<Respon
         token: String,
     }
     let given: Given = parse_json(&body)?;
-    let valid = c
-        .config()
-        .token
-        .as_ref()
-        .is_none_or(|t| same_secret(&given.token, t));
-    Ok(Json(serde_json::json!({ "valid": valid })).into_response())
+    let who = match &c.config().token {
+        None => Some(Principal::admin()),
+        Some(_) => c.principal(&given.token),
+    };
+    Ok(Json(TokenCheck {
+        valid: who.is_some(),
+        role: who.as_ref().map(|w| w.role),
+        name: who.map(|w| w.name),
+    })
+    .into_response())
 }
 
 /// Ids in paths, parsed here so a bad one gets a JSON error like every other.
@@ -319,10 +362,13 @@ async fn release_prepass(
 
 async fn create_job(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     headers: HeaderMap,
     body: Bytes,
 ) -> Result<Response, Error> {
-    let spec: JobSpec = serde_json::from_slice(&body).map_err(Error::BadJob)?;
+    let mut spec: JobSpec = serde_json::from_slice(&body).map_err(Error::BadJob)?;
+    // Whose job it is is the token's to say, not the body's.
+    spec.owner = (who.role == Role::Submitter).then(|| who.name.clone());
     let key = headers
         .get("idempotency-key")
         .and_then(|v| v.to_str().ok())
@@ -336,12 +382,40 @@ async fn create_job(
     Ok((status, Json(JobCreated { id })).into_response())
 }
 
-async fn list_jobs(State(c): State<Coordinator>) -> Json<Vec<JobStatus>> {
-    Json(c.statuses())
+async fn list_jobs(
+    State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
+) -> Json<Vec<JobStatus>> {
+    let mut all = c.statuses();
+    if who.role == Role::Submitter {
+        all.retain(|j| j.owner.as_deref() == Some(who.name.as_str()));
+    }
+    Json(all)
 }
 
 async fn list_workers(State(c): State<Coordinator>) -> Json<Vec<WorkerStatus>> {
     Json(c.worker_statuses())
+}
+
+/// Issues a token (POST /v1/tokens): its secret is in this answer only.
+async fn issue_token(
+    State(c): State<Coordinator>,
+    body: Bytes,
+) -> Result<(StatusCode, Json<TokenIssued>), Error> {
+    let req: TokenRequest = parse_json(&body)?;
+    Ok((StatusCode::CREATED, Json(c.issue_token(&req)?)))
+}
+
+async fn list_tokens(State(c): State<Coordinator>) -> Json<Vec<TokenInfo>> {
+    Json(c.tokens())
+}
+
+/// Revokes a token (POST /v1/tokens/{id}/revoke): refused from the next request on.
+async fn revoke_token(
+    State(c): State<Coordinator>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Json<TokenInfo>, Error> {
+    c.revoke_token(parse_id(&id)?).map(Json)
 }
 
 /// Trusts a worker set aside again (POST /v1/workers/{name}/reinstate).
@@ -355,17 +429,19 @@ async fn reinstate_worker(
 
 async fn get_job(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobStatus>, Error> {
-    let id = parse_id(&id)?;
+    let id = own_job(&c, &who, parse_id(&id)?)?;
     c.status(id).map(Json).ok_or(Error::UnknownJob(id))
 }
 
 async fn job_events(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, Error> {
-    let id = parse_id(&id)?;
+    let id = own_job(&c, &who, parse_id(&id)?)?;
     let first = c.status(id).ok_or(Error::UnknownJob(id))?;
     let mut rx = c.subscribe();
     let stream = async_stream(move |tx: tokio::sync::mpsc::Sender<Event>| async move {
@@ -411,9 +487,10 @@ where
 
 async fn job_result(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, Error> {
-    let id = parse_id(&id)?;
+    let id = own_job(&c, &who, parse_id(&id)?)?;
     let result = c.result(id).await?;
     Ok(send_file(result, "image/x-exr", None))
 }
@@ -470,10 +547,11 @@ struct PreviewQuery {
 
 async fn job_preview(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
     query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Response, Error> {
-    let id = parse_id(&id)?;
+    let id = own_job(&c, &who, parse_id(&id)?)?;
     let png = c.preview(id, exposure_of(query)?).await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
@@ -491,9 +569,10 @@ fn exposure_of(
 /// Each frame's progress (GET /v1/jobs/{id}/frames).
 async fn job_frames(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<Vec<FrameStatus>>, Error> {
-    c.frames(parse_id(&id)?).map(Json)
+    c.frames(own_job(&c, &who, parse_id(&id)?)?).map(Json)
 }
 
 /// A frame's id and index from the path, each a number.
@@ -505,9 +584,11 @@ fn parse_frame(id: &str, frame: &str) -> Result<(u64, u32), Error> {
 /// A frame's merged EXR (GET /v1/jobs/{id}/frames/{frame}/result.exr).
 async fn frame_result(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath((id, frame)): UrlPath<(String, String)>,
 ) -> Result<Response, Error> {
     let (id, frame) = parse_frame(&id, &frame)?;
+    own_job(&c, &who, id)?;
     let result = c.frame_result(id, frame).await?;
     Ok(send_file(result, "image/x-exr", None))
 }
@@ -515,37 +596,42 @@ async fn frame_result(
 /// A frame so far as a PNG (GET /v1/jobs/{id}/frames/{frame}/preview.png).
 async fn frame_preview(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath((id, frame)): UrlPath<(String, String)>,
     query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Response, Error> {
     let (id, frame) = parse_frame(&id, &frame)?;
+    own_job(&c, &who, id)?;
     let png = c.frame_preview(id, frame, exposure_of(query)?).await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
 
 async fn cancel_job(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobStatus>, Error> {
-    let id = parse_id(&id)?;
+    let id = own_job(&c, &who, parse_id(&id)?)?;
     c.cancel(id).map(Json)
 }
 
 /// Ends a job after the pass in progress (POST /v1/jobs/{id}/stop).
 async fn stop_job(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobStatus>, Error> {
-    let id = parse_id(&id)?;
+    let id = own_job(&c, &who, parse_id(&id)?)?;
     c.stop_after_pass(id).map(Json)
 }
 
 async fn extend_job(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
     body: Bytes,
 ) -> Result<Json<JobStatus>, Error> {
-    let id = parse_id(&id)?;
+    let id = own_job(&c, &who, parse_id(&id)?)?;
     let e: Extend = parse_json(&body)?;
     c.extend(id, &e.passes).map(Json)
 }
@@ -553,9 +639,10 @@ async fn extend_job(
 /// The tile EXR a lease's pass continues from, with its SHA-256.
 async fn lease_sums(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, Error> {
-    let id = parse_id(&id)?;
+    let id = own_lease(&c, &who, parse_id(&id)?)?;
     let bytes = c.sums_for(id)?;
     let sha = crate::bundle::digest_of(&bytes);
     Ok((
@@ -568,8 +655,19 @@ async fn lease_sums(
         .into_response())
 }
 
-async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Error> {
+async fn lease(
+    State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
+    body: Bytes,
+) -> Result<Response, Error> {
     let req: LeaseRequest = parse_json(&body)?;
+    // A worker's credential is its name: it asks for work as itself or not at all.
+    if who.role == Role::Worker && req.worker != who.name {
+        return Err(Error::Forbidden(format!(
+            "this credential is worker {}'s; it may not ask for work under another name",
+            who.name
+        )));
+    }
     Ok(match c.lease_for(&req)? {
         Some(lease) => Json(lease).into_response(),
         None => StatusCode::NO_CONTENT.into_response(),
@@ -578,20 +676,22 @@ async fn lease(State(c): State<Coordinator>, body: Bytes) -> Result<Response, Er
 
 async fn heartbeat(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<StatusCode, Error> {
-    let id = parse_id(&id)?;
+    let id = own_lease(&c, &who, parse_id(&id)?)?;
     c.heartbeat(id)?;
     Ok(StatusCode::NO_CONTENT)
 }
 
 async fn upload_tile(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
     headers: HeaderMap,
     body: Bytes,
 ) -> Result<StatusCode, Error> {
-    let id = parse_id(&id)?;
+    let id = own_lease(&c, &who, parse_id(&id)?)?;
     let digest = headers
         .get(TILE_DIGEST_HEADER)
         .and_then(|v| v.to_str().ok())
@@ -602,10 +702,11 @@ async fn upload_tile(
 
 async fn fail_lease(
     State(c): State<Coordinator>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
     body: Bytes,
 ) -> Result<StatusCode, Error> {
-    let id = parse_id(&id)?;
+    let id = own_lease(&c, &who, parse_id(&id)?)?;
     let f: Failure = parse_json(&body)?;
     c.fail_lease(id, &f.reason)?;
     Ok(StatusCode::NO_CONTENT)

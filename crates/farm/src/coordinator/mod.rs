@@ -14,6 +14,7 @@
 //!   and `metrics.rs` (counters) are plain state; `store/` is the job store (a trait, and
 //!   its SQLite back-end with versioned migrations), `data_dir.rs` the data directory's files; `error.rs` names the failures.
 
+mod credentials;
 mod data_dir;
 mod error;
 mod http;
@@ -152,6 +153,8 @@ struct State {
     workers: Workers,
     metrics: Metrics,
     health: Health,
+    /// The tokens issued.
+    credentials: credentials::Credentials,
 }
 
 /// What keeps the coordinator from keeping work right now (a full disk, a store that
@@ -217,6 +220,7 @@ impl Coordinator {
         for (name, reason) in store.set_aside_workers()? {
             workers.set_aside(&name, reason);
         }
+        let credentials = credentials::Credentials::new(store.tokens()?);
         let (events, _) = broadcast::channel(1024);
         let plannings = tokio::sync::Semaphore::new(config.max_plannings.max(1));
         let coordinator = Coordinator {
@@ -228,6 +232,7 @@ impl Coordinator {
                     workers,
                     metrics: Metrics::default(),
                     health: Health::default(),
+                    credentials,
                 }),
                 files,
                 config,

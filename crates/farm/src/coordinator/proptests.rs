@@ -122,6 +122,7 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
         let (bundle, frames) = crate::bundle::pack_frames(&[scene.join("scene.pbrt"), scene.join("second.pbrt")]).unwrap();
         let digest = c.save_scene(Bytes::from(bundle.bytes)).await.unwrap();
         let spec = JobSpec {
+            owner: None,
             frames,
             scene: digest,
             spp: passes.is_none().then_some(1),

@@ -346,6 +346,7 @@ impl Job {
             after: self.spec.after.clone(),
             memory_mib: self.memory_mib,
             frame_count: self.frames.len() as u32,
+            owner: self.spec.owner.clone(),
         }
     }
 

@@ -12,7 +12,7 @@ mod sqlite;
 
 pub(super) use sqlite::SqliteStore;
 
-use crate::api::{JobSpec, JobState};
+use crate::api::{JobSpec, JobState, Role};
 use std::collections::BTreeSet;
 
 /// Why the store could not do what it was asked: what it was doing, and the back-end's
@@ -128,4 +128,25 @@ pub(super) trait JobStore: Send {
     fn reinstate(&self, worker: &str) -> Result<(), StoreError>;
     /// Every worker set aside, with the reason.
     fn set_aside_workers(&self) -> Result<Vec<(String, String)>, StoreError>;
+
+    // Tokens.
+
+    /// Records an issued token: its role, whose it is, and the SHA-256 of its secret (the
+    /// secret itself is never stored). Returns its id.
+    fn insert_token(&self, role: Role, name: &str, hash: &str) -> Result<u64, StoreError>;
+    /// Marks a token revoked; returns whether there was such a token.
+    fn revoke_token(&self, id: u64) -> Result<bool, StoreError>;
+    /// Every token issued, revoked ones too.
+    fn tokens(&self) -> Result<Vec<StoredToken>, StoreError>;
+}
+
+/// An issued token as the store keeps it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) struct StoredToken {
+    pub id: u64,
+    pub role: Role,
+    pub name: String,
+    /// The SHA-256 of its secret, in hex.
+    pub hash: String,
+    pub revoked: bool,
 }

@@ -8,8 +8,8 @@
 //! misread. Stores written before versions existed are at version 0 with version 1's tables
 //! already there: version 1 creates only what is missing.
 
-use super::{JobStore, KeptTile, StoreError, StoredJob, WebhookOutcome};
-use crate::api::{JobSpec, JobState};
+use super::{JobStore, KeptTile, StoreError, StoredJob, StoredToken, WebhookOutcome};
+use crate::api::{JobSpec, JobState, Role};
 use rusqlite::{Connection, OptionalExtension, params};
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -43,6 +43,11 @@ const MIGRATIONS: &[Migration] = &[
                   SELECT CAST(substr(key, 9) AS INTEGER), value FROM meta WHERE key LIKE 'webhook:%'
                   ON CONFLICT (job) DO UPDATE SET webhook = excluded.webhook;
               DELETE FROM meta WHERE key LIKE 'verified:%' OR key LIKE 'webhook:%';",
+    },
+    // Issued tokens: role, whose, the SHA-256 of the secret, and whether revoked.
+    Migration {
+        version: 3,
+        sql: "CREATE TABLE tokens (id INTEGER PRIMARY KEY, role TEXT NOT NULL, name TEXT NOT NULL, hash TEXT NOT NULL UNIQUE, revoked INTEGER NOT NULL DEFAULT 0);",
     },
 ];
 
@@ -370,6 +375,61 @@ impl JobStore for SqliteStore {
             )
             .map_err(failed)?;
         Ok(())
+    }
+
+    fn insert_token(&self, role: Role, name: &str, hash: &str) -> Result<u64, StoreError> {
+        self.db
+            .execute(
+                "INSERT INTO tokens (role, name, hash) VALUES (?1, ?2, ?3)",
+                params![role.as_str(), name, hash],
+            )
+            .map_err(failed)?;
+        Ok(self.db.last_insert_rowid() as u64)
+    }
+
+    fn revoke_token(&self, id: u64) -> Result<bool, StoreError> {
+        let n = self
+            .db
+            .execute("UPDATE tokens SET revoked = 1 WHERE id = ?1", [id as i64])
+            .map_err(failed)?;
+        Ok(n > 0)
+    }
+
+    fn tokens(&self) -> Result<Vec<StoredToken>, StoreError> {
+        let mut q = self
+            .db
+            .prepare("SELECT id, role, name, hash, revoked FROM tokens ORDER BY id")
+            .map_err(failed)?;
+        let rows = q
+            .query_map([], |r| {
+                Ok((
+                    r.get::<_, i64>(0)?,
+                    r.get::<_, String>(1)?,
+                    r.get::<_, String>(2)?,
+                    r.get::<_, String>(3)?,
+                    r.get::<_, bool>(4)?,
+                ))
+            })
+            .map_err(failed)?;
+        let mut out = Vec::new();
+        for row in rows {
+            let (id, role, name, hash, revoked) = row.map_err(failed)?;
+            // A role this Kiln does not know (a newer one's) grants nothing.
+            let role = match role.as_str() {
+                "admin" => Role::Admin,
+                "submitter" => Role::Submitter,
+                "worker" => Role::Worker,
+                _ => continue,
+            };
+            out.push(StoredToken {
+                id: id as u64,
+                role,
+                name,
+                hash,
+                revoked,
+            });
+        }
+        Ok(out)
     }
 
     fn reinstate(&self, worker: &str) -> Result<(), StoreError> {

@@ -151,6 +151,7 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
             scene
         };
         let spec = JobSpec {
+            owner: None,
             frames: Vec::new(),
             scene,
             spp: Some(1),
@@ -227,6 +228,7 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
         let requests = (0..8).map(|_| {
             let app = f.app.clone();
             let spec = JobSpec {
+                owner: None,
                 frames: Vec::new(),
                 scene: digest.clone(),
                 spp: Some(1),
@@ -285,6 +287,7 @@ async fn a_job_scene_must_be_a_digest() {
         digest.to_uppercase() + "x",
     ] {
         let spec = JobSpec {
+            owner: None,
             frames: Vec::new(),
             scene: scene.clone(),
             spp: Some(1),
@@ -364,6 +367,7 @@ async fn a_job_of_too_many_tiles_is_refused_before_it_is_planned() {
     let f = farm(None);
     let scene = upload_scene(&f, 8192, 8192).await;
     let spec = |tile: u32| JobSpec {
+        owner: None,
         frames: Vec::new(),
         scene: scene.clone(),
         spp: Some(1),
@@ -432,6 +436,7 @@ async fn submissions_plan_a_few_at_a_time_and_the_rest_wait() {
     let scene = upload_scene(&f, 16, 8).await;
     let submissions = (0..6).map(|seed| {
         let spec = JobSpec {
+            owner: None,
             frames: Vec::new(),
             scene: scene.clone(),
             spp: Some(1),

@@ -110,6 +110,7 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
         let (status, _) = call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
         assert_eq!(status, StatusCode::OK);
         let spec = JobSpec {
+            owner: None,
             frames: Vec::new(),
             scene: bundle.digest,
             spp: Some(1),

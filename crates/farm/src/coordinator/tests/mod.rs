@@ -23,6 +23,7 @@ mod lending;
 mod passes;
 mod queue;
 mod requirements;
+mod roles;
 mod shots;
 mod verify;
 
@@ -146,6 +147,7 @@ async fn submit_with(
     edit: impl FnOnce(&mut JobSpec),
 ) -> u64 {
     let mut spec = JobSpec {
+        owner: None,
         frames: Vec::new(),
         scene: upload_scene(f, width, height).await,
         spp: Some(1),

@@ -9,6 +9,7 @@ use std::collections::BTreeSet;
 
 fn spec(scene: &str) -> JobSpec {
     JobSpec {
+        owner: None,
         frames: Vec::new(),
         scene: scene.into(),
         spp: Some(16),
