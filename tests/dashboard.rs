@@ -5,13 +5,15 @@
 //! passes to done while the frame's pixels change and its ETA and the worker's tile show,
 //! moves the exposure, downloads the EXR, extends the job, downloads the stopped job's
 //! PNG, cancels a third job, shows a shot's strip of frames and downloads its third frame,
-//! and checks a narrow screen, a frame and a screenshot that are
+//! revokes a worker's credential (the worker stops, refused) and signs in as a submitter
+//! who sees only its own job, and checks a narrow screen, a frame and a screenshot that are
 //! not blank and a console without errors. Where Chromium or Selenium is missing it
 //! prints SKIPPED.
 
 use crate::farm::Farm;
+use crate::farm::Worker;
 use crate::util::{repo, scene};
-use kiln_farm::api::{JobSpec, JobState};
+use kiln_farm::api::{JobSpec, JobState, Role, TokenRequest};
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -116,6 +118,21 @@ fn the_dashboard_works_in_a_real_browser() {
             None,
         ))
         .unwrap();
+    // A submitter with a job of its own, and a worker under its own credential, which the
+    // browser revokes.
+    let issue = |role: Role, name: &str| {
+        let req = TokenRequest {
+            role,
+            name: name.into(),
+        };
+        rt.block_on(client.issue_token(&req)).unwrap()
+    };
+    let alice = issue(Role::Submitter, "alice");
+    let w2 = issue(Role::Worker, "w2");
+    let as_alice = kiln_farm::client::Client::new(url, Some(alice.token.clone()));
+    let alices = rt
+        .block_on(as_alice.create_job(&spec(vec![4], -3), None))
+        .unwrap();
     let shot = dir.path().join("dashboard.png");
     let mut driver = Command::new("python3")
         .arg(repo().join("tests/dashboard/drive.py"))
@@ -129,6 +146,12 @@ fn the_dashboard_works_in_a_real_browser() {
             &cancel.to_string(),
             "--shot",
             &shot_job.to_string(),
+            "--submitter-token",
+            &alice.token,
+            "--submitter-job",
+            &alices.to_string(),
+            "--revoke",
+            &w2.info.id.to_string(),
         ])
         .arg("--screenshot")
         .arg(&shot)
@@ -146,7 +169,16 @@ fn the_dashboard_works_in_a_real_browser() {
         let line = line.unwrap();
         println!("{line}");
         if line == "dashboard: signed in" && worker.is_none() {
-            worker = Some(farm.worker("w1"));
+            let log = dir.path().join("w2.log");
+            let cache = dir.path().join("cache-w2");
+            let credential = ["--token", w2.token.as_str()];
+            worker = Some((
+                farm.worker("w1"),
+                Worker {
+                    child: crate::farm::start_worker_with(url, "w2", &cache, &log, &credential),
+                    log,
+                },
+            ));
         }
         said += &line;
         said.push('\n');
@@ -168,6 +200,18 @@ fn the_dashboard_works_in_a_real_browser() {
     assert_eq!(s.state, JobState::Cancelled);
     let s = rt.block_on(client.status(shot_job)).unwrap();
     assert_eq!((s.state, s.frame_count), (JobState::Done, 3));
+    // The revoked worker was refused at its next request and stopped.
+    let (_, mut revoked) = worker.expect("the workers started");
+    assert!(
+        !revoked
+            .wait_exit(std::time::Duration::from_secs(30))
+            .success()
+    );
+    assert!(
+        revoked.text().contains("missing or wrong bearer token"),
+        "{}",
+        revoked.text()
+    );
     assert!(std::fs::metadata(&shot).unwrap().len() > 10_000);
     // The README's picture comes from here: KILN_DASHBOARD_SCREENSHOT=docs/src/dashboard.png.
     if let Ok(keep) = std::env::var("KILN_DASHBOARD_SCREENSHOT") {

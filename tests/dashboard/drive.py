@@ -6,7 +6,9 @@ through its passes to done while its frame's pixels change, its ETA and the work
 current tile show, moves the exposure, downloads the EXR, extends the job by its form,
 stops a second job after its pass in progress and downloads its PNG, cancels a third,
 shows a shot's strip of frame thumbnails with their progress, picks its third frame and
-downloads that frame's EXR, checks a narrow screen, a frame that is not blank and a console
+downloads that frame's EXR, issues a token and revokes a worker's credential in the tokens
+panel, signs in again as a submitter who sees only its own job and no workers or tokens,
+checks a narrow screen, a frame that is not blank and a console
 without errors. Prints what
 it saw; exits 1 with the reason on any failure."""
 
@@ -112,6 +114,9 @@ def main():
     p.add_argument("--stop", type=int, required=True, help="the job to stop after its first pass")
     p.add_argument("--cancel", type=int, required=True, help="the job to cancel")
     p.add_argument("--shot", type=int, required=True, help="a shot of three frames")
+    p.add_argument("--submitter-token", required=True, help="a submitter's token")
+    p.add_argument("--submitter-job", type=int, required=True, help="the submitter's job")
+    p.add_argument("--revoke", type=int, required=True, help="a worker credential's id to revoke")
     p.add_argument("--screenshot", required=True)
     p.add_argument("--shot-screenshot", required=True, help="where the shot's view is saved")
     p.add_argument("--chromium", default="/usr/bin/chromium")
@@ -336,6 +341,47 @@ def run(driver, a):
     if fw > iw:
         fail(f"on a narrow screen the frame ({fw} px) is wider than the window ({iw} px)")
     print("dashboard: narrow screen fits", flush=True)
+
+    # The admin's tokens panel: issue a submitter's token, revoke a worker's credential.
+    driver.set_window_size(1280, 1000)
+    wait_for("the tokens panel", lambda: driver.find_element(By.ID, "tokens-panel").is_displayed())
+    driver.find_element(By.ID, "token-role").send_keys("submitter")
+    name = driver.find_element(By.ID, "token-name")
+    name.send_keys("carol" + Keys.ENTER)
+    secret = wait_for("the new token", lambda: driver.find_element(By.ID, "token-secret").text)
+    if not secret.startswith("kiln-"):
+        fail(f"the new token reads {secret!r}")
+    wait_for("carol's token listed", lambda: any(c == "carol" for c in cells(driver, "tokens", 3)))
+    revoke = wait_for(
+        "the worker's revoke button",
+        lambda: driver.find_element(By.CSS_SELECTOR, f'button[aria-label^="Revoke token {a.revoke} "]'),
+    )
+    revoke.click()
+    driver.switch_to.alert.accept()
+    wait_for(
+        "the credential revoked",
+        lambda: driver.execute_script(
+            f"const c = document.querySelector('#tokens tr[data-token=\"{a.revoke}\"] td:nth-child(4)');"
+            "return c ? c.textContent : '';"
+        ) == "revoked",
+    )
+    print(f"dashboard: token issued to carol; worker credential {a.revoke} revoked", flush=True)
+
+    # A submitter: its own job only, no workers, no tokens.
+    driver.find_element(By.ID, "sign-out").click()
+    token = wait_for("the token field", lambda: (t := driver.find_element(By.ID, "token")).is_displayed() and t)
+    token.send_keys(a.submitter_token + Keys.ENTER)
+    wait_for("the submitter's view", lambda: "(submitter)" in driver.find_element(By.ID, "who").text)
+    listed = wait_for(
+        "the submitter's jobs",
+        lambda: driver.execute_script("return [...document.querySelectorAll('#jobs tbody tr')].map(r => Number(r.dataset.job))"),
+    )
+    if listed != [a.submitter_job]:
+        fail(f"the submitter sees jobs {listed}, not only its own {a.submitter_job}")
+    if driver.find_element(By.ID, "workers-panel").is_displayed() or driver.find_element(By.ID, "tokens-panel").is_displayed():
+        fail("a submitter sees the workers or the tokens")
+    show_job(driver, a.submitter_job)
+    print(f"dashboard: submitter sees only job {a.submitter_job}", flush=True)
 
     # No console errors.
     errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]

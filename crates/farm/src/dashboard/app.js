@@ -1,4 +1,5 @@
-// Kiln's farm dashboard: signs in with the coordinator's token, then polls the HTTP API
+// Kiln's farm dashboard: signs in with a token (the admin's, or a submitter's: the page shows
+// only what the role may do; a worker's credential is refused), then polls the HTTP API
 // (GET /v1/jobs, /v1/workers, and a shot's /v1/jobs/{id}/frames) once a second and draws
 // what it says: a shot's frames as a strip of thumbnails, each with its progress. Images and downloads
 // are fetched with the token and shown through object URLs, since an <img> or <a> cannot
@@ -10,6 +11,8 @@ const $ = (id) => document.getElementById(id);
 
 const state = {
   token: sessionStorage.getItem("kiln-token"),
+  role: null, // "admin" or "submitter", as the coordinator says
+  name: null,
   selected: null, // the job shown
   frame: 0, // the frame of the shot shown
   shown: null, // what the frame on screen was drawn from
@@ -70,10 +73,17 @@ function cell(tr, content) {
 async function signIn(token) {
   try {
     const r = await api("POST", "/v1/token/check", { token: token || "" });
-    if (!(await r.json()).valid) {
-      $("sign-in-error").textContent = "That token is not the coordinator's.";
+    const who = await r.json();
+    if (!who.valid) {
+      $("sign-in-error").textContent = "That token is not the coordinator's, or it was revoked.";
       return;
     }
+    if (who.role === "worker") {
+      $("sign-in-error").textContent = "That is a worker's credential: workers do not use the dashboard.";
+      return;
+    }
+    state.role = who.role;
+    state.name = who.name;
   } catch (e) {
     $("sign-in-error").textContent = "Cannot reach the coordinator: " + e.message;
     return;
@@ -85,6 +95,11 @@ async function signIn(token) {
   $("sign-in").hidden = true;
   $("farm").hidden = false;
   $("sign-out").hidden = false;
+  const admin = state.role === "admin";
+  // A submitter sees its own jobs only; workers and tokens are the admin's.
+  $("workers-panel").hidden = !admin;
+  $("tokens-panel").hidden = !admin;
+  $("who").textContent = `Signed in as ${state.name} (${state.role})`;
   say("Signed in.");
   poll();
 }
@@ -92,8 +107,12 @@ async function signIn(token) {
 function signOut() {
   sessionStorage.removeItem("kiln-token");
   state.token = null;
+  state.role = null;
   state.selected = null;
   clearTimeout(state.timer);
+  $("job").hidden = true;
+  $("who").textContent = "";
+  $("token-new").hidden = true;
   $("farm").hidden = true;
   $("sign-out").hidden = true;
   $("sign-in").hidden = false;
@@ -107,12 +126,15 @@ function signOut() {
 async function poll() {
   clearTimeout(state.timer);
   try {
-    const [jobs, workers] = await Promise.all([
+    const admin = state.role === "admin";
+    const [jobs, workers, tokens] = await Promise.all([
       api("GET", "/v1/jobs").then((r) => r.json()),
-      api("GET", "/v1/workers").then((r) => r.json()),
+      admin ? api("GET", "/v1/workers").then((r) => r.json()) : null,
+      admin ? api("GET", "/v1/tokens").then((r) => r.json()) : null,
     ]);
     drawJobs(jobs);
-    drawWorkers(workers);
+    if (workers) drawWorkers(workers);
+    if (tokens) drawTokens(tokens);
     const job = jobs.find((j) => j.id === state.selected);
     if (job) await drawJob(job);
   } catch (e) {
@@ -192,6 +214,35 @@ function drawWorkers(workers) {
     cell(tr, offers.length ? offers.join(", ") : "–");
     const g = w.geometry;
     cell(tr, g && g.loads + g.reused > 0 ? `${g.loads} read, ${g.reused} reused` : "–");
+    body.appendChild(tr);
+  }
+}
+
+function drawTokens(tokens) {
+  const body = $("tokens").tBodies[0];
+  body.replaceChildren();
+  for (const t of tokens) {
+    const tr = document.createElement("tr");
+    tr.dataset.token = t.id;
+    cell(tr, String(t.id));
+    cell(tr, t.role);
+    cell(tr, t.name);
+    const st = cell(tr, t.revoked ? "revoked" : "valid");
+    if (!t.revoked) {
+      const revoke = document.createElement("button");
+      revoke.type = "button";
+      revoke.className = "danger";
+      revoke.textContent = "Revoke";
+      revoke.setAttribute("aria-label", `Revoke token ${t.id} (${t.role} ${t.name})`);
+      revoke.addEventListener("click", () => {
+        if (confirm(`Revoke ${t.role} ${t.name}'s token? It is refused from its next request on.`)) {
+          act("Revoke", `/v1/tokens/${t.id}/revoke`, undefined, `Token ${t.id} (${t.role} ${t.name}) revoked.`);
+        }
+      });
+      st.append(" ", revoke);
+    } else {
+      st.className = "error";
+    }
     body.appendChild(tr);
   }
 }
@@ -386,6 +437,20 @@ $("sign-in-form").addEventListener("submit", (e) => {
   signIn($("token").value.trim());
 });
 $("sign-out").addEventListener("click", signOut);
+$("token-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const body = { role: $("token-role").value, name: $("token-name").value.trim() };
+  try {
+    const issued = await (await api("POST", "/v1/tokens", body)).json();
+    $("token-secret").textContent = issued.token;
+    $("token-new").hidden = false;
+    $("token-name").value = "";
+    say(`Token ${issued.id} issued to ${issued.role} ${issued.name}: copy it now, it is not shown again.`);
+    poll();
+  } catch (err) {
+    say("Issue failed: " + err.message);
+  }
+});
 $("exposure").addEventListener("input", () => {
   $("exposure-value").textContent = $("exposure").value;
   if (state.selected !== null) {
