@@ -18,6 +18,7 @@ mod passes;
 mod requirements;
 mod roles;
 mod shots;
+mod tls;
 mod verify;
 mod webhooks;
 

@@ -98,6 +98,13 @@ pub struct CoordinatorArgs {
     /// requests, before it is closed.
     #[arg(long, default_value_t = 30.0)]
     header_timeout: f64,
+    /// Serve https with this certificate chain (PEM), for a farm without an ingress in
+    /// front; clients trust it through KILN_TLS_CA.
+    #[arg(long, requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// The certificate's private key (PEM).
+    #[arg(long, requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
 }
 
 pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
@@ -114,13 +121,24 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
             args.header_timeout
         );
         config.header_timeout = Duration::from_secs_f64(args.header_timeout.clamp(0.1, 86_400.0));
+        if let (Some(cert), Some(key)) = (args.tls_cert.clone(), args.tls_key.clone()) {
+            let files = coordinator::TlsFiles { cert, key };
+            coordinator::check_tls(&files)
+                .map_err(|e| anyhow::anyhow!("--tls-cert and --tls-key: {e}"))?;
+            config.tls = Some(files);
+        }
+        let scheme = if config.tls.is_some() {
+            "https"
+        } else {
+            "http"
+        };
         let c = Coordinator::open(config)?;
         let listener = tokio::net::TcpListener::bind(&args.listen)
             .await
             .with_context(|| format!("cannot listen on {}", args.listen))?;
         let addr = listener.local_addr()?;
         println!(
-            "kiln coordinator: listening on http://{addr} (data in {})",
+            "kiln coordinator: listening on {scheme}://{addr} (data in {})",
             args.data_dir.display()
         );
         use std::io::Write;

@@ -1,4 +1,8 @@
 //! HTTP calls to a coordinator, for `kiln submit`, `kiln farm` and workers.
+//!
+//! A coordinator serving https (`--tls-cert`) is trusted through the certificates in the
+//! PEM file `KILN_TLS_CA` names (its own self-signed certificate, or the farm's CA); no
+//! other root is trusted, and without it an https coordinator is refused.
 
 use crate::api::*;
 use reqwest::{Method, RequestBuilder, StatusCode};
@@ -9,13 +13,16 @@ pub enum ClientError {
     Http(#[from] reqwest::Error),
     #[error("the coordinator answered {status}: {message}")]
     Api { status: StatusCode, message: String },
+    /// The client could not be set up (the file of certificates to trust).
+    #[error("{0}")]
+    Setup(String),
 }
 
 impl ClientError {
     pub fn status(&self) -> Option<StatusCode> {
         match self {
             ClientError::Api { status, .. } => Some(*status),
-            ClientError::Http(_) => None,
+            ClientError::Http(_) | ClientError::Setup(_) => None,
         }
     }
 }
@@ -27,24 +34,87 @@ pub struct Client {
     http: reqwest::Client,
     base: String,
     token: Option<String>,
+    /// Why the client cannot send anything (its certificates could not be read): every
+    /// request fails with it.
+    broken: Option<String>,
+}
+
+/// The environment variable naming the PEM file of certificates an https coordinator is
+/// trusted through.
+pub const TLS_CA_VAR: &str = "KILN_TLS_CA";
+
+/// The certificates `KILN_TLS_CA` names (none if it names none, or an unreadable file:
+/// then nothing https is trusted).
+pub fn trusted_roots() -> Vec<reqwest::Certificate> {
+    std::env::var_os(TLS_CA_VAR)
+        .and_then(|path| std::fs::read(path).ok())
+        .and_then(|pem| reqwest::Certificate::from_pem_bundle(&pem).ok())
+        .unwrap_or_default()
 }
 
 impl Client {
+    /// A client of the coordinator at `base`, trusting for https the certificates in the
+    /// file `KILN_TLS_CA` names, if it names one.
     pub fn new(base: &str, token: Option<String>) -> Client {
+        let ca = std::env::var_os(TLS_CA_VAR).map(|path| {
+            std::fs::read(&path).map_err(|e| {
+                format!(
+                    "cannot read {TLS_CA_VAR}={}: {e}",
+                    std::path::Path::new(&path).display()
+                )
+            })
+        });
+        match ca {
+            Some(Err(why)) => Client::broken(base, token, why),
+            Some(Ok(pem)) => Client::with_ca(base, token, Some(&pem)),
+            None => Client::with_ca(base, token, None),
+        }
+    }
+
+    /// A client of the coordinator at `base`, trusting for https the certificates in `pem`
+    /// (none: https is refused).
+    pub fn with_ca(base: &str, token: Option<String>, pem: Option<&[u8]>) -> Client {
+        crate::coordinator::install_tls_provider();
+        let roots = match pem.map(reqwest::Certificate::from_pem_bundle) {
+            None => Vec::new(),
+            Some(Ok(roots)) if !roots.is_empty() => roots,
+            Some(_) => {
+                let why = format!("{TLS_CA_VAR} holds no PEM certificate");
+                return Client::broken(base, token, why);
+            }
+        };
         // A connection that cannot be made in 10 s fails (the caller backs off and asks
         // again) rather than waiting out the kernel's retries, about two minutes; requests
         // themselves have no limit, as a tile or a bundle may take long to send. A pooled
         // connection is given up after 20 s idle, before the coordinator closes it (30 s
         // by default), so a request is not sent down a connection being closed.
-        let http = reqwest::Client::builder()
+        let built = reqwest::Client::builder()
             .connect_timeout(std::time::Duration::from_secs(10))
             .pool_idle_timeout(std::time::Duration::from_secs(20))
-            .build()
-            .unwrap_or_else(|_| reqwest::Client::new());
+            .tls_certs_only(roots)
+            .build();
+        match built {
+            Ok(http) => Client {
+                http,
+                base: base.trim_end_matches('/').to_string(),
+                token,
+                broken: None,
+            },
+            Err(e) => Client::broken(base, token, format!("cannot set up the HTTP client: {e}")),
+        }
+    }
+
+    /// A client that fails every request for `why`.
+    fn broken(base: &str, token: Option<String>, why: String) -> Client {
+        crate::coordinator::install_tls_provider();
         Client {
-            http,
+            http: reqwest::Client::builder()
+                .tls_certs_only(Vec::new())
+                .build()
+                .unwrap_or_default(),
             base: base.trim_end_matches('/').to_string(),
             token,
+            broken: Some(why),
         }
     }
 
@@ -58,6 +128,9 @@ impl Client {
 
     /// Sends and turns non-2xx answers into `ClientError::Api` with the server's message.
     async fn send(&self, r: RequestBuilder) -> Result<reqwest::Response> {
+        if let Some(why) = &self.broken {
+            return Err(ClientError::Setup(why.clone()));
+        }
         let resp = r.send().await?;
         self.check(resp).await
     }
@@ -271,6 +344,9 @@ impl Client {
     /// A job's shared pre-pass, if stored; its bytes are checked against the SHA-256 the
     /// coordinator gives (None for bytes damaged on the way: compute it instead).
     pub async fn prepass(&self, scene: &str, name: &str) -> Result<Option<Vec<u8>>> {
+        if let Some(why) = &self.broken {
+            return Err(ClientError::Setup(why.clone()));
+        }
         let r = self
             .req(Method::GET, &format!("/v1/scenes/{scene}/prepass/{name}"))
             .send()

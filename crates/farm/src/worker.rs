@@ -233,7 +233,8 @@ async fn next_lease(
         }
         Err(e)
             if e.status() == Some(StatusCode::FORBIDDEN)
-                || e.status() == Some(StatusCode::UNAUTHORIZED) =>
+                || e.status() == Some(StatusCode::UNAUTHORIZED)
+                || matches!(e, ClientError::Setup(_)) =>
         {
             Err(WorkerError::Refused(e))
         }

@@ -6,6 +6,9 @@
 //!   one more is answered 503 and closed, so a client is told rather than left to time
 //!   out in the kernel's queue. Each is served by hyper's HTTP/1.1 with a header-read
 //!   timeout, which also ends a kept-alive connection idle that long between requests.
+//!   With TLS (a [`TlsAcceptor`]) each connection's handshake comes first, within the same
+//!   time; the 503 of a connection over the limit is then plain text a client cannot read,
+//!   and it sees the connection closed.
 //! - [`raise_fd_limit`] lifts the process's soft limit on open files to its hard limit, so
 //!   the connection limit, not `EMFILE`, is what a crowd of clients meets.
 //! - [`JsonAnswers`] wraps a connection's socket and rewrites the bodiless 400, 414 and 431
@@ -25,6 +28,7 @@ use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Semaphore, watch};
+use tokio_rustls::TlsAcceptor;
 
 /// The largest request head (request line and headers) read; a larger one is answered 431.
 pub const MAX_HEAD_BYTES: usize = 64 << 10;
@@ -90,6 +94,7 @@ pub async fn serve_connections(
     listener: TcpListener,
     router: Router,
     limits: Limits,
+    tls: Option<TlsAcceptor>,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> io::Result<()> {
     let max = limits.max_connections.clamp(1, Semaphore::MAX_PERMITS);
@@ -111,9 +116,22 @@ pub async fn serve_connections(
         };
         match open.clone().try_acquire_owned() {
             Ok(permit) => {
-                let (router, stopping) = (router.clone(), stopping.clone());
+                let (router, stopping, tls) = (router.clone(), stopping.clone(), tls.clone());
                 tokio::spawn(async move {
-                    serve_one(stream, router, limits.header_timeout, stopping).await;
+                    let timeout = limits.header_timeout;
+                    match tls {
+                        None => serve_one(stream, router, timeout, stopping).await,
+                        // The handshake has the head's time limit too.
+                        Some(tls) => {
+                            match tokio::time::timeout(timeout, tls.accept(stream)).await {
+                                Ok(Ok(secured)) => {
+                                    serve_one(secured, router, timeout, stopping).await
+                                }
+                                Ok(Err(e)) => tracing::debug!("TLS handshake failed: {e}"),
+                                Err(_) => tracing::debug!("TLS handshake timed out"),
+                            }
+                        }
+                    }
                     drop(permit);
                 });
             }
@@ -151,8 +169,8 @@ async fn accept_failed(e: &io::Error, last: &mut Option<io::ErrorKind>) {
 
 /// Serves one connection until it closes, its head is late, or the server stops (then
 /// its request in flight finishes first).
-async fn serve_one(
-    stream: TcpStream,
+async fn serve_one<S: AsyncRead + AsyncWrite + Unpin + Send + 'static>(
+    stream: S,
     router: Router,
     header_timeout: Duration,
     mut stopping: watch::Receiver<bool>,

@@ -32,6 +32,7 @@ mod store;
 mod stored;
 #[cfg(test)]
 mod tests;
+mod tls;
 mod verify;
 mod webhooks;
 
@@ -40,6 +41,7 @@ pub use http::app;
 pub use listen::MAX_HEAD_BYTES;
 pub use store::StoreError;
 pub use stored::Stored;
+pub use tls::{TlsFiles, check as check_tls, install_provider as install_tls_provider};
 
 use crate::api::{JobState, JobStatus};
 use data_dir::DataDir;
@@ -92,6 +94,8 @@ pub struct Config {
     /// How long a connection may take to send a request's head, and so also how long a
     /// kept-alive connection may sit idle between requests: 30 s by default.
     pub header_timeout: Duration,
+    /// Serve https with this certificate and key (PEM) rather than plain http.
+    pub tls: Option<TlsFiles>,
 }
 
 impl Config {
@@ -109,6 +113,7 @@ impl Config {
             webhook_backoff: Duration::from_secs(1),
             max_connections: 1024,
             header_timeout: Duration::from_secs(30),
+            tls: None,
         }
     }
 }
@@ -518,9 +523,13 @@ pub async fn serve(
             limits.max_connections = fit;
         }
     }
+    let tls = match &c.config().tls {
+        Some(files) => Some(tls::acceptor(files).map_err(std::io::Error::other)?),
+        None => None,
+    };
     let task = tokio::spawn(expire_leases_every_tick(c.clone()));
     let hooks = tokio::spawn(webhooks::deliver_webhooks_forever(c.clone()));
-    let result = listen::serve_connections(listener, app(c), limits, shutdown).await;
+    let result = listen::serve_connections(listener, app(c), limits, tls, shutdown).await;
     task.abort();
     hooks.abort();
     result

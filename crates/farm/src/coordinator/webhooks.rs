@@ -142,10 +142,19 @@ impl Coordinator {
     }
 
     async fn deliver(&self, id: u64, url: String, round: u64) {
-        let http = reqwest::Client::builder()
+        // https endpoints are trusted through KILN_TLS_CA, as the farm's own clients are.
+        super::tls::install_provider();
+        let built = reqwest::Client::builder()
             .timeout(Duration::from_secs(10))
-            .build()
-            .unwrap_or_default();
+            .tls_certs_only(crate::client::trusted_roots())
+            .build();
+        let http = match built {
+            Ok(http) => http,
+            Err(e) => {
+                tracing::error!("job {id}: cannot set up the webhook's HTTP client: {e}");
+                return;
+            }
+        };
         let mut pause = self.config().webhook_backoff;
         let mut last = String::new();
         for attempt in 1..=MAX_ATTEMPTS {
