@@ -173,7 +173,7 @@ fn the_dashboard_works_in_a_real_browser() {
             let cache = dir.path().join("cache-w2");
             let credential = ["--token", w2.token.as_str()];
             worker = Some((
-                farm.worker("w1"),
+                farm.worker_with("w1", "cache-w1", &["--tags", "big-mem"]),
                 Worker {
                     child: crate::farm::start_worker_with(url, "w2", &cache, &log, &credential),
                     log,

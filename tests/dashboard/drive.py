@@ -5,7 +5,7 @@ prints "dashboard: signed in", the test's cue to start the worker), watches a jo
 through its passes to done while its frame's pixels change, its ETA and the worker's
 current tile show, moves the exposure, downloads the EXR, extends the job by its form,
 stops a second job after its pass in progress and downloads its PNG, cancels a third,
-shows a shot's strip of frame thumbnails with their progress, picks its third frame and
+shows each job's thumbnail and the workers' pools by tag, a shot's strip of frame thumbnails with their progress, picks its third frame and
 downloads that frame's EXR, issues a token and revokes a worker's credential in the tokens
 panel, signs in again as a submitter who sees only its own job and no workers or tokens,
 checks a narrow screen, a frame that is not blank and a console
@@ -100,8 +100,24 @@ def cells(driver, table, column):
     )
 
 
+def press(driver, what, selector, key=None):
+    """Finds and presses (clicks, or sends `key` to) the element `selector` in one go, again
+    if the list it is in was redrawn between the two (the page redraws its tables every
+    second)."""
+
+    def go():
+        element = driver.find_element(By.CSS_SELECTOR, selector)
+        if key is None:
+            element.click()
+        else:
+            element.send_keys(key)
+        return True
+
+    wait_for(what, go)
+
+
 def show_job(driver, job):
-    driver.find_element(By.CSS_SELECTOR, f'button[aria-label="Show job {job}"]').click()
+    press(driver, f"job {job}'s button", f'button[aria-label="Show job {job}"]')
     wait_for(f"job {job}'s panel", lambda: driver.find_element(By.ID, "job-title").text == f"Job {job}")
     wait_for(f"job {job}'s facts", lambda: fact(driver, "state") != "")
 
@@ -159,11 +175,7 @@ def run(driver, a):
     print(f"dashboard: job {a.stop} will end after its first pass", flush=True)
 
     # The job to watch, chosen by keyboard.
-    show = wait_for(
-        f"job {a.watch} in the list",
-        lambda: driver.find_element(By.CSS_SELECTOR, f'button[aria-label="Show job {a.watch}"]'),
-    )
-    show.send_keys(Keys.ENTER)
+    press(driver, f"job {a.watch} in the list", f'button[aria-label="Show job {a.watch}"]', Keys.ENTER)
     wait_for("the job panel", lambda: driver.find_element(By.ID, "job").is_displayed())
     # What the job needs of a worker, and what the workers offer (their machine's memory).
     memory = wait_for("the job's memory", lambda: fact(driver, "memory"))
@@ -285,7 +297,7 @@ def run(driver, a):
     row_state = wait_for(
         "the job list to say cancelled",
         lambda: (t := driver.execute_script(
-            "const c = document.querySelector(`#jobs tr[data-job='${arguments[0]}'] td:nth-child(2)`);"
+            "const c = document.querySelector(`#jobs tr[data-job='${arguments[0]}'] td:nth-child(3)`);"
             "return c ? c.textContent : '';",
             a.cancel,
         )) == "cancelled" and t,
@@ -325,6 +337,19 @@ def run(driver, a):
         fail(f"the workers table does not count the meshes read and reused: {meshes}")
     print(f"dashboard: shot {a.shot}: 3 frames in the strip, frame 3 shown and downloaded; meshes {meshes}", flush=True)
 
+    # Every job in the list has its thumbnail; the workers' pools are counted by tag.
+    wait_for(
+        "a thumbnail on every job",
+        lambda: driver.execute_script(
+            "const t = [...document.querySelectorAll('#jobs tbody img.job-thumb')];"
+            "return t.length >= 5 && t.every(i => i.complete && i.naturalWidth > 0);"
+        ),
+    )
+    pools = wait_for("the pools", lambda: driver.find_element(By.ID, "pools").text)
+    if not pools.startswith("Pools: big-mem ") or not pools.endswith("/1 busy"):
+        fail(f"the pools read {pools!r}")
+    print(f"dashboard: every job has its thumbnail; {pools}", flush=True)
+
     # Workers are listed with what they did.
     done = cells(driver, "workers", 3)
     if not done or all(d in ("", "0") for d in done):
@@ -352,11 +377,7 @@ def run(driver, a):
     if not secret.startswith("kiln-"):
         fail(f"the new token reads {secret!r}")
     wait_for("carol's token listed", lambda: any(c == "carol" for c in cells(driver, "tokens", 3)))
-    revoke = wait_for(
-        "the worker's revoke button",
-        lambda: driver.find_element(By.CSS_SELECTOR, f'button[aria-label^="Revoke token {a.revoke} "]'),
-    )
-    revoke.click()
+    press(driver, "the worker's revoke button", f'button[aria-label^="Revoke token {a.revoke} "]')
     driver.switch_to.alert.accept()
     wait_for(
         "the credential revoked",

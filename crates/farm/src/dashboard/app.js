@@ -18,6 +18,7 @@ const state = {
   shown: null, // what the frame on screen was drawn from
   frameUrl: null,
   thumbs: [], // per frame of the shown shot: { key, url } of its thumbnail
+  jobThumbs: new Map(), // per job: { key, url } of its list thumbnail
   frames: null, // the shown shot's frames, as last listed
   timer: null,
 };
@@ -164,6 +165,12 @@ function drawJobs(jobs) {
     pick.setAttribute("aria-label", "Show job " + j.id);
     pick.addEventListener("click", () => select(j.id));
     cell(tr, pick);
+    const thumb = document.createElement("img");
+    thumb.className = "job-thumb";
+    thumb.alt = "Job " + j.id + "'s picture so far";
+    const had = state.jobThumbs.get(j.id);
+    if (had) thumb.src = had.url;
+    cell(tr, thumb);
     cell(tr, j.state).className = "state-" + j.state;
     const bar = document.createElement("progress");
     bar.max = 1;
@@ -177,9 +184,46 @@ function drawJobs(jobs) {
     cell(tr, String(j.priority));
     body.appendChild(tr);
   }
+  refreshJobThumbs(jobs);
+}
+
+/// Fetches the list's thumbnails of jobs whose picture moved on (the first frame of a
+/// shot), a few per poll, newest first; they show from the next drawing of the list.
+async function refreshJobThumbs(jobs) {
+  let fetched = 0;
+  for (const j of [...jobs].reverse()) {
+    const key = [j.samples_done, j.passes_done, j.state].join(":");
+    const had = state.jobThumbs.get(j.id);
+    if ((had && had.key === key) || fetched >= THUMBS_PER_POLL / 2) continue;
+    fetched++;
+    try {
+      const blob = await (await api("GET", `/v1/jobs/${j.id}/preview.png`)).blob();
+      const url = URL.createObjectURL(blob);
+      if (had) URL.revokeObjectURL(had.url);
+      state.jobThumbs.set(j.id, { key, url });
+      const img = document.querySelector(`#jobs tr[data-job="${j.id}"] img.job-thumb`);
+      if (img) img.src = url;
+    } catch (e) {
+      // A job gone or not yet planned: its thumbnail waits for the next poll.
+    }
+  }
 }
 
 function drawWorkers(workers) {
+  // Pools: the workers that offer each tag, and how many of them are rendering.
+  const pools = new Map();
+  for (const w of workers) {
+    if (w.set_aside) continue;
+    for (const t of w.tags || []) {
+      const p = pools.get(t) || { all: 0, busy: 0 };
+      p.all++;
+      if (w.leases.length) p.busy++;
+      pools.set(t, p);
+    }
+  }
+  $("pools").textContent = pools.size
+    ? "Pools: " + [...pools].sort().map(([t, p]) => `${t} ${p.busy}/${p.all} busy`).join(", ")
+    : "";
   const body = $("workers").tBodies[0];
   body.replaceChildren();
   $("no-workers").hidden = workers.length > 0;
