@@ -94,23 +94,9 @@ fn scale(workers: usize) {
     let bundle = kiln_farm::bundle::pack(&scene_dir.join("frame.pbrt")).unwrap();
     let digest = rt.block_on(client.upload_scene(bundle.bytes)).unwrap();
     let spec = JobSpec {
-        owner: None,
-        frames: Vec::new(),
-        scene: digest,
         spp: Some(1),
-        resolution: None,
         tile: 16,
-        seed: None,
-        passes: None,
-        verify: None,
-        priority: 0,
-        webhook: None,
-        spectral: None,
-        requires: Vec::new(),
-        max_workers: None,
-        after: Vec::new(),
-        after_ended: false,
-        hold_on_failure: false,
+        ..JobSpec::new(&digest)
     };
     let id = rt.block_on(client.create_job(&spec, None)).unwrap();
     let total = rt.block_on(client.status(id)).unwrap().tiles_total;

@@ -52,23 +52,10 @@ fn the_dashboard_works_in_a_real_browser() {
     let (rt, client, url, dir) = (&farm.rt, &farm.client, &farm.url, &farm.dir);
     let digest = farm.upload(&scene("materials/scene.pbrt"));
     let spec = |passes: Vec<u32>, priority: i32| JobSpec {
-        owner: None,
-        frames: Vec::new(),
-        scene: digest.clone(),
-        spp: None,
         resolution: Some((192, 128)),
-        tile: 32,
-        seed: None,
         passes: Some(passes),
-        verify: None,
         priority,
-        webhook: None,
-        spectral: None,
-        requires: Vec::new(),
-        max_workers: None,
-        after: Vec::new(),
-        after_ended: false,
-        hold_on_failure: false,
+        ..JobSpec::new(&digest)
     };
     // A job of four passes to watch, one below it in priority to stop after its first
     // pass, and one below that to cancel.

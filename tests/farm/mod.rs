@@ -342,25 +342,7 @@ impl Farm {
 
     /// A job spec for the scene `digest` with Kiln's defaults (tiles of 32, one pass).
     pub fn spec(digest: &str) -> JobSpec {
-        JobSpec {
-            owner: None,
-            frames: Vec::new(),
-            scene: digest.to_string(),
-            spp: None,
-            resolution: None,
-            tile: 32,
-            seed: None,
-            passes: None,
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
-            max_workers: None,
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
-        }
+        JobSpec::new(digest)
     }
 
     /// Creates a job; returns its id.
@@ -445,8 +427,8 @@ fn start_coordinator_process(data: &Path, port: u16) -> Guard {
 /// As [`start_coordinator_process`], started by bash after `limits` (`ulimit -v 4000000`,
 /// say; nothing if empty).
 pub(crate) fn start_coordinator_under(limits: &str, data: &Path, port: u16) -> Guard {
-    let mut child = std::process::Command::new("bash")
-        .args(["-c", &format!("{limits}\nexec \"$@\""), "bash"])
+    let mut cmd = std::process::Command::new("bash");
+    cmd.args(["-c", &format!("{limits}\nexec \"$@\""), "bash"])
         .arg(kiln().get_program())
         .args([
             "coordinator",
@@ -457,9 +439,16 @@ pub(crate) fn start_coordinator_under(limits: &str, data: &Path, port: u16) -> G
         ])
         .arg("--data-dir")
         .arg(data)
+        .stderr(Stdio::null());
+    listening(&mut cmd).0
+}
+
+/// Starts `cmd`, a `kiln coordinator`, once it says it listens: the process, and the URL it
+/// gave.
+pub(crate) fn listening(cmd: &mut std::process::Command) -> (Guard, String) {
+    let mut child = cmd
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
         .spawn()
         .unwrap();
     let mut line = String::new();
@@ -467,7 +456,12 @@ pub(crate) fn start_coordinator_under(limits: &str, data: &Path, port: u16) -> G
         .read_line(&mut line)
         .unwrap();
     assert!(line.contains("listening on"), "{line}");
-    Guard(child)
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http"))
+        .unwrap_or_default()
+        .to_string();
+    (Guard(child), url)
 }
 
 /// A coordinator in this process on a free port, on `rt`.

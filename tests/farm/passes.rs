@@ -136,23 +136,10 @@ fn a_job_stopped_after_a_pass_and_extended_is_kiln_render_at_each_count() {
     // Stopped mid-run, after its first pass merged, and at once, before any tile.
     for stop_at_once in [false, true] {
         let spec = JobSpec {
-            owner: None,
-            frames: Vec::new(),
-            scene: digest.clone(),
-            spp: None,
             resolution: Some((24, 16)),
             tile: 8,
-            seed: None,
             passes: Some(vec![16, 64, 72, 80, 88, 96]),
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
-            max_workers: None,
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
+            ..JobSpec::new(&digest)
         };
         let id = rt.block_on(client.create_job(&spec, None)).unwrap();
         if stop_at_once {

@@ -4,10 +4,8 @@
 //! which another submitter cannot see; revoked, it is refused at its next request and
 //! stops; and the coordinator's log names tokens by id, never by their secrets.
 
-use super::{Guard, Worker, free_port, start_worker_with};
+use super::{Worker, free_port, listening, start_worker_with};
 use crate::util::{kiln, scene};
-use std::io::{BufRead, BufReader};
-use std::process::Stdio;
 use std::time::Duration;
 
 const ADMIN: &str = "roles-admin-s3cret";
@@ -18,28 +16,20 @@ fn credentials_issued_by_kiln_tokens_hold_each_role_to_its_part() {
     let port = free_port();
     let url = format!("http://127.0.0.1:{port}");
     let log = dir.path().join("coordinator.log");
-    let mut child = kiln()
-        .args([
-            "coordinator",
-            "--listen",
-            &format!("127.0.0.1:{port}"),
-            "--token",
-            ADMIN,
-        ])
-        .arg("--data-dir")
-        .arg(dir.path().join("data"))
-        .env("RUST_LOG", "debug")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(std::fs::File::create(&log).unwrap())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    assert!(line.contains("listening on"), "{line}");
-    let _coordinator = Guard(child);
+    let (_coordinator, _) = listening(
+        kiln()
+            .args([
+                "coordinator",
+                "--listen",
+                &format!("127.0.0.1:{port}"),
+                "--token",
+                ADMIN,
+            ])
+            .arg("--data-dir")
+            .arg(dir.path().join("data"))
+            .env("RUST_LOG", "debug")
+            .stderr(std::fs::File::create(&log).unwrap()),
+    );
     let run = |token: &str, args: &[&str]| {
         let o = kiln()
             .args(args)

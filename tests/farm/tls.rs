@@ -4,9 +4,8 @@
 //! sent, the same bytes as `kiln render`; a client that does not trust it, and plain http to
 //! its port, are refused.
 
-use super::Guard;
+use super::{Guard, listening};
 use crate::util::{kiln, render, scene};
-use std::io::{BufRead, BufReader};
 use std::process::Stdio;
 
 #[test]
@@ -41,22 +40,8 @@ fn a_coordinator_with_tls_serves_clients_that_trust_its_certificate() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && err.contains(says), "{err}");
     }
-    let mut child = coordinator(&cert_pem)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let _coordinator = Guard(child);
-    let url = line
-        .split_whitespace()
-        .find(|w| w.starts_with("https://"))
-        .unwrap_or_else(|| panic!("{line}"))
-        .to_string();
+    let (_coordinator, url) = listening(coordinator(&cert_pem).stderr(Stdio::null()));
+    assert!(url.starts_with("https://"), "{url}");
     let health = |ca: Option<&std::path::Path>, url: &str| {
         let mut cmd = kiln();
         cmd.args(["health", "--coordinator", url])

@@ -17,23 +17,11 @@ fn verification_catches_a_worker_that_flips_bits_and_never_an_honest_one() {
     let path = scene("materials/scene.pbrt");
     let digest = farm.upload(&path);
     let spec = |passes: Vec<u32>| JobSpec {
-        owner: None,
-        frames: Vec::new(),
-        scene: digest.clone(),
-        spp: None,
         resolution: Some((48, 32)),
         tile: 16,
-        seed: None,
         passes: Some(passes),
         verify: Some(1.0),
-        priority: 0,
-        webhook: None,
-        spectral: None,
-        requires: Vec::new(),
-        max_workers: None,
-        after: Vec::new(),
-        after_ended: false,
-        hold_on_failure: false,
+        ..JobSpec::new(&digest)
     };
     let workers = |rt: &tokio::runtime::Runtime| -> Vec<kiln_farm::api::WorkerStatus> {
         let http = reqwest::Client::new();

@@ -68,23 +68,11 @@ fn webhooks_are_called_when_a_job_ends_and_retried_until_they_answer() {
     let (rt, client) = (&farm.rt, &farm.client);
     let digest = farm.upload(&scene("furnace/scene.pbrt"));
     let spec = |hook: &str| JobSpec {
-        owner: None,
-        frames: Vec::new(),
-        scene: digest.clone(),
         spp: Some(1),
         resolution: Some((16, 16)),
         tile: 16,
-        seed: None,
-        passes: None,
-        verify: None,
-        priority: 0,
         webhook: Some(format!("{base}/{hook}")),
-        spectral: None,
-        requires: Vec::new(),
-        max_workers: None,
-        after: Vec::new(),
-        after_ended: false,
-        hold_on_failure: false,
+        ..JobSpec::new(&digest)
     };
     let bad = JobSpec {
         webhook: Some("ftp://x/".into()),

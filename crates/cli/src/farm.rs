@@ -1,7 +1,6 @@
 //! `kiln coordinator`, `kiln worker`, `kiln submit` and `kiln farm`.
 
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use kiln_farm::api::{JobSpec, JobState};
 use kiln_farm::client::Client;
 use kiln_farm::coordinator::{self, Config, Coordinator};
@@ -376,8 +375,6 @@ async fn submit_job(client: &Client, frames: &[PathBuf], job: &JobArgs) -> Resul
         _ => kiln_farm::bundle::pack_frames(frames)?,
     };
     let spec = JobSpec {
-        owner: None,
-        scene: bundle.digest.clone(),
         spp: job.spp,
         resolution: job.resolution,
         tile: job.tile,
@@ -393,6 +390,7 @@ async fn submit_job(client: &Client, frames: &[PathBuf], job: &JobArgs) -> Resul
         after_ended: job.after_ended,
         hold_on_failure: job.hold_on_failure,
         frames: names,
+        ..JobSpec::new(&bundle.digest)
     };
     // The same scene and settings submitted twice (a retry) make one job.
     let key = format!("{}-{}", bundle.digest, serde_json::to_string(&spec)?);
@@ -410,16 +408,7 @@ async fn submit_job(client: &Client, frames: &[PathBuf], job: &JobArgs) -> Resul
 
 /// Follows a job to its end with a progress bar; writes the result to `output`.
 async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: bool) -> Result<()> {
-    let bar = if quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(1000)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] [{wide_bar}] {percent}% {msg}")
-            .expect("the template is valid")
-            .progress_chars("=> "),
-    );
+    let bar = crate::output::progress_bar(quiet);
     let mut written = 0;
     loop {
         let s = client.status(id).await?;
@@ -448,7 +437,7 @@ async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: boo
         if s.state == JobState::Running && s.passes_done > written {
             written = s.passes_done;
             let bytes = client.result(id).await?;
-            write_replacing(output, &bytes)?;
+            crate::output::write_replacing(output, &bytes)?;
         }
         match s.state {
             JobState::Running => tokio::time::sleep(Duration::from_millis(200)).await,
@@ -459,15 +448,7 @@ async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: boo
     }
     bar.finish_and_clear();
     let bytes = client.result(id).await?;
-    write_replacing(output, &bytes)
-}
-
-/// Writes `bytes` to `path` through a temporary file renamed over it: a reader sees the old
-/// file or the new one, never half of one.
-pub(crate) fn write_replacing(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_replacing(output, &bytes)
 }
 
 /// What `kiln job` does to a job.

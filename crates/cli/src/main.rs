@@ -5,6 +5,7 @@
 
 mod farm;
 mod listing;
+mod output;
 mod render;
 mod shot;
 mod tokens;

@@ -4,7 +4,6 @@
 //! with each frame written as its passes are merged.
 
 use anyhow::{Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use kiln_farm::api::JobState;
 use kiln_farm::client::Client;
 use std::path::{Path, PathBuf};
@@ -100,16 +99,7 @@ pub async fn wait_for_shot(
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     }
-    let bar = if quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(1000)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] [{wide_bar}] {percent}% {msg}")
-            .expect("the template is valid")
-            .progress_chars("=> "),
-    );
+    let bar = crate::output::progress_bar(quiet);
     let mut written = vec![0u32; outputs.len()];
     loop {
         let s = client.status(id).await?;
@@ -137,7 +127,7 @@ pub async fn wait_for_shot(
             let k = f.index as usize;
             if f.passes_done > written[k] {
                 let bytes = client.frame_result(id, f.index).await?;
-                crate::farm::write_replacing(&outputs[k], &bytes)?;
+                crate::output::write_replacing(&outputs[k], &bytes)?;
                 written[k] = f.passes_done;
             }
         }
@@ -152,7 +142,7 @@ pub async fn wait_for_shot(
     // The last merges may have landed between the listing and the end.
     for (k, out) in outputs.iter().enumerate() {
         let bytes = client.frame_result(id, k as u32).await?;
-        crate::farm::write_replacing(out, &bytes)?;
+        crate::output::write_replacing(out, &bytes)?;
     }
     Ok(())
 }

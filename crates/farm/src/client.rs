@@ -5,6 +5,7 @@
 //! other root is trusted, and without it an https coordinator is refused.
 
 use crate::api::*;
+use crate::trust::TLS_CA_VAR;
 use reqwest::{Method, RequestBuilder, StatusCode};
 
 #[derive(Debug, thiserror::Error)]
@@ -39,19 +40,6 @@ pub struct Client {
     broken: Option<String>,
 }
 
-/// The environment variable naming the PEM file of certificates an https coordinator is
-/// trusted through.
-pub const TLS_CA_VAR: &str = "KILN_TLS_CA";
-
-/// The certificates `KILN_TLS_CA` names (none if it names none, or an unreadable file:
-/// then nothing https is trusted).
-pub fn trusted_roots() -> Vec<reqwest::Certificate> {
-    std::env::var_os(TLS_CA_VAR)
-        .and_then(|path| std::fs::read(path).ok())
-        .and_then(|pem| reqwest::Certificate::from_pem_bundle(&pem).ok())
-        .unwrap_or_default()
-}
-
 impl Client {
     /// A client of the coordinator at `base`, trusting for https the certificates in the
     /// file `KILN_TLS_CA` names, if it names one.
@@ -74,7 +62,7 @@ impl Client {
     /// A client of the coordinator at `base`, trusting for https the certificates in `pem`
     /// (none: https is refused).
     pub fn with_ca(base: &str, token: Option<String>, pem: Option<&[u8]>) -> Client {
-        crate::coordinator::install_tls_provider();
+        crate::trust::install_provider();
         let roots = match pem.map(reqwest::Certificate::from_pem_bundle) {
             None => Vec::new(),
             Some(Ok(roots)) if !roots.is_empty() => roots,
@@ -106,7 +94,7 @@ impl Client {
 
     /// A client that fails every request for `why`.
     fn broken(base: &str, token: Option<String>, why: String) -> Client {
-        crate::coordinator::install_tls_provider();
+        crate::trust::install_provider();
         Client {
             http: reqwest::Client::builder()
                 .tls_certs_only(Vec::new())

@@ -9,4 +9,5 @@ pub mod api;
 pub mod bundle;
 pub mod client;
 pub mod coordinator;
+pub mod trust;
 pub mod worker;

@@ -41,7 +41,7 @@ pub use http::app;
 pub use listen::MAX_HEAD_BYTES;
 pub use store::StoreError;
 pub use stored::Stored;
-pub use tls::{TlsFiles, check as check_tls, install_provider as install_tls_provider};
+pub use tls::{TlsFiles, check as check_tls};
 
 use crate::api::{JobState, JobStatus};
 use data_dir::DataDir;

@@ -122,23 +122,12 @@ fn run(ops: Vec<Op>, passes: Option<Vec<u32>>) {
         let (bundle, frames) = crate::bundle::pack_frames(&[scene.join("scene.pbrt"), scene.join("second.pbrt")]).unwrap();
         let digest = c.save_scene(Bytes::from(bundle.bytes)).await.unwrap();
         let spec = JobSpec {
-            owner: None,
             frames,
-            scene: digest,
             spp: passes.is_none().then_some(1),
-            resolution: None,
             tile: 8,
-            seed: None,
             passes: passes.clone(),
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
             max_workers: Some(2),
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
+            ..JobSpec::new(&digest)
         };
         let (job, _) = c.create_job(spec.clone(), None).await.unwrap();
         let then = JobSpec {

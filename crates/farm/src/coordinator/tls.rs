@@ -16,12 +16,6 @@ pub struct TlsFiles {
     pub key: PathBuf,
 }
 
-/// Installs ring as the process's rustls provider (the first call wins; the farm's client
-/// calls it too).
-pub fn install_provider() {
-    let _ = rustls::crypto::ring::default_provider().install_default();
-}
-
 /// Whether `files` make a TLS server, or why not (naming the file): a start checks before
 /// it says it listens.
 pub fn check(files: &TlsFiles) -> Result<(), String> {
@@ -30,7 +24,7 @@ pub fn check(files: &TlsFiles) -> Result<(), String> {
 
 /// The acceptor for `files`, or why not (naming the file).
 pub fn acceptor(files: &TlsFiles) -> Result<TlsAcceptor, String> {
-    install_provider();
+    crate::trust::install_provider();
     let named = |p: &Path, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
     let certs: Vec<CertificateDer<'static>> = CertificateDer::pem_file_iter(&files.cert)
         .map_err(|e| named(&files.cert, &e))?

@@ -143,10 +143,10 @@ impl Coordinator {
 
     async fn deliver(&self, id: u64, url: String, round: u64) {
         // https endpoints are trusted through KILN_TLS_CA, as the farm's own clients are.
-        super::tls::install_provider();
+        crate::trust::install_provider();
         let built = reqwest::Client::builder()
             .timeout(Duration::from_secs(10))
-            .tls_certs_only(crate::client::trusted_roots())
+            .tls_certs_only(crate::trust::trusted_roots())
             .build();
         let http = match built {
             Ok(http) => http,

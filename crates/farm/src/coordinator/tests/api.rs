@@ -151,23 +151,9 @@ async fn a_job_too_large_to_hold_is_refused_before_its_frame_is_allocated() {
             scene
         };
         let spec = JobSpec {
-            owner: None,
-            frames: Vec::new(),
-            scene,
             spp: Some(1),
             resolution,
-            tile: 32,
-            seed: None,
-            passes: None,
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
-            max_workers: None,
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
+            ..JobSpec::new(&scene)
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -228,23 +214,9 @@ async fn racing_submits_with_one_idempotency_key_make_one_job() {
         let requests = (0..8).map(|_| {
             let app = f.app.clone();
             let spec = JobSpec {
-                owner: None,
-                frames: Vec::new(),
-                scene: digest.clone(),
                 spp: Some(1),
-                resolution: None,
                 tile: 8,
-                seed: None,
-                passes: None,
-                verify: None,
-                priority: 0,
-                webhook: None,
-                spectral: None,
-                requires: Vec::new(),
-                max_workers: None,
-                after: Vec::new(),
-                after_ended: false,
-                hold_on_failure: false,
+                ..JobSpec::new(&digest)
             };
             let key = key.clone();
             tokio::spawn(async move {
@@ -287,23 +259,9 @@ async fn a_job_scene_must_be_a_digest() {
         digest.to_uppercase() + "x",
     ] {
         let spec = JobSpec {
-            owner: None,
-            frames: Vec::new(),
-            scene: scene.clone(),
             spp: Some(1),
-            resolution: None,
             tile: 8,
-            seed: None,
-            passes: None,
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
-            max_workers: None,
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
+            ..JobSpec::new(&scene)
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;
@@ -367,23 +325,9 @@ async fn a_job_of_too_many_tiles_is_refused_before_it_is_planned() {
     let f = farm(None);
     let scene = upload_scene(&f, 8192, 8192).await;
     let spec = |tile: u32| JobSpec {
-        owner: None,
-        frames: Vec::new(),
-        scene: scene.clone(),
         spp: Some(1),
-        resolution: None,
         tile,
-        seed: None,
-        passes: None,
-        verify: None,
-        priority: 0,
-        webhook: None,
-        spectral: None,
-        requires: Vec::new(),
-        max_workers: None,
-        after: Vec::new(),
-        after_ended: false,
-        hold_on_failure: false,
+        ..JobSpec::new(&scene)
     };
     let start = std::time::Instant::now();
     let (status, body) = call(
@@ -436,23 +380,10 @@ async fn submissions_plan_a_few_at_a_time_and_the_rest_wait() {
     let scene = upload_scene(&f, 16, 8).await;
     let submissions = (0..6).map(|seed| {
         let spec = JobSpec {
-            owner: None,
-            frames: Vec::new(),
-            scene: scene.clone(),
             spp: Some(1),
-            resolution: None,
             tile: 8,
             seed: Some(seed),
-            passes: None,
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
-            max_workers: None,
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
+            ..JobSpec::new(&scene)
         };
         let app = f.app.clone();
         tokio::spawn(async move {

@@ -110,23 +110,10 @@ async fn a_bundle_cannot_make_the_coordinator_read_its_files() {
         let (status, _) = call(&f.app, "POST", "/v1/scenes", None, bundle.bytes).await;
         assert_eq!(status, StatusCode::OK);
         let spec = JobSpec {
-            owner: None,
-            frames: Vec::new(),
-            scene: bundle.digest,
             spp: Some(1),
             resolution: Some((8, 8)),
             tile: 8,
-            seed: None,
-            passes: None,
-            verify: None,
-            priority: 0,
-            webhook: None,
-            spectral: None,
-            requires: Vec::new(),
-            max_workers: None,
-            after: Vec::new(),
-            after_ended: false,
-            hold_on_failure: false,
+            ..JobSpec::new(&bundle.digest)
         };
         let body = serde_json::to_vec(&spec).unwrap();
         let (status, body) = call(&f.app, "POST", "/v1/jobs", None, body).await;

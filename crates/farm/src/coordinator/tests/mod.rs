@@ -147,23 +147,9 @@ async fn submit_with(
     edit: impl FnOnce(&mut JobSpec),
 ) -> u64 {
     let mut spec = JobSpec {
-        owner: None,
-        frames: Vec::new(),
-        scene: upload_scene(f, width, height).await,
         spp: Some(1),
-        resolution: None,
         tile,
-        seed: None,
-        passes: None,
-        verify: None,
-        priority: 0,
-        webhook: None,
-        spectral: None,
-        requires: Vec::new(),
-        max_workers: None,
-        after: Vec::new(),
-        after_ended: false,
-        hold_on_failure: false,
+        ..JobSpec::new(&upload_scene(f, width, height).await)
     };
     edit(&mut spec);
     let (status, body) = post_job(f, &spec).await;

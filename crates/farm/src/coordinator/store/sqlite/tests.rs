@@ -9,23 +9,15 @@ use std::collections::BTreeSet;
 
 fn spec(scene: &str) -> JobSpec {
     JobSpec {
-        owner: None,
-        frames: Vec::new(),
-        scene: scene.into(),
         spp: Some(16),
         resolution: Some((64, 32)),
         tile: 16,
-        seed: None,
         passes: Some(vec![4, 16]),
         verify: Some(0.5),
         priority: 2,
         webhook: Some("http://127.0.0.1:9/hook".into()),
         spectral: Some(false),
-        requires: Vec::new(),
-        max_workers: None,
-        after: Vec::new(),
-        after_ended: false,
-        hold_on_failure: false,
+        ..JobSpec::new(scene)
     }
 }
 
