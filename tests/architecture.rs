@@ -64,6 +64,8 @@ const NEVER: &[(&str, &str, &str)] = &[
     // The scene crate's file readers know nothing of the parser's graphics state.
     ("scene", "files", "parser"),
     // The coordinator's HTTP layer never touches the store or the data directory.
+    // The farm's https trust knows nothing else in the crate (client and coordinator share it).
+    ("farm", "trust", "*"),
     ("farm", "coordinator::http", "coordinator::store"),
     ("farm", "coordinator::http", "coordinator::data_dir"),
     // The lease table knows nothing of jobs, the store or HTTP; a job (bookkeeping only)
