@@ -646,8 +646,10 @@ impl Job {
     }
 
     /// Records that frame `frame`'s pass `pass` is merged into its result file; returns
-    /// whether every frame's last pass is (the job is done). A frame whose last pass is
-    /// merged lets its pictures go: its result file is what it shows from then on.
+    /// whether every frame's last pass is (the job is done). A shot's frame whose last pass
+    /// is merged lets its pictures go (its result file is what it shows from then on), so a
+    /// long shot does not hold every finished frame; a job of one frame keeps its picture,
+    /// which an extension's next pass starts from.
     pub fn merged(&mut self, frame: usize, pass: u32) -> bool {
         if self.merge_failures > 0 {
             self.merge_failures = 0;
@@ -655,9 +657,10 @@ impl Job {
             self.held_back.remove(&Hold::Merge);
         }
         let passes = self.schedule.len();
+        let shot = self.frames.len() > 1;
         let f = &mut self.frames[frame];
         f.merged(pass);
-        if f.written as usize >= passes {
+        if shot && f.written as usize >= passes {
             f.release();
         }
         self.passes_written() as usize >= passes
