@@ -439,12 +439,10 @@ async fn wait_for(client: &Client, id: u64, output: &std::path::Path, quiet: boo
             let bytes = client.result(id).await?;
             crate::output::write_replacing(output, &bytes)?;
         }
-        match s.state {
-            JobState::Running => tokio::time::sleep(Duration::from_millis(200)).await,
-            JobState::Done => break,
-            JobState::Failed => bail!("job {id} failed: {}", s.error.unwrap_or_default()),
-            JobState::Cancelled => bail!("job {id} was cancelled"),
+        if crate::output::ended(id, &s)? {
+            break;
         }
+        tokio::time::sleep(Duration::from_millis(200)).await;
     }
     bar.finish_and_clear();
     let bytes = client.result(id).await?;

@@ -2,8 +2,19 @@
 //! and a file replaced whole, so a reader (an image viewer watching the file, a script)
 //! never sees half of one.
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
+use kiln_farm::api::{JobState, JobStatus};
+
+/// Whether a followed job has ended done; an error saying so if it failed or was cancelled.
+pub fn ended(id: u64, s: &JobStatus) -> Result<bool> {
+    match s.state {
+        JobState::Running => Ok(false),
+        JobState::Done => Ok(true),
+        JobState::Failed => bail!("job {id} failed: {}", s.error.clone().unwrap_or_default()),
+        JobState::Cancelled => bail!("job {id} was cancelled"),
+    }
+}
 
 /// A bar of a job's progress in thousandths (hidden when `quiet`), with a message after it.
 pub fn progress_bar(quiet: bool) -> ProgressBar {

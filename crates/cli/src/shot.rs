@@ -4,7 +4,6 @@
 //! with each frame written as its passes are merged.
 
 use anyhow::{Result, bail};
-use kiln_farm::api::JobState;
 use kiln_farm::client::Client;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -131,12 +130,10 @@ pub async fn wait_for_shot(
                 written[k] = f.passes_done;
             }
         }
-        match s.state {
-            JobState::Running => tokio::time::sleep(Duration::from_millis(200)).await,
-            JobState::Done => break,
-            JobState::Failed => bail!("job {id} failed: {}", s.error.unwrap_or_default()),
-            JobState::Cancelled => bail!("job {id} was cancelled"),
+        if crate::output::ended(id, &s)? {
+            break;
         }
+        tokio::time::sleep(Duration::from_millis(200)).await;
     }
     bar.finish_and_clear();
     // The last merges may have landed between the listing and the end.

@@ -26,6 +26,7 @@ pub fn check_frames(spec: &JobSpec) -> Result<(), PlanError> {
             frames.len()
         )));
     }
+    let mut seen = std::collections::HashSet::with_capacity(frames.len());
     for (k, name) in frames.iter().enumerate() {
         let p = Path::new(name);
         if name.is_empty()
@@ -38,7 +39,7 @@ pub fn check_frames(spec: &JobSpec) -> Result<(), PlanError> {
                 shown(name)
             )));
         }
-        if frames[..k].contains(name) {
+        if !seen.insert(name.as_str()) {
             return Err(PlanError::Frames(format!(
                 "frame {}: {} is listed twice",
                 k + 1,
