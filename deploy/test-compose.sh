@@ -27,9 +27,11 @@ cleanup() {
 trap cleanup EXIT
 
 step "building the image"
-deploy/build-image.sh "$KILN_IMAGE"
+# The release kiln the tests built (built now if it is not there) goes into the image:
+# deploy/build-image.sh's static build of the same sources is a second 11-minute build.
 cargo build --release --locked --bin kiln >/dev/null 2>&1
 kiln=target/release/kiln
+deploy/build-image.sh --binary "$kiln" "$KILN_IMAGE"
 url="http://127.0.0.1:$KILN_PORT"
 
 step "docker-compose up: a coordinator and two workers"

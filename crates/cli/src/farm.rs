@@ -104,6 +104,18 @@ pub struct CoordinatorArgs {
     /// The certificate's private key (PEM).
     #[arg(long, requires = "tls_cert")]
     tls_key: Option<PathBuf>,
+    /// The job store: a postgres://user:password@host:port/database URL of a server that
+    /// several coordinators may share, one leading and the others standing by. Default:
+    /// SQLite in the data directory.
+    #[arg(long, env = "KILN_STORE")]
+    store: Option<String>,
+    /// The URL other coordinators report as this one's while it leads (default: the
+    /// listening address).
+    #[arg(long)]
+    advertise: Option<String>,
+    /// Seconds the lead lasts unrenewed before a standby takes it (a shared store only).
+    #[arg(long, env = "KILN_LEADER_TTL", default_value_t = 5.0)]
+    leader_ttl: f64,
 }
 
 pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
@@ -131,7 +143,22 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
         } else {
             "http"
         };
-        let c = Coordinator::open(config)?;
+        if let Some(store) = args.store.clone().filter(|s| !s.is_empty()) {
+            anyhow::ensure!(
+                args.leader_ttl.is_finite() && args.leader_ttl > 0.0,
+                "--leader-ttl must be a positive number of seconds, not {}",
+                args.leader_ttl
+            );
+            let address = args
+                .advertise
+                .clone()
+                .unwrap_or_else(|| format!("{scheme}://{}", args.listen));
+            let ttl = Duration::from_secs_f64(args.leader_ttl.clamp(0.2, 3600.0));
+            config.candidate = Some(coordinator::Candidate::new(address, ttl));
+            config.store = Some(store);
+        }
+        // A standby waits here, on a blocking thread, until it leads.
+        let c = tokio::task::spawn_blocking(move || Coordinator::open(config)).await??;
         let listener = tokio::net::TcpListener::bind(&args.listen)
             .await
             .with_context(|| format!("cannot listen on {}", args.listen))?;

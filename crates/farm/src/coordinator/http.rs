@@ -403,7 +403,8 @@ async fn issue_token(
     body: Bytes,
 ) -> Result<(StatusCode, Json<TokenIssued>), Error> {
     let req: TokenRequest = parse_json(&body)?;
-    Ok((StatusCode::CREATED, Json(c.issue_token(&req)?)))
+    let issued = c.off_runtime(move |c| c.issue_token(&req)).await?;
+    Ok((StatusCode::CREATED, Json(issued)))
 }
 
 async fn list_tokens(State(c): State<Coordinator>) -> Json<Vec<TokenInfo>> {
@@ -415,7 +416,8 @@ async fn revoke_token(
     State(c): State<Coordinator>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<TokenInfo>, Error> {
-    c.revoke_token(parse_id(&id)?).map(Json)
+    let id = parse_id(&id)?;
+    c.off_runtime(move |c| c.revoke_token(id)).await.map(Json)
 }
 
 /// Trusts a worker set aside again (POST /v1/workers/{name}/reinstate).
@@ -423,7 +425,7 @@ async fn reinstate_worker(
     State(c): State<Coordinator>,
     UrlPath(name): UrlPath<String>,
 ) -> Result<Json<Vec<WorkerStatus>>, Error> {
-    c.reinstate(&name)?;
+    c.off_runtime(move |c| c.reinstate(&name)).await?;
     Ok(Json(c.worker_statuses()))
 }
 
@@ -612,7 +614,7 @@ async fn cancel_job(
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobStatus>, Error> {
     let id = own_job(&c, &who, parse_id(&id)?)?;
-    c.cancel(id).map(Json)
+    c.off_runtime(move |c| c.cancel(id)).await.map(Json)
 }
 
 /// Ends a job after the pass in progress (POST /v1/jobs/{id}/stop).
@@ -622,7 +624,9 @@ async fn stop_job(
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobStatus>, Error> {
     let id = own_job(&c, &who, parse_id(&id)?)?;
-    c.stop_after_pass(id).map(Json)
+    c.off_runtime(move |c| c.stop_after_pass(id))
+        .await
+        .map(Json)
 }
 
 async fn extend_job(
@@ -633,7 +637,9 @@ async fn extend_job(
 ) -> Result<Json<JobStatus>, Error> {
     let id = own_job(&c, &who, parse_id(&id)?)?;
     let e: Extend = parse_json(&body)?;
-    c.extend(id, &e.passes).map(Json)
+    c.off_runtime(move |c| c.extend(id, &e.passes))
+        .await
+        .map(Json)
 }
 
 /// The tile EXR a lease's pass continues from, with its SHA-256.
@@ -643,7 +649,7 @@ async fn lease_sums(
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, Error> {
     let id = own_lease(&c, &who, parse_id(&id)?)?;
-    let bytes = c.sums_for(id)?;
+    let bytes = c.off_runtime(move |c| c.sums_for(id)).await?;
     let sha = crate::bundle::digest_of(&bytes);
     Ok((
         [
@@ -668,7 +674,7 @@ async fn lease(
             who.name
         )));
     }
-    Ok(match c.lease_for(&req)? {
+    Ok(match c.off_runtime(move |c| c.lease_for(&req)).await? {
         Some(lease) => Json(lease).into_response(),
         None => StatusCode::NO_CONTENT.into_response(),
     })
@@ -680,7 +686,7 @@ async fn heartbeat(
     UrlPath(id): UrlPath<String>,
 ) -> Result<StatusCode, Error> {
     let id = own_lease(&c, &who, parse_id(&id)?)?;
-    c.heartbeat(id)?;
+    c.off_runtime(move |c| c.heartbeat(id)).await?;
     Ok(StatusCode::NO_CONTENT)
 }
 
@@ -708,7 +714,7 @@ async fn fail_lease(
 ) -> Result<StatusCode, Error> {
     let id = own_lease(&c, &who, parse_id(&id)?)?;
     let f: Failure = parse_json(&body)?;
-    c.fail_lease(id, &f.reason)?;
+    c.off_runtime(move |c| c.fail_lease(id, &f.reason)).await?;
     Ok(StatusCode::NO_CONTENT)
 }
 

@@ -56,8 +56,10 @@ impl Coordinator {
         spec: JobSpec,
         idempotency_key: Option<String>,
     ) -> Result<(u64, bool), Error> {
-        if let Some(k) = &idempotency_key
-            && let Some(id) = self.lock().store.job_with_key(k)?
+        if let Some(k) = idempotency_key.clone()
+            && let Some(id) = self
+                .off_runtime(move |c| Ok(c.lock().store.job_with_key(&k)?))
+                .await?
         {
             return Ok((id, false));
         }
@@ -106,24 +108,28 @@ impl Coordinator {
         })
         .await?
         .map_err(Error::Unplannable)?;
-        let id = {
-            let mut state = self.lock();
-            // A retry may have created it while this one planned.
-            if let Some(k) = &idempotency_key
-                && let Some(id) = state.store.job_with_key(k)?
-            {
-                return Ok((id, false));
-            }
-            // The planned spec: its colour mode pinned (Job::plan).
-            let id = state
-                .store
-                .insert_job(&job.spec, idempotency_key.as_deref())?;
-            job.id = id;
-            state.jobs.insert(id, job);
-            id
-        };
-        self.notify(id);
-        Ok((id, true))
+        let (id, created) = self
+            .off_runtime(move |c| {
+                let mut state = c.lock();
+                // A retry may have created it while this one planned.
+                if let Some(k) = &idempotency_key
+                    && let Some(id) = state.store.job_with_key(k)?
+                {
+                    return Ok((id, false));
+                }
+                // The planned spec: its colour mode pinned (Job::plan).
+                let id = state
+                    .store
+                    .insert_job(&job.spec, idempotency_key.as_deref())?;
+                job.id = id;
+                state.jobs.insert(id, job);
+                Ok((id, true))
+            })
+            .await?;
+        if created {
+            self.notify(id);
+        }
+        Ok((id, created))
     }
 
     /// Cancels a running job (its leases end at their next heartbeat); returns its status.

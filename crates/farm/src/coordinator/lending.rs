@@ -129,7 +129,9 @@ impl Coordinator {
             // the tile kept there: no pixel is decoded for a lease that is not live.
             let windows =
                 kiln_image::read_exr_windows(&exr).map_err(|_| Error::UnknownLease(lease))?;
-            return self.lock().judge_stale(lease, &windows, &exr);
+            return self
+                .off_runtime(move |c| c.lock().judge_stale(lease, &windows, &exr))
+                .await;
         };
         // The bytes are the worker's, or the tile is rendered again; and at most the tile's
         // own pixels are decoded, whatever the EXR's header claims.
@@ -151,7 +153,9 @@ impl Coordinator {
             }
         };
         let now = self.now();
-        let landed = self.lock().commit_tile(lease, &exr, tile, now)?;
+        let landed = self
+            .off_runtime(move |c| c.lock().commit_tile(lease, &exr, tile, now))
+            .await?;
         self.notify(job);
         // A pass's last tile's upload is answered once the frame is written (off the lock).
         if let Landed::Pass { index, pass, frame } = landed {

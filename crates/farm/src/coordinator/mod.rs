@@ -12,7 +12,10 @@
 //!   passes) beside the scene bundle, and who is computing what.
 //! - `job.rs` (one job's tiles and frame), `leases.rs` (the lease table and worker records)
 //!   and `metrics.rs` (counters) are plain state; `store/` is the job store (a trait, and
-//!   its SQLite back-end with versioned migrations), `data_dir.rs` the data directory's files; `error.rs` names the failures.
+//!   its SQLite and PostgreSQL back-ends with versioned migrations), `data_dir.rs` the data
+//!   directory's files; `error.rs` names the failures.
+//! - `leader.rs` opens the store the configuration names and, on one that several
+//!   coordinators share, waits for the lead, renews it and notices when it is lost.
 
 mod credentials;
 mod data_dir;
@@ -20,6 +23,7 @@ mod error;
 mod http;
 mod job;
 mod jobs;
+mod leader;
 mod leases;
 mod lending;
 mod listen;
@@ -38,6 +42,7 @@ mod webhooks;
 
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
+pub use leader::Candidate;
 pub use listen::MAX_HEAD_BYTES;
 pub use store::StoreError;
 pub use stored::Stored;
@@ -52,7 +57,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
-use store::{JobStore, SqliteStore};
+use store::JobStore;
 use tokio::sync::broadcast;
 use tokio::time::Instant;
 
@@ -96,6 +101,12 @@ pub struct Config {
     pub header_timeout: Duration,
     /// Serve https with this certificate and key (PEM) rather than plain http.
     pub tls: Option<TlsFiles>,
+    /// The job store: None for SQLite in the data directory, or a `postgres://` URL of a
+    /// server that several coordinators may share.
+    pub store: Option<String>,
+    /// On a shared store, how this coordinator leads: it waits as a standby until the lead
+    /// is free. Required with a `postgres://` store.
+    pub candidate: Option<Candidate>,
 }
 
 impl Config {
@@ -114,6 +125,8 @@ impl Config {
             max_connections: 1024,
             header_timeout: Duration::from_secs(30),
             tls: None,
+            store: None,
+            candidate: None,
         }
     }
 }
@@ -151,7 +164,7 @@ struct Shared {
 
 /// Everything the lock guards.
 struct State {
-    /// The job store (SQLite, the one back-end there is).
+    /// The job store (SQLite in the data directory, or a shared PostgreSQL server).
     store: Box<dyn JobStore>,
     jobs: BTreeMap<u64, Job>,
     leases: Leases,
@@ -204,7 +217,13 @@ impl Coordinator {
     /// Opens (or creates) the data directory and resumes every unfinished job in it.
     pub fn open(config: Config) -> Result<Coordinator, Error> {
         let files = DataDir::create(&config.data_dir)?;
-        let store = SqliteStore::open(&files.database())?;
+        let store = leader::open_store(config.store.as_deref(), &files.database())?;
+        if config.store.is_some() {
+            let me = config.candidate.as_ref().ok_or_else(|| {
+                StoreError::new("a shared job store needs a candidate to lead as".to_string())
+            })?;
+            leader::wait_for_lead(&*store, me)?;
+        }
         // Merged frames whose jobs the store does not hold: the database (or its WAL) was
         // lost or replaced. Starting would hide those jobs for good; say so instead.
         let stored: std::collections::HashSet<u64> = store.jobs()?.iter().map(|j| j.id).collect();
@@ -231,7 +250,7 @@ impl Coordinator {
         let coordinator = Coordinator {
             shared: Arc::new(Shared {
                 state: Mutex::new(State {
-                    store: Box::new(store),
+                    store,
                     jobs: BTreeMap::new(),
                     leases: Leases::new(config.lease_ttl, epoch),
                     workers,
@@ -306,6 +325,17 @@ impl Coordinator {
 
     pub fn config(&self) -> &Config {
         &self.shared.config
+    }
+
+    /// Runs `f`, work that may wait on the job store, on a blocking thread rather than one
+    /// of the runtime's: a store on a server answers in a network round trip, or not at
+    /// all for seconds while it is away.
+    pub(super) async fn off_runtime<T: Send + 'static>(
+        &self,
+        f: impl FnOnce(&Coordinator) -> Result<T, Error> + Send + 'static,
+    ) -> Result<T, Error> {
+        let c = self.clone();
+        tokio::task::spawn_blocking(move || f(&c)).await?
     }
 
     fn files(&self) -> &DataDir {
@@ -529,10 +559,41 @@ pub async fn serve(
     };
     let task = tokio::spawn(expire_leases_every_tick(c.clone()));
     let hooks = tokio::spawn(webhooks::deliver_webhooks_forever(c.clone()));
-    let result = listen::serve_connections(listener, app(c), limits, tls, shutdown).await;
+    // On a shared store, the lead is renewed meanwhile; losing it stops the serving.
+    let (lost_tx, lost_rx) = tokio::sync::oneshot::channel::<String>();
+    let lead = c
+        .config()
+        .candidate
+        .clone()
+        .filter(|_| c.config().store.is_some());
+    let renewal = lead.map(|me| {
+        let c = c.clone();
+        tokio::spawn(async move {
+            let _ = lost_tx.send(leader::keep_lead(c, me).await);
+        })
+    });
+    let lost = Arc::new(Mutex::new(None::<String>));
+    let lost_slot = lost.clone();
+    let stop = async move {
+        tokio::select! {
+            () = shutdown => {}
+            Ok(why) = lost_rx => {
+                tracing::error!("deposed: {why}; this coordinator stops serving");
+                *lost_slot.lock().unwrap_or_else(|p| p.into_inner()) = Some(why);
+            }
+        }
+    };
+    let result = listen::serve_connections(listener, app(c), limits, tls, stop).await;
     task.abort();
     hooks.abort();
-    result
+    if let Some(r) = renewal {
+        r.abort();
+    }
+    let deposed = lost.lock().unwrap_or_else(|p| p.into_inner()).take();
+    match deposed {
+        Some(why) => Err(std::io::Error::other(format!("deposed: {why}"))),
+        None => result,
+    }
 }
 
 /// Expires leases every quarter of their ttl (but no more often than every 50 ms), forever.
@@ -540,7 +601,12 @@ async fn expire_leases_every_tick(c: Coordinator) {
     let tick = (c.config().lease_ttl / 4).max(Duration::from_millis(50));
     loop {
         tokio::time::sleep(tick).await;
-        c.expire_leases();
-        c.retry_merges();
+        // Off the runtime's threads: expiring may write to the job store.
+        let c = c.clone();
+        let _ = tokio::task::spawn_blocking(move || {
+            c.expire_leases();
+            c.retry_merges();
+        })
+        .await;
     }
 }

@@ -2,29 +2,70 @@
 //! kept tile pass's EXR (with its running sums and whose unchecked renders it holds),
 //! workers set aside, webhook outcomes and counters.
 //!
-//! [`JobStore`] is the interface the coordinator keeps them through; [`SqliteStore`]
-//! (`sqlite.rs`, an embedded SQLite file with versioned migrations) is the back-end it has.
+//! [`JobStore`] is the interface the coordinator keeps them through. [`SqliteStore`]
+//! (`sqlite.rs`, an embedded SQLite file in the data directory) is the default;
+//! [`PostgresStore`] (`postgres.rs`, `--store postgres://...`) is a server several
+//! coordinators share, one leading (see [`Leadership`]). Both keep versioned migrations and
+//! pass the same conformance test.
 //! A store records and reads back: it never decides anything about jobs or leases, and keeps
 //! no state in memory beyond its connection. Its errors are Kiln's own ([`StoreError`]), so
 //! no driver's type reaches the coordinator's public errors.
 
+mod postgres;
 mod sqlite;
+#[cfg(test)]
+pub(super) mod tests;
 
+pub(super) use postgres::PostgresStore;
 pub(super) use sqlite::SqliteStore;
 
 use crate::api::{JobSpec, JobState, Role};
 use std::collections::BTreeSet;
+use std::time::Duration;
 
 /// Why the store could not do what it was asked: what it was doing, and the back-end's
 /// reason, as text.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct StoreError(String);
+#[error("{message}")]
+pub struct StoreError {
+    message: String,
+    /// The write was refused because another coordinator leads now.
+    deposed: bool,
+}
 
 impl StoreError {
     pub(super) fn new(message: impl Into<String>) -> StoreError {
-        StoreError(message.into())
+        StoreError {
+            message: message.into(),
+            deposed: false,
+        }
     }
+
+    /// A write refused by its epoch: this coordinator was deposed.
+    pub(super) fn deposed(message: impl Into<String>) -> StoreError {
+        StoreError {
+            message: message.into(),
+            deposed: true,
+        }
+    }
+
+    /// Whether another coordinator leads now, so that this one must stop.
+    pub fn is_deposed(&self) -> bool {
+        self.deposed
+    }
+}
+
+/// Who leads the coordinators that share a store.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Leadership {
+    /// This coordinator leads, under this epoch: every write it makes carries it.
+    Leading { epoch: u64 },
+    /// Another does: its name, the address it serves on and its epoch.
+    Led {
+        holder: String,
+        address: String,
+        epoch: u64,
+    },
 }
 
 /// A job as the store keeps it.
@@ -138,6 +179,24 @@ pub(super) trait JobStore: Send {
     fn revoke_token(&self, id: u64) -> Result<bool, StoreError>;
     /// Every token issued, revoked ones too.
     fn tokens(&self) -> Result<Vec<StoredToken>, StoreError>;
+
+    // Leadership (a store only one coordinator opens needs none).
+
+    /// Takes the lead for `holder` (serving at `address`) if no one holds it or its holder
+    /// has not renewed it for `ttl`; from then on every write is fenced by the new epoch.
+    /// Otherwise says who leads.
+    fn lead(
+        &self,
+        _holder: &str,
+        _address: &str,
+        _ttl: Duration,
+    ) -> Result<Leadership, StoreError> {
+        Ok(Leadership::Leading { epoch: 0 })
+    }
+    /// Renews the lead; false when another coordinator has taken it.
+    fn renew_lead(&self) -> Result<bool, StoreError> {
+        Ok(true)
+    }
 }
 
 /// An issued token as the store keeps it.

@@ -1,6 +1,7 @@
 //! What survives and what is refused: merges off the lock, restarts, a damaged store, and bundles that try to reach outside themselves.
 
 use super::*;
+use crate::coordinator::store::JobStore;
 
 #[tokio::test]
 async fn other_requests_are_answered_while_a_frame_is_merged() {
@@ -44,8 +45,22 @@ async fn other_requests_are_answered_while_a_frame_is_merged() {
 
 #[tokio::test]
 async fn a_restarted_coordinator_keeps_acknowledged_tiles_and_merges_a_finished_job() {
-    let f = farm(None);
-    let data = f.dir.path().join("data");
+    restart_keeps_tiles_and_merges(None).await;
+}
+
+#[tokio::test]
+async fn a_restarted_coordinator_on_postgres_keeps_acknowledged_tiles_and_merges() {
+    if let Some(url) = crate::coordinator::store::tests::fresh_postgres("restart") {
+        restart_keeps_tiles_and_merges(Some(&url)).await;
+    }
+}
+
+/// A job half rendered, its coordinator dropped and opened again on the same store.
+async fn restart_keeps_tiles_and_merges(store: Option<&str>) {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let (c, app) = open_on(&data, None, store);
+    let f = Farm { dir, c, app };
     let job = submit(&f, 32, 16, 16).await;
     let a = lease(&f.app, "w").await.unwrap();
     let b = lease(&f.app, "w").await.unwrap();
@@ -57,7 +72,7 @@ async fn a_restarted_coordinator_keeps_acknowledged_tiles_and_merges_a_finished_
     let Farm { dir: _dir, c, app } = f;
     drop((c, app));
     // After a restart the acknowledged tile is still done; the other is lent again.
-    let (c, app) = open(&data, None);
+    let (c, app) = open_on(&data, None, store);
     let s = job_status(&app, job).await;
     assert_eq!((s.state, s.tiles_done), (JobState::Running, 1));
     let again = lease(&app, "w").await.unwrap();
@@ -67,20 +82,18 @@ async fn a_restarted_coordinator_keeps_acknowledged_tiles_and_merges_a_finished_
     // A coordinator that stopped after keeping the last tile, before writing the frame,
     // writes it when it starts.
     {
-        use crate::coordinator::store::JobStore;
         let files = crate::coordinator::data_dir::DataDir::create(&data).unwrap();
-        let store = crate::coordinator::store::SqliteStore::open(&files.database()).unwrap();
-        store
-            .insert_tile(
-                job,
-                b.tile_index as usize,
-                b.pass.to,
-                &exr(&tile_b),
-                &Default::default(),
-            )
-            .unwrap();
+        let kept = crate::coordinator::leader::open_store(store, &files.database()).unwrap();
+        kept.insert_tile(
+            job,
+            b.tile_index as usize,
+            b.pass.to,
+            &exr(&tile_b),
+            &Default::default(),
+        )
+        .unwrap();
     }
-    let (_c, app) = open(&data, None);
+    let (_c, app) = open_on(&data, None, store);
     let s = job_status(&app, job).await;
     assert_eq!((s.state, s.tiles_done), (JobState::Done, 2));
     let path = format!("/v1/jobs/{job}/result.exr");
@@ -438,7 +451,6 @@ async fn a_jobs_colour_mode_is_pinned_when_it_is_planned() {
     let Farm { dir: _dir, c, app } = f;
     drop((c, app));
     {
-        use crate::coordinator::store::JobStore;
         let files = crate::coordinator::data_dir::DataDir::create(&data).unwrap();
         let store = crate::coordinator::store::SqliteStore::open(&files.database()).unwrap();
         let stored = store.jobs().unwrap();

@@ -43,9 +43,23 @@ fn farm(token: Option<&str>) -> Farm {
 }
 
 fn open(data: &Path, token: Option<&str>) -> (Coordinator, Router) {
+    open_on(data, token, None)
+}
+
+/// A coordinator on `data` with its job store on the PostgreSQL server of `store` (SQLite
+/// in `data` when None). The lead lasts 0.3 s, so that a coordinator opened again after
+/// one was dropped takes it over at once.
+fn open_on(data: &Path, token: Option<&str>, store: Option<&str>) -> (Coordinator, Router) {
     let mut config = Config::new(data.to_path_buf());
     config.token = token.map(String::from);
     config.lease_ttl = TTL;
+    if let Some(url) = store {
+        config.store = Some(url.to_string());
+        config.candidate = Some(super::Candidate::new(
+            "http://test".into(),
+            Duration::from_millis(300),
+        ));
+    }
     let c = Coordinator::open(config).unwrap();
     let app = app(c.clone());
     (c, app)

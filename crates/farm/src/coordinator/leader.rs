@@ -1,0 +1,129 @@
+//! Which job store a coordinator opens, and, on a store that several coordinators share,
+//! leading them: waiting as a standby until the lead is free, then renewing it, and
+//! stopping the moment another has taken it.
+//!
+//! A standby does not serve: it opens nothing of the farm's and listens on nothing until it
+//! leads, so a load balancer or a Kubernetes Service whose readiness is `/healthz` sends
+//! requests to the leader only, and clients given several coordinator URLs find it by
+//! trying them. The lead's TTL is measured on the store's clock. A deposed leader cannot
+//! write (the store fences every write by its epoch); it stops serving within a renewal
+//! period and exits, to come back as a standby.
+
+use super::store::{JobStore, Leadership, PostgresStore, SqliteStore, StoreError};
+use super::{Coordinator, Error};
+use std::path::Path;
+use std::time::Duration;
+
+/// Opens the store the configuration names: SQLite in the data directory by default, or
+/// the PostgreSQL server of a `postgres://` URL.
+pub(super) fn open_store(
+    store: Option<&str>,
+    database: &Path,
+) -> Result<Box<dyn JobStore>, StoreError> {
+    match store {
+        None => Ok(Box::new(SqliteStore::open(database)?)),
+        Some(url) if url.starts_with("postgres://") || url.starts_with("postgresql://") => {
+            Ok(Box::new(PostgresStore::open(url)?))
+        }
+        Some(other) => Err(StoreError::new(format!(
+            "--store '{other}' is not a job store: give a postgres:// URL, or nothing for SQLite in the data directory"
+        ))),
+    }
+}
+
+/// Whom a coordinator leads as, for the store's leader row.
+#[derive(Debug, Clone)]
+pub struct Candidate {
+    /// Unique to this process: host, process id and start time.
+    pub name: String,
+    /// The URL this coordinator serves at, which standbys report.
+    pub address: String,
+    /// How long the lead lasts unrenewed before a standby takes it.
+    pub ttl: Duration,
+}
+
+impl Candidate {
+    pub fn new(address: String, ttl: Duration) -> Candidate {
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .map(|h| h.trim().to_string())
+            .unwrap_or_else(|_| "host".into());
+        let started = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis());
+        Candidate {
+            name: format!("{host}-{}-{started}", std::process::id()),
+            address,
+            ttl,
+        }
+    }
+
+    /// How often the leader renews and a standby asks: a fifth of the TTL, at most a second.
+    pub fn period(&self) -> Duration {
+        (self.ttl / 5).clamp(Duration::from_millis(50), Duration::from_secs(1))
+    }
+}
+
+/// Blocks until `me` leads the coordinators sharing `store`; returns its epoch. Says once
+/// who leads each time that changes, and keeps asking through an outage of the store.
+pub(super) fn wait_for_lead(store: &dyn JobStore, me: &Candidate) -> Result<u64, Error> {
+    let mut said: Option<(String, u64)> = None;
+    let waited = std::time::Instant::now();
+    loop {
+        match store.lead(&me.name, &me.address, me.ttl) {
+            Ok(Leadership::Leading { epoch }) => {
+                if said.is_some() {
+                    tracing::info!(
+                        "took the lead at epoch {epoch} after {:.1} s as a standby",
+                        waited.elapsed().as_secs_f64()
+                    );
+                }
+                return Ok(epoch);
+            }
+            Ok(Leadership::Led {
+                holder,
+                address,
+                epoch,
+            }) => {
+                if said.as_ref() != Some(&(holder.clone(), epoch)) {
+                    tracing::info!(
+                        "standing by: coordinator {holder} leads at {address} (epoch {epoch})"
+                    );
+                    said = Some((holder, epoch));
+                }
+            }
+            Err(e) => tracing::warn!("cannot ask who leads: {e}"),
+        }
+        std::thread::sleep(me.period());
+    }
+}
+
+/// Renews the lead every period until it is lost; returns why. A renewal the store cannot
+/// answer is retried: the fence keeps a deposed leader from writing meanwhile, and the
+/// next answer says whether it still leads.
+pub(super) async fn keep_lead(c: Coordinator, me: Candidate) -> String {
+    let mut failing_since: Option<std::time::Instant> = None;
+    loop {
+        tokio::time::sleep(me.period()).await;
+        let c2 = c.clone();
+        let renewed = tokio::task::spawn_blocking(move || c2.lock().store.renew_lead()).await;
+        match renewed {
+            Ok(Ok(true)) => {
+                if let Some(since) = failing_since.take() {
+                    tracing::info!(
+                        "renewed the lead again after {:.1} s",
+                        since.elapsed().as_secs_f64()
+                    );
+                }
+            }
+            Ok(Ok(false)) => return "another coordinator has taken the lead".into(),
+            Ok(Err(e)) if e.is_deposed() => return e.to_string(),
+            Ok(Err(e)) => {
+                if failing_since.is_none() {
+                    tracing::warn!("cannot renew the lead: {e}; trying again");
+                    failing_since = Some(std::time::Instant::now());
+                }
+            }
+            Err(e) => return format!("the lead's renewal failed: {e}"),
+        }
+    }
+}
