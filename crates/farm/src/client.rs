@@ -1,5 +1,9 @@
 //! HTTP calls to a coordinator, for `kiln submit`, `kiln farm` and workers.
 //!
+//! A farm with standby coordinators is given as several URLs, comma separated: only the
+//! leader listens, so a request whose connection cannot be made is sent again to the next
+//! URL (each tried once), and the client keeps to the one that answered.
+//!
 //! A coordinator serving https (`--tls-cert`) is trusted through the certificates in the
 //! PEM file `KILN_TLS_CA` names (its own self-signed certificate, or the farm's CA); no
 //! other root is trusted, and without it an https coordinator is refused.
@@ -7,6 +11,21 @@
 use crate::api::*;
 use crate::trust::TLS_CA_VAR;
 use reqwest::{Method, RequestBuilder, StatusCode};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// `http://a:7878, http://b:7878/` as its URLs, trimmed and without trailing slashes.
+fn bases(list: &str) -> Arc<Vec<String>> {
+    let mut all: Vec<String> = list
+        .split(',')
+        .map(|b| b.trim().trim_end_matches('/').to_string())
+        .filter(|b| !b.is_empty())
+        .collect();
+    if all.is_empty() {
+        all.push(String::new());
+    }
+    Arc::new(all)
+}
 
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
@@ -33,7 +52,9 @@ pub type Result<T> = std::result::Result<T, ClientError>;
 #[derive(Clone)]
 pub struct Client {
     http: reqwest::Client,
-    base: String,
+    /// The coordinators' URLs, without a trailing slash; `current` indexes the one in use.
+    bases: Arc<Vec<String>>,
+    current: Arc<AtomicUsize>,
     token: Option<String>,
     /// Why the client cannot send anything (its certificates could not be read): every
     /// request fails with it.
@@ -84,7 +105,8 @@ impl Client {
         match built {
             Ok(http) => Client {
                 http,
-                base: base.trim_end_matches('/').to_string(),
+                bases: bases(base),
+                current: Arc::new(AtomicUsize::new(0)),
                 token,
                 broken: None,
             },
@@ -100,14 +122,20 @@ impl Client {
                 .tls_certs_only(Vec::new())
                 .build()
                 .unwrap_or_default(),
-            base: base.trim_end_matches('/').to_string(),
+            bases: bases(base),
+            current: Arc::new(AtomicUsize::new(0)),
             token,
             broken: Some(why),
         }
     }
 
+    /// The URL of the coordinator in use.
+    fn base(&self) -> &str {
+        &self.bases[self.current.load(Ordering::Relaxed) % self.bases.len()]
+    }
+
     fn req(&self, method: Method, path: &str) -> RequestBuilder {
-        let r = self.http.request(method, format!("{}{path}", self.base));
+        let r = self.http.request(method, format!("{}{path}", self.base()));
         match &self.token {
             Some(t) => r.bearer_auth(t),
             None => r,
@@ -119,7 +147,42 @@ impl Client {
         if let Some(why) = &self.broken {
             return Err(ClientError::Setup(why.clone()));
         }
-        let resp = r.send().await?;
+        let mut req = r.build()?;
+        // Each other coordinator is tried once when one cannot be reached (a body that
+        // cannot be sent twice, a stream, is not sent again: the next call goes there).
+        for _ in 1..self.bases.len() {
+            let spare = req.try_clone();
+            let used = self.current.load(Ordering::Relaxed) % self.bases.len();
+            match self.http.execute(req).await {
+                Ok(resp) => return self.check(resp).await,
+                Err(e) if e.is_connect() => {
+                    let next = (used + 1) % self.bases.len();
+                    let _ = self.current.compare_exchange(
+                        used,
+                        next,
+                        Ordering::Relaxed,
+                        Ordering::Relaxed,
+                    );
+                    tracing::info!(
+                        "coordinator {} cannot be reached ({e}); trying {}",
+                        self.bases[used],
+                        self.bases[next]
+                    );
+                    let Some(mut again) = spare else {
+                        return Err(e.into());
+                    };
+                    let url = again.url().as_str().to_string();
+                    let rest = url.strip_prefix(self.bases[used].as_str()).unwrap_or(&url);
+                    match reqwest::Url::parse(&format!("{}{rest}", self.bases[next])) {
+                        Ok(u) => *again.url_mut() = u,
+                        Err(_) => return Err(e.into()),
+                    }
+                    req = again;
+                }
+                Err(e) => return Err(e.into()),
+            }
+        }
+        let resp = self.http.execute(req).await?;
         self.check(resp).await
     }
 
@@ -138,7 +201,7 @@ impl Client {
 
     /// Whether the coordinator answers its health check (`GET /healthz`, no token needed).
     pub async fn healthz(&self) -> Result<()> {
-        self.send(self.http.get(format!("{}/healthz", self.base)))
+        self.send(self.http.get(format!("{}/healthz", self.base())))
             .await
             .map(|_| ())
     }
@@ -390,5 +453,31 @@ impl Client {
         )
         .await
         .map(|_| ())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Client;
+
+    /// Only the leader of several coordinators listens: a client given them all finds it,
+    /// and keeps to it.
+    #[tokio::test]
+    async fn a_client_of_several_coordinators_finds_the_one_that_answers() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let live = format!("http://{}", listener.local_addr().unwrap());
+        let app = axum::Router::new().route("/healthz", axum::routing::get(|| async { "ok" }));
+        tokio::spawn(async move { axum::serve(listener, app).await });
+        // Port 1 on loopback: nothing listens there.
+        let dead = "http://127.0.0.1:1";
+        let client = Client::new(&format!("{dead}/, {live}"), None);
+        assert_eq!(client.base(), dead);
+        client.healthz().await.unwrap();
+        assert_eq!(client.base(), live);
+        client.healthz().await.unwrap();
+        assert_eq!(client.base(), live);
+        // One coordinator that cannot be reached is an error, as before.
+        let alone = Client::new(dead, None);
+        assert!(alone.healthz().await.is_err());
     }
 }

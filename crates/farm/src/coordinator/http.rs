@@ -154,8 +154,10 @@ impl Error {
             | Error::Relent(_) => StatusCode::CONFLICT,
             Error::SetAside { .. } | Error::Forbidden(_) => StatusCode::FORBIDDEN,
             Error::JobEnded(_) => StatusCode::GONE,
-            Error::Store(_)
-            | Error::LostJobs(_)
+            // The store is away (a server restarting, a full disk) or this coordinator no
+            // longer leads: the same request may succeed later, here or at the leader.
+            Error::Store(_) => StatusCode::SERVICE_UNAVAILABLE,
+            Error::LostJobs(_)
             | Error::Io { .. }
             | Error::Unpack(_)
             | Error::Image(_)
@@ -167,7 +169,15 @@ impl Error {
 impl IntoResponse for Error {
     fn into_response(self) -> Response {
         let status = self.status();
-        let message = if status.is_server_error() {
+        let message = if let Error::Store(e) = &self {
+            tracing::error!("{self}");
+            if e.is_deposed() {
+                "this coordinator no longer leads: ask the others".to_string()
+            } else {
+                "the job store cannot be used right now: try again (the coordinator's log says why)"
+                    .to_string()
+            }
+        } else if status.is_server_error() {
             // The details are for the operator's log, not for clients.
             tracing::error!("{self}");
             "internal error".to_string()

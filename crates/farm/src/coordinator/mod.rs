@@ -216,14 +216,24 @@ impl Health {
 impl Coordinator {
     /// Opens (or creates) the data directory and resumes every unfinished job in it.
     pub fn open(config: Config) -> Result<Coordinator, Error> {
+        // On a shared store, a standby waits for the lead before it touches the data
+        // directory (opening it clears a dead coordinator's leftovers).
+        let shared = match config.store.as_deref() {
+            Some(url) => {
+                let store = leader::open_store(Some(url), std::path::Path::new(""))?;
+                let me = config.candidate.as_ref().ok_or_else(|| {
+                    StoreError::new("a shared job store needs a candidate to lead as".to_string())
+                })?;
+                leader::wait_for_lead(&*store, me)?;
+                Some(store)
+            }
+            None => None,
+        };
         let files = DataDir::create(&config.data_dir)?;
-        let store = leader::open_store(config.store.as_deref(), &files.database())?;
-        if config.store.is_some() {
-            let me = config.candidate.as_ref().ok_or_else(|| {
-                StoreError::new("a shared job store needs a candidate to lead as".to_string())
-            })?;
-            leader::wait_for_lead(&*store, me)?;
-        }
+        let store = match shared {
+            Some(store) => store,
+            None => leader::open_store(None, &files.database())?,
+        };
         // Merged frames whose jobs the store does not hold: the database (or its WAL) was
         // lost or replaced. Starting would hide those jobs for good; say so instead.
         let stored: std::collections::HashSet<u64> = store.jobs()?.iter().map(|j| j.id).collect();
@@ -583,16 +593,28 @@ pub async fn serve(
             }
         }
     };
+    let c2 = c.clone();
     let result = listen::serve_connections(listener, app(c), limits, tls, stop).await;
     task.abort();
     hooks.abort();
+    let leading = renewal.is_some();
     if let Some(r) = renewal {
         r.abort();
     }
     let deposed = lost.lock().unwrap_or_else(|p| p.into_inner()).take();
     match deposed {
         Some(why) => Err(std::io::Error::other(format!("deposed: {why}"))),
-        None => result,
+        None => {
+            if leading {
+                // Stopping: a standby may take the lead now rather than after its TTL.
+                let resigned =
+                    tokio::task::spawn_blocking(move || c2.lock().store.resign_lead()).await;
+                if let Ok(Err(e)) = resigned {
+                    tracing::warn!("cannot give up the lead: {e}");
+                }
+            }
+            result
+        }
     }
 }
 

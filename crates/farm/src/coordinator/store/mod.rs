@@ -197,6 +197,10 @@ pub(super) trait JobStore: Send {
     fn renew_lead(&self) -> Result<bool, StoreError> {
         Ok(true)
     }
+    /// Gives the lead up (a coordinator stopping), so that a standby takes it at once.
+    fn resign_lead(&self) -> Result<(), StoreError> {
+        Ok(())
+    }
 }
 
 /// An issued token as the store keeps it.

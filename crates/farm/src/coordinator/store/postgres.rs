@@ -665,6 +665,19 @@ impl JobStore for PostgresStore {
             Ok(n == 1)
         })
     }
+
+    fn resign_lead(&self) -> Result<(), StoreError> {
+        self.call("giving up the lead", |c| {
+            let Some(epoch) = c.fence.take() else {
+                return Ok(());
+            };
+            c.client()?.execute(
+                "UPDATE leader SET renewed = '-infinity' WHERE id = 1 AND epoch = $1",
+                &[&epoch],
+            )?;
+            Ok(())
+        })
+    }
 }
 
 #[cfg(test)]

@@ -19,6 +19,7 @@ use tower::ServiceExt;
 mod after;
 mod api;
 mod durability;
+mod leading;
 mod lending;
 mod passes;
 mod queue;
