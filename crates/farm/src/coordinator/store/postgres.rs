@@ -17,10 +17,15 @@
 //! **Leadership and fencing.** The `leader` row names the coordinator that leads, its
 //! address and its epoch. A coordinator takes the row when it is free or its holder has
 //! not renewed it for the leader TTL (the database's clock decides, not the coordinators'),
-//! which raises the epoch; it renews it every second. Every write runs in a transaction
-//! that first reads the row under a share lock and is refused unless the epoch is still
+//! which raises the epoch; it renews it every second. The leader's connection carries its
+//! epoch (`SET kiln.epoch`), and a trigger on every table (`kiln_fence()`) reads the row
+//! under a share lock before each write statement and refuses it unless the epoch is still
 //! the writer's: a coordinator deposed while it was away cannot write, even once, and a
-//! takeover waits for the writes already under way.
+//! takeover waits for the writes already under way. The database enforces it, so each
+//! write is still one statement and one round trip.
+//!
+//! **Round trips.** Statements are prepared once per connection and kept, so a call is one
+//! round trip to the server.
 //!
 //! **Schema.** `kiln_schema` holds the version; [`MIGRATIONS`] are applied in order, each
 //! in a transaction under an advisory lock, so that two coordinators starting at once
@@ -28,8 +33,10 @@
 
 use super::{JobStore, KeptTile, Leadership, StoreError, StoredJob, StoredToken, WebhookOutcome};
 use crate::api::{JobSpec, JobState, Role};
-use postgres::{Client, NoTls, Transaction};
+use postgres::types::ToSql;
+use postgres::{Client, NoTls, Row, Statement};
 use std::collections::BTreeSet;
+use std::collections::HashMap;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -50,8 +57,32 @@ const MIGRATIONS: &[Migration] = &[Migration {
           CREATE TABLE set_aside (worker TEXT PRIMARY KEY, reason TEXT NOT NULL);
           CREATE TABLE job_notes (job BIGINT PRIMARY KEY, verified BIGINT NOT NULL DEFAULT 0, webhook BIGINT NOT NULL DEFAULT 0);
           CREATE TABLE tokens (id BIGSERIAL PRIMARY KEY, role TEXT NOT NULL, name TEXT NOT NULL, hash TEXT NOT NULL UNIQUE, revoked BOOLEAN NOT NULL DEFAULT false);
-          CREATE TABLE leader (id INTEGER PRIMARY KEY CHECK (id = 1), holder TEXT NOT NULL, address TEXT NOT NULL, epoch BIGINT NOT NULL, renewed TIMESTAMPTZ NOT NULL);",
+          CREATE TABLE leader (id INTEGER PRIMARY KEY CHECK (id = 1), holder TEXT NOT NULL, address TEXT NOT NULL, epoch BIGINT NOT NULL, renewed TIMESTAMPTZ NOT NULL);
+          CREATE FUNCTION kiln_fence() RETURNS trigger LANGUAGE plpgsql AS $$
+          DECLARE
+              mine TEXT := current_setting('kiln.epoch', true);
+              lead_epoch BIGINT;
+              lead_holder TEXT;
+          BEGIN
+              IF mine IS NULL OR mine = '' THEN
+                  RETURN NULL;
+              END IF;
+              SELECT epoch, holder INTO lead_epoch, lead_holder FROM leader WHERE id = 1 FOR SHARE;
+              IF lead_epoch IS DISTINCT FROM mine::BIGINT THEN
+                  RAISE EXCEPTION '% took the lead at epoch %', lead_holder, lead_epoch USING ERRCODE = 'KL001';
+              END IF;
+              RETURN NULL;
+          END $$;
+          CREATE TRIGGER fence BEFORE INSERT OR UPDATE OR DELETE ON jobs FOR EACH STATEMENT EXECUTE FUNCTION kiln_fence();
+          CREATE TRIGGER fence BEFORE INSERT OR UPDATE OR DELETE ON tile_passes FOR EACH STATEMENT EXECUTE FUNCTION kiln_fence();
+          CREATE TRIGGER fence BEFORE INSERT OR UPDATE OR DELETE ON meta FOR EACH STATEMENT EXECUTE FUNCTION kiln_fence();
+          CREATE TRIGGER fence BEFORE INSERT OR UPDATE OR DELETE ON set_aside FOR EACH STATEMENT EXECUTE FUNCTION kiln_fence();
+          CREATE TRIGGER fence BEFORE INSERT OR UPDATE OR DELETE ON job_notes FOR EACH STATEMENT EXECUTE FUNCTION kiln_fence();
+          CREATE TRIGGER fence BEFORE INSERT OR UPDATE OR DELETE ON tokens FOR EACH STATEMENT EXECUTE FUNCTION kiln_fence();",
 }];
+
+/// The SQLSTATE `kiln_fence()` raises for a write by a coordinator that no longer leads.
+const DEPOSED: &str = "KL001";
 
 /// The advisory lock key migrations are applied under ("kiln" in ASCII).
 const MIGRATION_LOCK: i64 = 0x6b69_6c6e;
@@ -63,18 +94,71 @@ const MAX_BACKOFF: Duration = Duration::from_secs(5);
 /// Why a call on the store's thread failed.
 enum Failure {
     Db(postgres::Error),
-    /// The leader row's epoch is no longer this coordinator's.
-    Deposed {
-        epoch: i64,
-        holder: String,
-    },
+    /// The leader row's epoch is no longer this coordinator's: the trigger's words.
+    Deposed(String),
     /// No connection, and the backoff has not run out.
     Away(String),
 }
 
 impl From<postgres::Error> for Failure {
     fn from(e: postgres::Error) -> Failure {
-        Failure::Db(e)
+        match e.as_db_error() {
+            Some(db) if db.code().code() == DEPOSED => Failure::Deposed(db.message().to_string()),
+            _ => Failure::Db(e),
+        }
+    }
+}
+
+/// The connection with its prepared statements, as calls use it.
+struct Db<'a> {
+    client: &'a mut Client,
+    prepared: &'a mut HashMap<&'static str, Statement>,
+}
+
+impl Db<'_> {
+    fn statement(&mut self, sql: &'static str) -> Result<Statement, postgres::Error> {
+        if let Some(s) = self.prepared.get(sql) {
+            return Ok(s.clone());
+        }
+        let s = self.client.prepare(sql)?;
+        self.prepared.insert(sql, s.clone());
+        Ok(s)
+    }
+
+    fn execute(
+        &mut self,
+        sql: &'static str,
+        params: &[&(dyn ToSql + Sync)],
+    ) -> Result<u64, postgres::Error> {
+        let s = self.statement(sql)?;
+        self.client.execute(&s, params)
+    }
+
+    fn query(
+        &mut self,
+        sql: &'static str,
+        params: &[&(dyn ToSql + Sync)],
+    ) -> Result<Vec<Row>, postgres::Error> {
+        let s = self.statement(sql)?;
+        self.client.query(&s, params)
+    }
+
+    fn query_one(
+        &mut self,
+        sql: &'static str,
+        params: &[&(dyn ToSql + Sync)],
+    ) -> Result<Row, postgres::Error> {
+        let s = self.statement(sql)?;
+        self.client.query_one(&s, params)
+    }
+
+    fn query_opt(
+        &mut self,
+        sql: &'static str,
+        params: &[&(dyn ToSql + Sync)],
+    ) -> Result<Option<Row>, postgres::Error> {
+        let s = self.statement(sql)?;
+        self.client.query_opt(&s, params)
     }
 }
 
@@ -84,6 +168,8 @@ struct Conn {
     /// Where the server is, as errors name it.
     name: String,
     client: Option<Client>,
+    /// The statements prepared on `client`.
+    prepared: HashMap<&'static str, Statement>,
     /// Why the last connection attempt failed, and when the next may be made.
     away: Option<(String, Instant, Duration)>,
     /// The epoch this coordinator leads under, once it does: every write checks it.
@@ -95,6 +181,7 @@ impl Conn {
     fn client(&mut self) -> Result<&mut Client, Failure> {
         if self.client.as_ref().is_some_and(|c| c.is_closed()) {
             self.client = None;
+            self.prepared.clear();
         }
         if self.client.is_none() {
             if let Some((why, next, _)) = &self.away
@@ -102,7 +189,14 @@ impl Conn {
             {
                 return Err(Failure::Away(why.clone()));
             }
-            match self.config.connect(NoTls) {
+            let connected = self.config.connect(NoTls).and_then(|mut c| {
+                // A leader's new connection carries its epoch, which fences its writes.
+                if let Some(epoch) = self.fence {
+                    c.batch_execute(&format!("SET kiln.epoch = '{epoch}'"))?;
+                }
+                Ok(c)
+            });
+            match connected {
                 Ok(c) => {
                     if self.away.take().is_some() {
                         tracing::info!("the job store at {} answers again", self.name);
@@ -127,26 +221,13 @@ impl Conn {
         Ok(self.client.as_mut().expect("connected above"))
     }
 
-    /// Runs `f` in a transaction fenced by this coordinator's epoch (when it leads).
-    fn write<T>(
-        &mut self,
-        f: impl FnOnce(&mut Transaction) -> Result<T, postgres::Error>,
-    ) -> Result<T, Failure> {
-        let fence = self.fence;
-        let mut tx = self.client()?.transaction()?;
-        if let Some(mine) = fence {
-            let row = tx.query_opt(
-                "SELECT epoch, holder FROM leader WHERE id = 1 FOR SHARE",
-                &[],
-            )?;
-            let (epoch, holder) = row.map_or((0, String::new()), |r| (r.get(0), r.get(1)));
-            if epoch != mine {
-                return Err(Failure::Deposed { epoch, holder });
-            }
-        }
-        let out = f(&mut tx)?;
-        tx.commit()?;
-        Ok(out)
+    /// The connection with its prepared statements.
+    fn db(&mut self) -> Result<Db<'_>, Failure> {
+        self.client()?;
+        Ok(Db {
+            client: self.client.as_mut().expect("connected above"),
+            prepared: &mut self.prepared,
+        })
     }
 }
 
@@ -192,6 +273,7 @@ impl PostgresStore {
             client: None,
             away: None,
             fence: None,
+            prepared: HashMap::new(),
         };
         std::thread::Builder::new()
             .name("kiln-store".into())
@@ -225,6 +307,7 @@ impl PostgresStore {
                 && c.is_closed()
             {
                 conn.client = None;
+                conn.prepared.clear();
             }
             let _ = tx.send(out);
         });
@@ -241,54 +324,55 @@ impl PostgresStore {
                 "the job store at {} cannot be reached ({why}), {doing}",
                 self.name
             ))),
-            Err(Failure::Deposed { epoch, holder }) => Err(StoreError::deposed(format!(
-                "this coordinator no longer leads: {holder} took the lead at epoch {epoch}; {doing} refused"
+            Err(Failure::Deposed(why)) => Err(StoreError::deposed(format!(
+                "this coordinator no longer leads: {why}; {doing} refused"
             ))),
         }
     }
 
-    /// Runs `f` in a fenced transaction on the store's thread.
-    fn write<T: Send + 'static>(
+    /// Runs a statement or two on the store's thread (a write is fenced by the trigger).
+    fn run<T: Send + 'static>(
         &self,
         doing: &str,
-        f: impl FnOnce(&mut Transaction) -> Result<T, postgres::Error> + Send + 'static,
+        f: impl FnOnce(&mut Db) -> Result<T, postgres::Error> + Send + 'static,
     ) -> Result<T, StoreError> {
-        self.call(doing, move |c| c.write(f))
+        self.call(doing, move |c| Ok(f(&mut c.db()?)?))
     }
 
-    /// Runs a read on the store's thread.
-    fn read<T: Send + 'static>(
-        &self,
-        doing: &str,
-        f: impl FnOnce(&mut Client) -> Result<T, postgres::Error> + Send + 'static,
-    ) -> Result<T, StoreError> {
-        self.call(doing, move |c| f(c.client()?).map_err(Failure::Db))
-    }
-
-    /// Sets one of a job's notes (a column of `job_notes`, named by the caller, never by
-    /// input).
-    fn set_note(&self, job: u64, column: &'static str, value: i64) -> Result<(), StoreError> {
-        self.write("keeping a job's note", move |tx| {
-            tx.execute(
-                &format!(
-                    "INSERT INTO job_notes (job, {column}) VALUES ($1, $2)
-                     ON CONFLICT (job) DO UPDATE SET {column} = $2"
-                ),
-                &[&(job as i64), &value],
-            )
-            .map(drop)
+    /// Sets one of a job's notes.
+    fn set_note(&self, job: u64, note: Note, value: i64) -> Result<(), StoreError> {
+        self.run("keeping a job's note", move |db| {
+            let sql = match note {
+                Note::Verified => {
+                    "INSERT INTO job_notes (job, verified) VALUES ($1, $2)
+                     ON CONFLICT (job) DO UPDATE SET verified = $2"
+                }
+                Note::Webhook => {
+                    "INSERT INTO job_notes (job, webhook) VALUES ($1, $2)
+                     ON CONFLICT (job) DO UPDATE SET webhook = $2"
+                }
+            };
+            db.execute(sql, &[&(job as i64), &value]).map(drop)
         })
     }
 
-    fn note(&self, job: u64, column: &'static str) -> Result<i64, StoreError> {
-        self.read("reading a job's note", move |c| {
-            Ok(c.query_opt(
-                &format!("SELECT {column} FROM job_notes WHERE job = $1"),
-                &[&(job as i64)],
-            )?
-            .map_or(0, |r| r.get(0)))
+    /// One of a job's notes, 0 when it has none.
+    fn note(&self, job: u64, note: Note) -> Result<i64, StoreError> {
+        self.run("reading a job's note", move |db| {
+            let sql = match note {
+                Note::Verified => "SELECT verified FROM job_notes WHERE job = $1",
+                Note::Webhook => "SELECT webhook FROM job_notes WHERE job = $1",
+            };
+            Ok(db.query_opt(sql, &[&(job as i64)])?.map_or(0, |r| r.get(0)))
         })
     }
+}
+
+/// A job's notes (columns of `job_notes`).
+#[derive(Clone, Copy)]
+enum Note {
+    Verified,
+    Webhook,
 }
 
 /// `postgres://user@host:port/db` with any password removed, for messages.
@@ -361,7 +445,7 @@ fn check_version(client: &mut Client) -> Result<Result<(), String>, postgres::Er
 
 impl JobStore for PostgresStore {
     fn next_epoch(&self) -> Result<u64, StoreError> {
-        self.write("counting this opening", |tx| {
+        self.run("counting this opening", |tx| {
             let epoch: i64 = tx
                 .query_one(
                     "INSERT INTO meta (key, value) VALUES ('epoch', 1)
@@ -375,7 +459,7 @@ impl JobStore for PostgresStore {
     }
 
     fn jobs(&self) -> Result<Vec<StoredJob>, StoreError> {
-        self.read("reading the jobs", |c| {
+        self.run("reading the jobs", |c| {
             let rows = c.query("SELECT id, spec, state, error FROM jobs ORDER BY id", &[])?;
             Ok(rows
                 .iter()
@@ -396,7 +480,7 @@ impl JobStore for PostgresStore {
 
     fn job_with_key(&self, key: &str) -> Result<Option<u64>, StoreError> {
         let key = key.to_string();
-        self.read("finding a job by its key", move |c| {
+        self.run("finding a job by its key", move |c| {
             Ok(
                 c.query_opt("SELECT id FROM jobs WHERE idempotency_key = $1", &[&key])?
                     .map(|r| r.get::<_, i64>(0) as u64),
@@ -407,7 +491,7 @@ impl JobStore for PostgresStore {
     fn insert_job(&self, spec: &JobSpec, key: Option<&str>) -> Result<u64, StoreError> {
         let spec_json = serde_json::to_string(spec).expect("a JobSpec serializes");
         let key = key.map(str::to_string);
-        self.write("keeping a new job", move |tx| {
+        self.run("keeping a new job", move |tx| {
             let id: i64 = tx
                 .query_one(
                     "INSERT INTO jobs (spec, state, idempotency_key) VALUES ($1, 'running', $2) RETURNING id",
@@ -420,7 +504,7 @@ impl JobStore for PostgresStore {
 
     fn set_spec(&self, job: u64, spec: &JobSpec) -> Result<(), StoreError> {
         let spec_json = serde_json::to_string(spec).expect("a JobSpec serializes");
-        self.write("keeping a job's spec", move |tx| {
+        self.run("keeping a job's spec", move |tx| {
             tx.execute(
                 "UPDATE jobs SET spec = $1 WHERE id = $2",
                 &[&spec_json, &(job as i64)],
@@ -431,7 +515,7 @@ impl JobStore for PostgresStore {
 
     fn set_state(&self, job: u64, state: JobState, error: Option<&str>) -> Result<(), StoreError> {
         let error = error.map(str::to_string);
-        self.write("keeping a job's state", move |tx| {
+        self.run("keeping a job's state", move |tx| {
             tx.execute(
                 "UPDATE jobs SET state = $1, error = $2 WHERE id = $3",
                 &[&state.as_str(), &error, &(job as i64)],
@@ -441,7 +525,7 @@ impl JobStore for PostgresStore {
     }
 
     fn tiles(&self, job: u64, _legacy_samples: u32) -> Result<Vec<KeptTile>, StoreError> {
-        self.read("reading a job's tiles", move |c| {
+        self.run("reading a job's tiles", move |c| {
             let rows = c.query(
                 "SELECT idx, samples, exr, unchecked_by FROM tile_passes WHERE job = $1",
                 &[&(job as i64)],
@@ -460,7 +544,7 @@ impl JobStore for PostgresStore {
     }
 
     fn tile(&self, job: u64, idx: usize, samples: u32) -> Result<Option<Vec<u8>>, StoreError> {
-        self.read("reading a tile", move |c| {
+        self.run("reading a tile", move |c| {
             Ok(c.query_opt(
                 "SELECT exr FROM tile_passes WHERE job = $1 AND idx = $2 AND samples = $3",
                 &[&(job as i64), &(idx as i64), &i64::from(samples)],
@@ -471,7 +555,7 @@ impl JobStore for PostgresStore {
 
     fn holds_tile(&self, job: u64, idx: usize, exr: &[u8]) -> Result<bool, StoreError> {
         let exr = exr.to_vec();
-        self.read("comparing a tile", move |c| {
+        self.run("comparing a tile", move |c| {
             Ok(c.query_opt(
                 "SELECT 1 FROM tile_passes WHERE job = $1 AND idx = $2 AND exr = $3 LIMIT 1",
                 &[&(job as i64), &(idx as i64), &exr],
@@ -490,7 +574,7 @@ impl JobStore for PostgresStore {
     ) -> Result<(), StoreError> {
         let by = serde_json::to_string(unchecked_by).expect("names serialize");
         let exr = exr.to_vec();
-        self.write("keeping a tile", move |tx| {
+        self.run("keeping a tile", move |tx| {
             tx.execute(
                 "INSERT INTO tile_passes (job, idx, samples, exr, unchecked_by) VALUES ($1, $2, $3, $4, $5)
                  ON CONFLICT DO NOTHING",
@@ -502,7 +586,7 @@ impl JobStore for PostgresStore {
 
     fn drop_tiles(&self, job: u64, tiles: &[usize]) -> Result<(), StoreError> {
         let tiles: Vec<i64> = tiles.iter().map(|&t| t as i64).collect();
-        self.write("forgetting tiles", move |tx| {
+        self.run("forgetting tiles", move |tx| {
             tx.execute(
                 "DELETE FROM tile_passes WHERE job = $1 AND idx = ANY($2)",
                 &[&(job as i64), &tiles],
@@ -512,7 +596,7 @@ impl JobStore for PostgresStore {
     }
 
     fn drop_passes_before(&self, job: u64, samples: u32) -> Result<(), StoreError> {
-        self.write("forgetting earlier passes", move |tx| {
+        self.run("forgetting earlier passes", move |tx| {
             tx.execute(
                 "DELETE FROM tile_passes WHERE job = $1 AND samples < $2",
                 &[&(job as i64), &i64::from(samples)],
@@ -522,7 +606,7 @@ impl JobStore for PostgresStore {
     }
 
     fn add_verified(&self, job: u64) -> Result<(), StoreError> {
-        self.write("counting a verified tile", move |tx| {
+        self.run("counting a verified tile", move |tx| {
             tx.execute(
                 "INSERT INTO job_notes (job, verified) VALUES ($1, 1)
                  ON CONFLICT (job) DO UPDATE SET verified = job_notes.verified + 1",
@@ -533,11 +617,11 @@ impl JobStore for PostgresStore {
     }
 
     fn verified(&self, job: u64) -> Result<u64, StoreError> {
-        Ok(self.note(job, "verified")? as u64)
+        Ok(self.note(job, Note::Verified)? as u64)
     }
 
     fn webhook(&self, job: u64) -> Result<WebhookOutcome, StoreError> {
-        Ok(match self.note(job, "webhook")? {
+        Ok(match self.note(job, Note::Webhook)? {
             1 => WebhookOutcome::Delivered,
             2 => WebhookOutcome::GaveUp,
             _ => WebhookOutcome::Pending,
@@ -545,12 +629,12 @@ impl JobStore for PostgresStore {
     }
 
     fn set_webhook(&self, job: u64, outcome: WebhookOutcome) -> Result<(), StoreError> {
-        self.set_note(job, "webhook", outcome as i64)
+        self.set_note(job, Note::Webhook, outcome as i64)
     }
 
     fn set_aside(&self, worker: &str, reason: &str) -> Result<(), StoreError> {
         let (worker, reason) = (worker.to_string(), reason.to_string());
-        self.write("setting a worker aside", move |tx| {
+        self.run("setting a worker aside", move |tx| {
             tx.execute(
                 "INSERT INTO set_aside (worker, reason) VALUES ($1, $2) ON CONFLICT DO NOTHING",
                 &[&worker, &reason],
@@ -561,14 +645,14 @@ impl JobStore for PostgresStore {
 
     fn reinstate(&self, worker: &str) -> Result<(), StoreError> {
         let worker = worker.to_string();
-        self.write("reinstating a worker", move |tx| {
+        self.run("reinstating a worker", move |tx| {
             tx.execute("DELETE FROM set_aside WHERE worker = $1", &[&worker])
                 .map(drop)
         })
     }
 
     fn set_aside_workers(&self) -> Result<Vec<(String, String)>, StoreError> {
-        self.read("reading the workers set aside", |c| {
+        self.run("reading the workers set aside", |c| {
             Ok(
                 c.query("SELECT worker, reason FROM set_aside ORDER BY worker", &[])?
                     .iter()
@@ -580,7 +664,7 @@ impl JobStore for PostgresStore {
 
     fn insert_token(&self, role: Role, name: &str, hash: &str) -> Result<u64, StoreError> {
         let (name, hash) = (name.to_string(), hash.to_string());
-        self.write("keeping a token", move |tx| {
+        self.run("keeping a token", move |tx| {
             let id: i64 = tx
                 .query_one(
                     "INSERT INTO tokens (role, name, hash) VALUES ($1, $2, $3) RETURNING id",
@@ -592,7 +676,7 @@ impl JobStore for PostgresStore {
     }
 
     fn revoke_token(&self, id: u64) -> Result<bool, StoreError> {
-        self.write("revoking a token", move |tx| {
+        self.run("revoking a token", move |tx| {
             Ok(tx.execute(
                 "UPDATE tokens SET revoked = true WHERE id = $1",
                 &[&(id as i64)],
@@ -601,7 +685,7 @@ impl JobStore for PostgresStore {
     }
 
     fn tokens(&self) -> Result<Vec<StoredToken>, StoreError> {
-        self.read("reading the tokens", |c| {
+        self.run("reading the tokens", |c| {
             let rows = c.query(
                 "SELECT id, role, name, hash, revoked FROM tokens ORDER BY id",
                 &[],
@@ -641,6 +725,8 @@ impl JobStore for PostgresStore {
             )?;
             if let Some(row) = taken {
                 let epoch: i64 = row.get(0);
+                // From now on every write on this connection (and any later one) is fenced.
+                client.batch_execute(&format!("SET kiln.epoch = '{epoch}'"))?;
                 c.fence = Some(epoch);
                 return Ok(Leadership::Leading { epoch: epoch as u64 });
             }
