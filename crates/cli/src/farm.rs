@@ -109,6 +109,12 @@ pub struct CoordinatorArgs {
     /// SQLite in the data directory.
     #[arg(long, env = "KILN_STORE")]
     store: Option<String>,
+    /// Keep scene bundles, pre-passes and merged frames also in this S3 bucket
+    /// (s3://bucket/prefix), where every coordinator of the farm finds them; the endpoint
+    /// and credentials come from AWS_ENDPOINT, AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY,
+    /// AWS_REGION (and AWS_ALLOW_HTTP=true for an http endpoint).
+    #[arg(long, env = "KILN_OBJECTS")]
+    objects: Option<String>,
     /// The URL other coordinators report as this one's while it leads (default: the
     /// listening address).
     #[arg(long)]
@@ -157,6 +163,7 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
             config.candidate = Some(coordinator::Candidate::new(address, ttl));
             config.store = Some(store);
         }
+        config.objects = args.objects.clone().filter(|o| !o.is_empty());
         // A standby waits here, on a blocking thread, until it leads.
         let c = tokio::task::spawn_blocking(move || Coordinator::open(config)).await??;
         let listener = tokio::net::TcpListener::bind(&args.listen)

@@ -105,6 +105,9 @@ pub enum Error {
     // Internal failures: logged, never shown.
     #[error("job store: {0}")]
     Store(StoreError),
+    /// The object store could not be set up, written or read.
+    #[error("{0}")]
+    Objects(String),
     #[error("{}: {message}", path.display())]
     Io { path: PathBuf, message: String },
     #[error("cannot store a scene: {0}")]

@@ -156,7 +156,7 @@ impl Error {
             Error::JobEnded(_) => StatusCode::GONE,
             // The store is away (a server restarting, a full disk) or this coordinator no
             // longer leads: the same request may succeed later, here or at the leader.
-            Error::Store(_) => StatusCode::SERVICE_UNAVAILABLE,
+            Error::Store(_) | Error::Objects(_) => StatusCode::SERVICE_UNAVAILABLE,
             Error::LostJobs(_)
             | Error::Io { .. }
             | Error::Unpack(_)
@@ -177,6 +177,10 @@ impl IntoResponse for Error {
                 "the job store cannot be used right now: try again (the coordinator's log says why)"
                     .to_string()
             }
+        } else if let Error::Objects(_) = &self {
+            tracing::error!("{self}");
+            "the object store cannot be used right now: try again (the coordinator's log says why)"
+                .to_string()
         } else if status.is_server_error() {
             // The details are for the operator's log, not for clients.
             tracing::error!("{self}");
@@ -357,9 +361,10 @@ async fn claim_prepass(
     State(c): State<Coordinator>,
     UrlPath((digest, name)): UrlPath<(String, String)>,
 ) -> Result<Json<PrepassClaimAnswer>, Error> {
-    Ok(Json(PrepassClaimAnswer {
-        claim: c.claim_prepass(&digest, &name)?,
-    }))
+    let claim = c
+        .off_runtime(move |c| c.claim_prepass(&digest, &name))
+        .await?;
+    Ok(Json(PrepassClaimAnswer { claim }))
 }
 
 async fn release_prepass(

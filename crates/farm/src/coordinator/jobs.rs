@@ -13,8 +13,12 @@ use crate::api::{FrameStatus, JobSpec, JobState, JobStatus, WorkerLease, WorkerS
 impl Coordinator {
     /// Keeps an uploaded scene bundle; returns its digest.
     pub async fn save_scene(&self, bundle: axum::body::Bytes) -> Result<String, Error> {
-        let files = self.files().clone();
-        tokio::task::spawn_blocking(move || files.save_bundle(&bundle)).await?
+        self.off_runtime(move |c| {
+            let digest = c.files().save_bundle(&bundle)?;
+            c.keep_object(&super::objects::keys::bundle(&digest), bundle.to_vec())?;
+            Ok(digest)
+        })
+        .await
     }
 
     /// Keeps a scene bundle as it arrives: the body is written to a file and hashed chunk by
@@ -41,11 +45,26 @@ impl Coordinator {
             Err(e) => Err(e),
         };
         let _ = tokio::fs::remove_file(&path).await;
-        saved
+        let digest = saved?;
+        if self.shared.objects.is_some() {
+            let d = digest.clone();
+            self.off_runtime(move |c| {
+                let kept = c.files().scenes().join(&d).join(crate::bundle::BUNDLE_FILE);
+                let bytes = std::fs::read(&kept).map_err(|e| Error::io(&kept, e))?;
+                c.keep_object(&super::objects::keys::bundle(&d), bytes)
+            })
+            .await?;
+        }
+        Ok(digest)
     }
 
-    /// A kept scene bundle's bytes.
+    /// A kept scene bundle's bytes (fetched from the object store if it is kept there
+    /// only).
     pub async fn scene_bundle(&self, digest: &str) -> Result<Stored, Error> {
+        if self.shared.objects.is_some() {
+            let d = digest.to_string();
+            self.off_runtime(move |c| c.ensure_bundle(&d)).await?;
+        }
         self.files().bundle(digest).await
     }
 
@@ -99,15 +118,17 @@ impl Coordinator {
             .expect("the planning semaphore is never closed");
         #[cfg(test)]
         let hook = self.shared.plan_hook.lock().unwrap().clone();
+        let c = self.clone();
         let mut job = tokio::task::spawn_blocking(move || {
             #[cfg(test)]
             if let Some(hook) = hook {
                 hook();
             }
-            Job::plan(&scenes, 0, spec2, JobState::Running, max_pixels)
+            // A scene uploaded to another coordinator of the farm is in the object store.
+            c.ensure_bundle(&spec2.scene)?;
+            Job::plan(&scenes, 0, spec2, JobState::Running, max_pixels).map_err(Error::Unplannable)
         })
-        .await?
-        .map_err(Error::Unplannable)?;
+        .await??;
         let (id, created) = self
             .off_runtime(move |c| {
                 let mut state = c.lock();
@@ -209,6 +230,11 @@ impl Coordinator {
             return Err(Error::NotDone { id, state });
         }
         let path = self.files().result_path(id, frame);
+        if self.shared.objects.is_some() {
+            // A frame merged by another coordinator of the farm is in the object store.
+            let (p, key) = (path.clone(), super::objects::keys::frame(id, frame));
+            self.off_runtime(move |c| c.fetch_missing(&p, &key)).await?;
+        }
         match Stored::open(&path).await {
             Ok(stored) => Ok(stored),
             // An ended job that never merged a pass has none (one that did and lost the
@@ -246,6 +272,10 @@ impl Coordinator {
             Some(p) => p,
             None => {
                 let path = self.files().result_path(id, frame);
+                if self.shared.objects.is_some() {
+                    let (p, key) = (path.clone(), super::objects::keys::frame(id, frame));
+                    self.off_runtime(move |c| c.fetch_missing(&p, &key)).await?;
+                }
                 let bytes = tokio::fs::read(&path)
                     .await
                     .map_err(|e| Error::io(&path, e))?;

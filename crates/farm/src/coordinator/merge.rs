@@ -43,7 +43,20 @@ impl Coordinator {
         let start = std::time::Instant::now();
         let staged = kiln_image::encode_exr(frame)
             .map_err(Error::Image)
-            .and_then(|bytes| self.files().stage_result(id, index, pass, &bytes));
+            .and_then(|bytes| {
+                let staged = self.files().stage_result(id, index, pass, &bytes)?;
+                // Kept in the object store before it is the result: an outage of the store
+                // is a write that fails, tried again later as a full disk's is.
+                let key = super::objects::keys::frame(id, index);
+                self.keep_object(&key, bytes).map_err(|e| {
+                    let _ = std::fs::remove_file(&staged);
+                    Error::Io {
+                        path: std::path::PathBuf::from(key),
+                        message: e.to_string(),
+                    }
+                })?;
+                Ok(staged)
+            });
         self.commit_merge(id, index, pass, staged, start.elapsed());
     }
 

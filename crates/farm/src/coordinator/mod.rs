@@ -29,6 +29,7 @@ mod lending;
 mod listen;
 mod merge;
 mod metrics;
+mod objects;
 mod prepass;
 #[cfg(test)]
 mod proptests;
@@ -44,6 +45,7 @@ pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
 pub use leader::Candidate;
 pub use listen::MAX_HEAD_BYTES;
+pub use objects::ObjectsError;
 pub use store::StoreError;
 pub use stored::Stored;
 pub use tls::{TlsFiles, check as check_tls};
@@ -107,6 +109,9 @@ pub struct Config {
     /// On a shared store, how this coordinator leads: it waits as a standby until the lead
     /// is free. Required with a `postgres://` store.
     pub candidate: Option<Candidate>,
+    /// Scene bundles, pre-passes and merged frames also kept in this S3 bucket
+    /// (`s3://bucket/prefix`), so that every coordinator of the farm finds them.
+    pub objects: Option<String>,
 }
 
 impl Config {
@@ -127,6 +132,7 @@ impl Config {
             tls: None,
             store: None,
             candidate: None,
+            objects: None,
         }
     }
 }
@@ -140,6 +146,8 @@ pub struct Coordinator {
 struct Shared {
     config: Config,
     files: DataDir,
+    /// The S3 bucket bundles, pre-passes and merged frames are also kept in, if any.
+    objects: Option<objects::Objects>,
     /// A std mutex, not tokio's (as tokio's docs advise for short critical sections):
     /// every critical section is a few assignments and at most one small SQLite
     /// statement, and none is held across an `.await` (a std guard is not `Send`, so a
@@ -229,6 +237,10 @@ impl Coordinator {
             }
             None => None,
         };
+        let objects = match config.objects.as_deref() {
+            Some(url) => Some(objects::Objects::open(url).map_err(Error::Objects)?),
+            None => None,
+        };
         let files = DataDir::create(&config.data_dir)?;
         let store = match shared {
             Some(store) => store,
@@ -269,6 +281,7 @@ impl Coordinator {
                     credentials,
                 }),
                 files,
+                objects,
                 config,
                 events,
                 prepass_claims: Mutex::new(prepass::Claims::default()),
@@ -291,6 +304,12 @@ impl Coordinator {
             let id = s.id;
             let max_pixels = self.config().max_frame_pixels;
             let scenes = self.files().scenes();
+            if let Ok(spec) = &s.spec {
+                // A coordinator that took the lead on another host fetches the scene; an
+                // object store that cannot be reached stops the start (it is tried again),
+                // rather than failing jobs whose scenes are safe.
+                self.ensure_bundle(&spec.scene)?;
+            }
             let planned = match s.spec.clone() {
                 Ok(spec) => Job::plan(&scenes, id, spec, s.state, max_pixels)
                     .map_err(|e| format!("it cannot be resumed: {e}")),

@@ -78,6 +78,11 @@ impl Coordinator {
     /// to hash them: a pre-pass may be hundreds of megabytes, and is never held whole.
     pub async fn prepass(&self, scene: &str, name: &str) -> Result<(Stored, String), Error> {
         let path = self.prepass_path(scene, name)?;
+        if self.shared.objects.is_some() {
+            // Computed for another coordinator of the farm: in the object store.
+            let (p, key) = (path.clone(), super::objects::keys::prepass(scene, name));
+            self.off_runtime(move |c| c.fetch_missing(&p, &key)).await?;
+        }
         let mut stored = Stored::open(&path)
             .await
             .map_err(|_| Error::UnknownPrepass(name.to_string()))?;
@@ -118,6 +123,15 @@ impl Coordinator {
             if digest != sha.to_ascii_lowercase() {
                 return Err(Error::PrepassDigest);
             }
+            if self.shared.objects.is_some() {
+                // In the object store before it is ready here.
+                let (t, key) = (tmp.clone(), super::objects::keys::prepass(scene, name));
+                self.off_runtime(move |c| {
+                    let bytes = std::fs::read(&t).map_err(|e| Error::io(&t, e))?;
+                    c.keep_object(&key, bytes)
+                })
+                .await?;
+            }
             let dir = path.parent().expect("a pre-pass has a folder");
             tokio::fs::create_dir_all(dir)
                 .await
@@ -143,6 +157,15 @@ impl Coordinator {
         let path = self.prepass_path(scene, name)?;
         if path.exists() {
             return Ok(PrepassClaim::Ready);
+        }
+        if let Some(objects) = &self.shared.objects {
+            let key = super::objects::keys::prepass(scene, name);
+            if objects
+                .exists(&key)
+                .map_err(|e| Error::Objects(e.to_string()))?
+            {
+                return Ok(PrepassClaim::Ready);
+            }
         }
         self.check_wanted(scene, name)?;
         let mut claims = self.claims();
