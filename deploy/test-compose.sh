@@ -13,6 +13,10 @@ if ! command -v docker >/dev/null || ! docker info >/dev/null 2>&1 || ! command 
 fi
 NAME=test-compose
 . deploy/lib.sh
+# The failover variant pulls images this machine cannot: its file is checked, not run
+# (deploy/test-ha.sh runs the same failover with processes).
+KILN_ENV_FILE=kiln.env.example docker-compose -f deploy/docker-compose.ha.yml config -q
+step "deploy/docker-compose.ha.yml is a valid compose file"
 project=kiln-ci-$$
 work="$(mktemp -d)"
 export KILN_IMAGE=kiln:ci KILN_ENV_FILE="$work/kiln.env" KILN_PORT=$(( 20000 + $$ % 20000 ))

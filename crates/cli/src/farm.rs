@@ -164,11 +164,39 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
             config.store = Some(store);
         }
         config.objects = args.objects.clone().filter(|o| !o.is_empty());
+        let bind = || async {
+            tokio::net::TcpListener::bind(&args.listen)
+                .await
+                .with_context(|| format!("cannot listen on {}", args.listen))
+        };
+        // On a shared store, a standby answers on its address with the leader's while it
+        // waits (over plain http only: with TLS it does not listen until it leads).
+        let standing_by = match &config.candidate {
+            Some(me) if config.tls.is_none() => {
+                let listener = bind().await?.into_std()?;
+                let answering = tokio::net::TcpListener::from_std(listener.try_clone()?)?;
+                println!(
+                    "kiln coordinator: standing by on http://{} until it leads",
+                    listener.local_addr()?
+                );
+                let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+                let task = tokio::spawn(coordinator::stand_by(answering, me.clone(), async {
+                    let _ = stopped.await;
+                }));
+                Some((listener, stop, task))
+            }
+            _ => None,
+        };
         // A standby waits here, on a blocking thread, until it leads.
         let c = tokio::task::spawn_blocking(move || Coordinator::open(config)).await??;
-        let listener = tokio::net::TcpListener::bind(&args.listen)
-            .await
-            .with_context(|| format!("cannot listen on {}", args.listen))?;
+        let listener = match standing_by {
+            Some((listener, stop, task)) => {
+                let _ = stop.send(());
+                let _ = task.await;
+                tokio::net::TcpListener::from_std(listener)?
+            }
+            None => bind().await?,
+        };
         let addr = listener.local_addr()?;
         println!(
             "kiln coordinator: listening on {scheme}://{addr} (data in {})",

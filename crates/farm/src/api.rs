@@ -570,6 +570,9 @@ pub struct ApiError {
 /// merged.
 pub const TILE_DIGEST_HEADER: &str = "x-kiln-tile-sha256";
 
+/// The header a standby coordinator's 503 names the leading coordinator's address in.
+pub const LEADER_HEADER: &str = "x-kiln-leader";
+
 /// The header carrying the SHA-256 (hex) of a shared pre-pass's bytes, on upload and
 /// download.
 pub const PREPASS_DIGEST_HEADER: &str = "x-kiln-prepass-sha256";

@@ -14,6 +14,15 @@ use reqwest::{Method, RequestBuilder, StatusCode};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+/// The leader a standby coordinator's answer names (a 503 with `X-Kiln-Leader`).
+fn standby_leader(resp: &reqwest::Response) -> Option<String> {
+    if resp.status() != StatusCode::SERVICE_UNAVAILABLE {
+        return None;
+    }
+    let leader = resp.headers().get(LEADER_HEADER)?;
+    Some(leader.to_str().ok()?.trim_end_matches('/').to_string())
+}
+
 /// `http://a:7878, http://b:7878/` as its URLs, trimmed and without trailing slashes.
 fn bases(list: &str) -> Arc<Vec<String>> {
     let mut all: Vec<String> = list
@@ -148,39 +157,55 @@ impl Client {
             return Err(ClientError::Setup(why.clone()));
         }
         let mut req = r.build()?;
-        // Each other coordinator is tried once when one cannot be reached (a body that
-        // cannot be sent twice, a stream, is not sent again: the next call goes there).
+        // Each other coordinator is tried once when one cannot be reached or stands by (a
+        // body that cannot be sent twice, a stream, is not sent again: the next call goes
+        // there). A standby's answer names the leader, which is tried next if listed.
         for _ in 1..self.bases.len() {
             let spare = req.try_clone();
             let used = self.current.load(Ordering::Relaxed) % self.bases.len();
-            match self.http.execute(req).await {
-                Ok(resp) => return self.check(resp).await,
-                Err(e) if e.is_connect() => {
-                    let next = (used + 1) % self.bases.len();
-                    let _ = self.current.compare_exchange(
-                        used,
-                        next,
-                        Ordering::Relaxed,
-                        Ordering::Relaxed,
-                    );
-                    tracing::info!(
-                        "coordinator {} cannot be reached ({e}); trying {}",
-                        self.bases[used],
-                        self.bases[next]
-                    );
-                    let Some(mut again) = spare else {
-                        return Err(e.into());
-                    };
-                    let url = again.url().as_str().to_string();
-                    let rest = url.strip_prefix(self.bases[used].as_str()).unwrap_or(&url);
-                    match reqwest::Url::parse(&format!("{}{rest}", self.bases[next])) {
-                        Ok(u) => *again.url_mut() = u,
-                        Err(_) => return Err(e.into()),
+            let why = match self.http.execute(req).await {
+                Ok(resp) => match standby_leader(&resp) {
+                    Some(leader) => {
+                        let listed = self.bases.iter().position(|b| *b == leader);
+                        (
+                            format!("it stands by, and {leader} leads"),
+                            listed,
+                            Ok(resp),
+                        )
                     }
-                    req = again;
-                }
+                    None => return self.check(resp).await,
+                },
+                Err(e) if e.is_connect() => (e.to_string(), None, Err(e)),
                 Err(e) => return Err(e.into()),
+            };
+            let (why, listed, outcome) = why;
+            let next = listed.unwrap_or((used + 1) % self.bases.len());
+            let _ = self
+                .current
+                .compare_exchange(used, next, Ordering::Relaxed, Ordering::Relaxed);
+            tracing::info!(
+                "coordinator {}: {why}; trying {}",
+                self.bases[used],
+                self.bases[next]
+            );
+            let Some(mut again) = spare else {
+                return match outcome {
+                    Ok(resp) => self.check(resp).await,
+                    Err(e) => Err(e.into()),
+                };
+            };
+            let url = again.url().as_str().to_string();
+            let rest = url.strip_prefix(self.bases[used].as_str()).unwrap_or(&url);
+            match reqwest::Url::parse(&format!("{}{rest}", self.bases[next])) {
+                Ok(u) => *again.url_mut() = u,
+                Err(_) => {
+                    return match outcome {
+                        Ok(resp) => self.check(resp).await,
+                        Err(e) => Err(e.into()),
+                    };
+                }
             }
+            req = again;
         }
         let resp = self.http.execute(req).await?;
         self.check(resp).await
@@ -479,5 +504,40 @@ mod tests {
         // One coordinator that cannot be reached is an error, as before.
         let alone = Client::new(dead, None);
         assert!(alone.healthz().await.is_err());
+    }
+
+    /// A standby's answer names the leader: a client given both moves to it, whichever
+    /// order they come in.
+    #[tokio::test]
+    async fn a_client_moves_from_a_standby_to_the_leader_it_names() {
+        use crate::coordinator::{Candidate, stand_by};
+        let leading = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let leader = format!("http://{}", leading.local_addr().unwrap());
+        let app = axum::Router::new().route("/healthz", axum::routing::get(|| async { "ok" }));
+        tokio::spawn(async move { axum::serve(leading, app).await });
+        let standing = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let standby = format!("http://{}", standing.local_addr().unwrap());
+        let me = Candidate::new(standby.clone(), std::time::Duration::from_secs(5));
+        tokio::spawn(stand_by(standing, me.clone(), std::future::pending()));
+        // No leader known yet: a 503 that says so.
+        let err = Client::new(&standby, None).healthz().await.unwrap_err();
+        assert_eq!(err.status(), Some(reqwest::StatusCode::SERVICE_UNAVAILABLE));
+        assert!(
+            err.to_string().contains("no coordinator leads yet"),
+            "{err}"
+        );
+        *me.leader.lock().unwrap() = Some(("c1".into(), leader.clone()));
+        let err = Client::new(&standby, None).healthz().await.unwrap_err();
+        assert!(
+            err.to_string().contains(&format!("leads at {leader}")),
+            "{err}"
+        );
+        // Given both, a client goes to the leader the standby names.
+        let client = Client::new(&format!("{standby},{leader}"), None);
+        client.healthz().await.unwrap();
+        assert_eq!(client.base(), leader);
+        let client = Client::new(&format!("{leader},{standby}"), None);
+        client.healthz().await.unwrap();
+        assert_eq!(client.base(), leader);
     }
 }

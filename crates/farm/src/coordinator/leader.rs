@@ -2,17 +2,21 @@
 //! leading them: waiting as a standby until the lead is free, then renewing it, and
 //! stopping the moment another has taken it.
 //!
-//! A standby does not serve: it opens nothing of the farm's and listens on nothing until it
-//! leads, so a load balancer or a Kubernetes Service whose readiness is `/healthz` sends
-//! requests to the leader only, and clients given several coordinator URLs find it by
-//! trying them. The lead's TTL is measured on the store's clock. A deposed leader cannot
-//! write (the store fences every write by its epoch); it stops serving within a renewal
-//! period and exits, to come back as a standby.
+//! A standby opens nothing of the farm's until it leads. It answers every request, its
+//! health check too, with a 503 that names the leader's address (in its body and the
+//! `X-Kiln-Leader` header, see [`stand_by`]), so a load balancer or a Kubernetes Service
+//! whose readiness is `/healthz` sends requests to the leader only, and clients given
+//! several coordinator URLs move on to it. The lead's TTL is measured on the store's
+//! clock. A deposed leader cannot write (the store fences every write by its epoch); it
+//! stops serving within a renewal period and exits, to come back as a standby.
 
 use super::store::{JobStore, Leadership, PostgresStore, SqliteStore, StoreError};
 use super::{Coordinator, Error};
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
+
+use crate::api::LEADER_HEADER;
 
 /// Opens the store the configuration names: SQLite in the data directory by default, or
 /// the PostgreSQL server of a `postgres://` URL.
@@ -40,6 +44,8 @@ pub struct Candidate {
     pub address: String,
     /// How long the lead lasts unrenewed before a standby takes it.
     pub ttl: Duration,
+    /// Who leads while this one stands by: the leader's name and address, as last seen.
+    pub leader: Arc<Mutex<Option<(String, String)>>>,
 }
 
 impl Candidate {
@@ -54,6 +60,7 @@ impl Candidate {
             name: format!("{host}-{}-{started}", std::process::id()),
             address,
             ttl,
+            leader: Arc::new(Mutex::new(None)),
         }
     }
 
@@ -88,6 +95,8 @@ pub(super) fn wait_for_lead(store: &dyn JobStore, me: &Candidate) -> Result<u64,
                     tracing::info!(
                         "standing by: coordinator {holder} leads at {address} (epoch {epoch})"
                     );
+                    *me.leader.lock().unwrap_or_else(|p| p.into_inner()) =
+                        Some((holder.clone(), address));
                     said = Some((holder, epoch));
                 }
             }
@@ -126,4 +135,43 @@ pub(super) async fn keep_lead(c: Coordinator, me: Candidate) -> String {
             Err(e) => return format!("the lead's renewal failed: {e}"),
         }
     }
+}
+
+/// Answers every request on `listener` while this coordinator stands by, until `until`
+/// resolves: a 503 that names the leader (`X-Kiln-Leader` and the body's `leader`), or says
+/// that no leader is known yet. Requests already being answered are finished.
+pub async fn stand_by(
+    listener: tokio::net::TcpListener,
+    me: Candidate,
+    until: impl std::future::Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    use axum::http::{HeaderValue, StatusCode, header};
+    use axum::response::IntoResponse;
+    let answer = move || {
+        let leader = me.leader.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        async move {
+            let (error, address) = match &leader {
+                Some((holder, address)) => (
+                    format!("this coordinator stands by: coordinator {holder} leads at {address}"),
+                    Some(address.clone()),
+                ),
+                None => (
+                    "this coordinator stands by, and no coordinator leads yet: try again in a moment".to_string(),
+                    None,
+                ),
+            };
+            let body = serde_json::json!({ "error": error, "leader": address });
+            let mut response = (StatusCode::SERVICE_UNAVAILABLE, axum::Json(body)).into_response();
+            let headers = response.headers_mut();
+            headers.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            if let Some(v) = address.and_then(|a| HeaderValue::from_str(&a).ok()) {
+                headers.insert(LEADER_HEADER, v);
+            }
+            response
+        }
+    };
+    let app = axum::Router::new().fallback(answer);
+    axum::serve(listener, app)
+        .with_graceful_shutdown(until)
+        .await
 }

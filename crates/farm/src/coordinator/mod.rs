@@ -43,7 +43,7 @@ mod webhooks;
 
 pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
-pub use leader::Candidate;
+pub use leader::{Candidate, stand_by};
 pub use listen::MAX_HEAD_BYTES;
 pub use objects::ObjectsError;
 pub use store::StoreError;
