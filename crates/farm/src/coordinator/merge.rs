@@ -29,7 +29,12 @@ impl Coordinator {
             })
             .await;
             if let Err(e) = merged {
-                c.commit_merge(id, index, pass, Err(Error::Task(e)), Duration::ZERO);
+                let _ = c
+                    .off_runtime(move |c| {
+                        c.commit_merge(id, index, pass, Err(Error::Task(e)), Duration::ZERO);
+                        Ok(())
+                    })
+                    .await;
             }
         });
         let _ = task.await;

@@ -45,7 +45,6 @@ pub use error::{Error, PlanError, TileRejected};
 pub use http::app;
 pub use leader::{Candidate, stand_by};
 pub use listen::MAX_HEAD_BYTES;
-pub use objects::ObjectsError;
 pub use store::StoreError;
 pub use stored::Stored;
 pub use tls::{TlsFiles, check as check_tls};

@@ -175,7 +175,12 @@ impl Coordinator {
             match sent {
                 Ok(r) if r.status().is_success() => {
                     let delivered = Delivery::Delivered(attempt);
-                    if self.settle(id, round, WebhookOutcome::Delivered, delivered) {
+                    let settled = self
+                        .off_runtime(move |c| {
+                            Ok(c.settle(id, round, WebhookOutcome::Delivered, delivered))
+                        })
+                        .await;
+                    if settled.unwrap_or(false) {
                         self.notify(id);
                     }
                     return;
@@ -189,7 +194,12 @@ impl Coordinator {
                 pause = (pause * 2).min(Duration::from_secs(60));
             }
         }
-        if self.settle(id, round, WebhookOutcome::GaveUp, Delivery::GaveUp(last)) {
+        let settled = self
+            .off_runtime(move |c| {
+                Ok(c.settle(id, round, WebhookOutcome::GaveUp, Delivery::GaveUp(last)))
+            })
+            .await;
+        if settled.unwrap_or(false) {
             self.notify(id);
         }
     }
@@ -200,7 +210,13 @@ pub(super) async fn deliver_webhooks_forever(c: Coordinator) {
     let mut events = c.subscribe();
     loop {
         let _ = tokio::time::timeout(Duration::from_secs(1), events.recv()).await;
-        c.sweep_webhooks();
+        // Off the runtime's threads: a sweep reads the job store.
+        let _ = c
+            .off_runtime(|c| {
+                c.sweep_webhooks();
+                Ok(())
+            })
+            .await;
     }
 }
 
