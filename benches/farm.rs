@@ -79,6 +79,42 @@ fn efficiency() {
     );
 }
 
+/// Every tile of the 2880x1920 frame cut into `tile` px tiles, as a worker's upload after one
+/// pass of 1 sample: the pixels, and the running sums a real worker's tile carries.
+fn tile_exrs(tile: u32) -> Vec<Vec<u8>> {
+    kiln_render::split_into_tiles([0, 2880, 0, 1920], tile)
+        .iter()
+        .map(|r| {
+            let mut tile = kiln_image::RgbBuffer::new(2880, 1920, r.x0, r.y0, r.width, r.height);
+            tile.pixels.iter_mut().for_each(|p| *p = [0.5; 3]);
+            let mut sums = kiln_render::TileSums::empty(*r, kiln_render::SumsLayout::default());
+            sums.samples = 1;
+            tile.words = kiln_image::Words {
+                names: kiln_render::TileSums::word_names(kiln_render::SumsLayout::default()),
+                values: sums.to_words(),
+            };
+            kiln_image::encode_exr(&tile).unwrap()
+        })
+        .collect()
+}
+
+/// The coordinator's configuration for `workers` simulated workers, on SQLite in `data` or
+/// the PostgreSQL database `store` names.
+fn scale_config(data: std::path::PathBuf, workers: usize, store: Option<String>) -> Config {
+    let mut config = Config::new(data);
+    // Every request in flight holds a connection, and the client's pool opens more as it
+    // churns (up to twice as many were seen): none is turned away for the limit.
+    config.max_connections = 4 * workers.min(2048) + 64;
+    if let Some(url) = store {
+        config.store = Some(url);
+        config.candidate = Some(coordinator::Candidate::new(
+            "http://bench".into(),
+            Duration::from_secs(5),
+        ));
+    }
+    config
+}
+
 fn scale(workers: usize, think_ms: u64, tile: u32, store: Option<String>) {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -93,21 +129,12 @@ fn scale(workers: usize, think_ms: u64, tile: u32, store: Option<String>) {
         "Film \"rgb\" \"integer xresolution\" [ 2880 ] \"integer yresolution\" [ 1920 ]\nWorldBegin\nLightSource \"infinite\"\n",
     )
     .unwrap();
-    let mut config = Config::new(dir.path().join("data"));
-    // Every request in flight holds a connection, and the client's pool opens more as it
-    // churns (up to twice as many were seen): none is turned away for the limit.
-    config.max_connections = 4 * workers.min(2048) + 64;
-    let which = match &store {
-        Some(_) => "PostgreSQL",
-        None => "SQLite",
+    let which = if store.is_some() {
+        "PostgreSQL"
+    } else {
+        "SQLite"
     };
-    if let Some(url) = store {
-        config.store = Some(url);
-        config.candidate = Some(coordinator::Candidate::new(
-            "http://bench".into(),
-            Duration::from_secs(5),
-        ));
-    }
+    let config = scale_config(dir.path().join("data"), workers, store);
     let c = Coordinator::open(config).unwrap();
     let listener = rt
         .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
@@ -127,24 +154,7 @@ fn scale(workers: usize, think_ms: u64, tile: u32, store: Option<String>) {
     // The simulated workers neither render nor encode: their tiles' EXRs are made before
     // the clock starts, so the figures are the coordinator's (it still decodes and checks
     // every upload).
-    let tiles: Arc<Vec<Vec<u8>>> = Arc::new(
-        kiln_render::split_into_tiles([0, 2880, 0, 1920], tile)
-            .iter()
-            .map(|r| {
-                let mut tile =
-                    kiln_image::RgbBuffer::new(2880, 1920, r.x0, r.y0, r.width, r.height);
-                tile.pixels.iter_mut().for_each(|p| *p = [0.5; 3]);
-                // The running sums a real worker's tile carries (one pass of 1 sample).
-                let mut sums = kiln_render::TileSums::empty(*r, kiln_render::SumsLayout::default());
-                sums.samples = 1;
-                tile.words = kiln_image::Words {
-                    names: kiln_render::TileSums::word_names(kiln_render::SumsLayout::default()),
-                    values: sums.to_words(),
-                };
-                kiln_image::encode_exr(&tile).unwrap()
-            })
-            .collect(),
-    );
+    let tiles = Arc::new(tile_exrs(tile));
     let latencies = Arc::new(std::sync::Mutex::new(Vec::with_capacity(total as usize)));
     // Both ends of every connection are in this process, which may open 20,000 files here:
     // at most 2,048 workers have requests in flight at once, whatever the number of workers.
