@@ -211,7 +211,8 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
 
 #[derive(clap::Args)]
 pub struct WorkerArgs {
-    /// The coordinator's URL, e.g. http://127.0.0.1:7878
+    /// The coordinator's URL, e.g. http://127.0.0.1:7878; for a farm with standby
+    /// coordinators, all of theirs, comma separated (requests go to the one that leads).
     #[arg(long)]
     coordinator: String,
     /// Render threads (default: all cores).
@@ -413,6 +414,8 @@ pub struct SubmitArgs {
     /// lies beside or below the first's folder.
     #[arg(required = true, num_args = 1..)]
     scenes: Vec<PathBuf>,
+    /// The coordinator's URL; for a farm with standby coordinators, all of theirs, comma
+    /// separated (requests go to the one that leads).
     #[arg(long)]
     coordinator: String,
     #[command(flatten)]
