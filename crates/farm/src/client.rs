@@ -12,7 +12,7 @@ use crate::api::*;
 use crate::trust::TLS_CA_VAR;
 use reqwest::{Method, RequestBuilder, StatusCode};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// The leader a standby coordinator's answer names (a 503 with `X-Kiln-Leader`).
 fn standby_leader(resp: &reqwest::Response) -> Option<String> {
@@ -64,6 +64,10 @@ pub struct Client {
     /// The coordinators' URLs, without a trailing slash; `current` indexes the one in use.
     bases: Arc<Vec<String>>,
     current: Arc<AtomicUsize>,
+    /// Whether the coordinator in use has answered as the leader since the client last
+    /// moved: until it has, a request is preceded by a health check, so that no body (a
+    /// scene bundle of gigabytes) is sent to a standby, which answers before reading it.
+    confirmed: Arc<AtomicBool>,
     token: Option<String>,
     /// Why the client cannot send anything (its certificates could not be read): every
     /// request fails with it.
@@ -116,6 +120,7 @@ impl Client {
                 http,
                 bases: bases(base),
                 current: Arc::new(AtomicUsize::new(0)),
+                confirmed: Arc::new(AtomicBool::new(false)),
                 token,
                 broken: None,
             },
@@ -133,6 +138,7 @@ impl Client {
                 .unwrap_or_default(),
             bases: bases(base),
             current: Arc::new(AtomicUsize::new(0)),
+            confirmed: Arc::new(AtomicBool::new(false)),
             token,
             broken: Some(why),
         }
@@ -157,6 +163,16 @@ impl Client {
             return Err(ClientError::Setup(why.clone()));
         }
         let mut req = r.build()?;
+        if self.bases.len() > 1 && !self.confirmed.load(Ordering::Relaxed) {
+            self.find_leader().await;
+            let used = self.current.load(Ordering::Relaxed) % self.bases.len();
+            let url = req.url().as_str().to_string();
+            if let Some(rest) = self.bases.iter().find_map(|b| url.strip_prefix(b.as_str()))
+                && let Ok(u) = reqwest::Url::parse(&format!("{}{rest}", self.bases[used]))
+            {
+                *req.url_mut() = u;
+            }
+        }
         // Each other coordinator is tried once when one cannot be reached or stands by (a
         // body that cannot be sent twice, a stream, is not sent again: the next call goes
         // there). A standby's answer names the leader, which is tried next if listed.
@@ -173,7 +189,10 @@ impl Client {
                             Ok(resp),
                         )
                     }
-                    None => return self.check(resp).await,
+                    None => {
+                        self.confirmed.store(true, Ordering::Relaxed);
+                        return self.check(resp).await;
+                    }
                 },
                 Err(e) if e.is_connect() => (e.to_string(), None, Err(e)),
                 Err(e) => return Err(e.into()),
@@ -183,6 +202,7 @@ impl Client {
             let _ = self
                 .current
                 .compare_exchange(used, next, Ordering::Relaxed, Ordering::Relaxed);
+            self.confirmed.store(false, Ordering::Relaxed);
             tracing::info!(
                 "coordinator {}: {why}; trying {}",
                 self.bases[used],
@@ -209,6 +229,32 @@ impl Client {
         }
         let resp = self.http.execute(req).await?;
         self.check(resp).await
+    }
+
+    /// Moves to the first coordinator, from the one in use on, that answers its health
+    /// check as the leader (or to the leader a standby names); stays put if none does.
+    async fn find_leader(&self) {
+        let start = self.current.load(Ordering::Relaxed) % self.bases.len();
+        for k in 0..self.bases.len() {
+            let i = (start + k) % self.bases.len();
+            let Ok(resp) = self
+                .http
+                .get(format!("{}/healthz", self.bases[i]))
+                .send()
+                .await
+            else {
+                continue;
+            };
+            let found = match standby_leader(&resp) {
+                Some(leader) => self.bases.iter().position(|b| *b == leader),
+                None if resp.status().is_success() => Some(i),
+                None => None,
+            };
+            if let Some(found) = found {
+                self.current.store(found, Ordering::Relaxed);
+                return;
+            }
+        }
     }
 
     /// An answer, or its non-2xx status as `ClientError::Api` with the server's message.
@@ -513,7 +559,15 @@ mod tests {
         use crate::coordinator::{Candidate, stand_by};
         let leading = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let leader = format!("http://{}", leading.local_addr().unwrap());
-        let app = axum::Router::new().route("/healthz", axum::routing::get(|| async { "ok" }));
+        let app = axum::Router::new()
+            .route("/healthz", axum::routing::get(|| async { "ok" }))
+            .route(
+                "/v1/scenes",
+                axum::routing::post(|body: axum::body::Bytes| async move {
+                    axum::Json(serde_json::json!({ "digest": body.len().to_string() }))
+                }),
+            )
+            .layer(axum::extract::DefaultBodyLimit::disable());
         tokio::spawn(async move { axum::serve(leading, app).await });
         let standing = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let standby = format!("http://{}", standing.local_addr().unwrap());
@@ -538,6 +592,44 @@ mod tests {
         assert_eq!(client.base(), leader);
         let client = Client::new(&format!("{leader},{standby}"), None);
         client.healthz().await.unwrap();
+        assert_eq!(client.base(), leader);
+        // A large body goes to the leader too.
+        let client = Client::new(&format!("{standby},{leader}"), None);
+        let big = vec![7u8; 64 << 20];
+        assert_eq!(
+            client.upload_scene(big).await.unwrap(),
+            (64u32 << 20).to_string()
+        );
+        assert_eq!(client.base(), leader);
+
+        // A standby answers before reading a body and closes the connection, so an upload
+        // sent to it may die of a broken pipe rather than read the answer (seen in CI): the
+        // client asks who leads before it sends a body to a coordinator not yet heard as the
+        // leader. This one answers and closes at once, every time.
+        let rude = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let rude_url = format!("http://{}", rude.local_addr().unwrap());
+        let named = leader.clone();
+        tokio::spawn(async move {
+            use tokio::io::{AsyncReadExt, AsyncWriteExt};
+            loop {
+                let Ok((mut socket, _)) = rude.accept().await else {
+                    return;
+                };
+                let mut head = [0u8; 512];
+                let _ = socket.read(&mut head).await;
+                let answer = format!(
+                    "HTTP/1.1 503 Service Unavailable\r\nx-kiln-leader: {named}\r\ncontent-length: 2\r\nconnection: close\r\n\r\n{{}}"
+                );
+                let _ = socket.write_all(answer.as_bytes()).await;
+                drop(socket);
+            }
+        });
+        let client = Client::new(&format!("{rude_url},{leader}"), None);
+        let big = vec![7u8; 64 << 20];
+        assert_eq!(
+            client.upload_scene(big).await.unwrap(),
+            (64u32 << 20).to_string()
+        );
         assert_eq!(client.base(), leader);
     }
 }
