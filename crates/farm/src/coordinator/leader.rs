@@ -74,6 +74,7 @@ impl Candidate {
 /// who leads each time that changes, and keeps asking through an outage of the store.
 pub(super) fn wait_for_lead(store: &dyn JobStore, me: &Candidate) -> Result<u64, Error> {
     let mut said: Option<(String, u64)> = None;
+    let mut failing: Option<String> = None;
     let waited = std::time::Instant::now();
     loop {
         match store.lead(&me.name, &me.address, me.ttl) {
@@ -91,6 +92,7 @@ pub(super) fn wait_for_lead(store: &dyn JobStore, me: &Candidate) -> Result<u64,
                 address,
                 epoch,
             }) => {
+                failing = None;
                 if said.as_ref() != Some(&(holder.clone(), epoch)) {
                     tracing::info!(
                         "standing by: coordinator {holder} leads at {address} (epoch {epoch})"
@@ -100,7 +102,17 @@ pub(super) fn wait_for_lead(store: &dyn JobStore, me: &Candidate) -> Result<u64,
                     said = Some((holder, epoch));
                 }
             }
-            Err(e) => tracing::warn!("cannot ask who leads: {e}"),
+            Err(e) => {
+                // Said once per reason, not every period of an outage.
+                let why = e.to_string();
+                if failing.as_deref() != Some(why.as_str()) {
+                    tracing::warn!(
+                        "cannot ask who leads: {why}; asking again every {:?}",
+                        me.period()
+                    );
+                    failing = Some(why);
+                }
+            }
         }
         std::thread::sleep(me.period());
     }

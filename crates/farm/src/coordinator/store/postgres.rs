@@ -280,7 +280,15 @@ impl PostgresStore {
             .spawn(move || {
                 let mut conn = conn;
                 for call in queue {
-                    call(&mut conn);
+                    // A call that panics (a row not of the schema's types) fails alone: its
+                    // caller hears that the store stopped, and the thread serves the next.
+                    let done =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| call(&mut conn)));
+                    if done.is_err() {
+                        tracing::error!("a job store call panicked; dropping its connection");
+                        conn.client = None;
+                        conn.prepared.clear();
+                    }
                 }
             })
             .map_err(|e| StoreError::new(format!("cannot start the job store's thread: {e}")))?;
@@ -313,7 +321,13 @@ impl PostgresStore {
         });
         let gone = || StoreError::new(format!("the job store at {} has stopped", self.name));
         self.calls.send(call).map_err(|_| gone())?;
-        match rx.recv().map_err(|_| gone())? {
+        let answer = rx.recv().map_err(|_| {
+            StoreError::new(format!(
+                "the job store at {}, {doing}: the call failed inside Kiln (the log has its panic)",
+                self.name
+            ))
+        })?;
+        match answer {
             Ok(v) => Ok(v),
             Err(Failure::Db(e)) => Err(StoreError::new(format!(
                 "the job store at {}, {doing}: {}",
