@@ -78,12 +78,16 @@ pub(super) fn wait_for_lead(store: &dyn JobStore, me: &Candidate) -> Result<u64,
     let waited = std::time::Instant::now();
     loop {
         match store.lead(&me.name, &me.address, me.ttl) {
-            Ok(Leadership::Leading { epoch }) => {
-                if said.is_some() {
-                    tracing::info!(
-                        "took the lead at epoch {epoch} after {:.1} s as a standby",
-                        waited.elapsed().as_secs_f64()
-                    );
+            Ok(Leadership::Leading { epoch, after }) => {
+                let standby = waited.elapsed().as_secs_f64();
+                match after {
+                    Some((before, silent)) if silent.is_finite() => tracing::warn!(
+                        "took the lead at epoch {epoch} from coordinator {before}, last heard {silent:.1} s ago (after {standby:.1} s standing by)"
+                    ),
+                    Some((before, _)) => tracing::warn!(
+                        "took the lead at epoch {epoch} from coordinator {before}, which gave it up (after {standby:.1} s standing by)"
+                    ),
+                    None => tracing::info!("took the lead at epoch {epoch}, the first"),
                 }
                 return Ok(epoch);
             }

@@ -56,10 +56,15 @@ impl StoreError {
 }
 
 /// Who leads the coordinators that share a store.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Leadership {
-    /// This coordinator leads, under this epoch: every write it makes carries it.
-    Leading { epoch: u64 },
+    /// This coordinator leads, under this epoch: every write it makes carries it. `after`
+    /// is the coordinator that led before and the seconds since it last renewed the lead
+    /// (infinite if it gave the lead up), when there was one.
+    Leading {
+        epoch: u64,
+        after: Option<(String, f64)>,
+    },
     /// Another does: its name, the address it serves on and its epoch.
     Led {
         holder: String,
@@ -191,7 +196,10 @@ pub(super) trait JobStore: Send {
         _address: &str,
         _ttl: Duration,
     ) -> Result<Leadership, StoreError> {
-        Ok(Leadership::Leading { epoch: 0 })
+        Ok(Leadership::Leading {
+            epoch: 0,
+            after: None,
+        })
     }
     /// Renews the lead; false when another coordinator has taken it.
     fn renew_lead(&self) -> Result<bool, StoreError> {

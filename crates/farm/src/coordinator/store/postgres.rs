@@ -731,10 +731,11 @@ impl JobStore for PostgresStore {
         self.call("taking the lead", move |c| {
             let client = c.client()?;
             let taken = client.query_opt(
-                "INSERT INTO leader (id, holder, address, epoch, renewed) VALUES (1, $1, $2, 1, now())
+                "WITH before AS (SELECT holder, extract(epoch FROM now() - renewed)::float8 AS silent FROM leader WHERE id = 1)
+                 INSERT INTO leader (id, holder, address, epoch, renewed) VALUES (1, $1, $2, 1, now())
                  ON CONFLICT (id) DO UPDATE SET holder = $1, address = $2, epoch = leader.epoch + 1, renewed = now()
                  WHERE leader.renewed < now() - make_interval(secs => $3)
-                 RETURNING epoch",
+                 RETURNING epoch, (SELECT holder FROM before), (SELECT silent FROM before)",
                 &[&holder, &address, &ttl.as_secs_f64()],
             )?;
             if let Some(row) = taken {
@@ -742,7 +743,12 @@ impl JobStore for PostgresStore {
                 // From now on every write on this connection (and any later one) is fenced.
                 client.batch_execute(&format!("SET kiln.epoch = '{epoch}'"))?;
                 c.fence = Some(epoch);
-                return Ok(Leadership::Leading { epoch: epoch as u64 });
+                let before: Option<String> = row.get(1);
+                let silent: Option<f64> = row.get(2);
+                return Ok(Leadership::Leading {
+                    epoch: epoch as u64,
+                    after: before.zip(silent),
+                });
             }
             let row = client.query_one("SELECT holder, address, epoch FROM leader WHERE id = 1", &[])?;
             Ok(Leadership::Led {

@@ -239,7 +239,10 @@ fn a_deposed_leader_cannot_write() {
     let b = PostgresStore::open(&url).unwrap();
     assert_eq!(
         a.lead("a", "http://a", ttl).unwrap(),
-        Leadership::Leading { epoch: 1 }
+        Leadership::Leading {
+            epoch: 1,
+            after: None
+        }
     );
     let job = a.insert_job(&spec("x"), None).unwrap();
     // While a renews, b stands by and is told who leads.
@@ -254,10 +257,17 @@ fn a_deposed_leader_cannot_write() {
     );
     // a stops renewing (its process stalled, or lost the network): b takes the lead.
     std::thread::sleep(ttl + Duration::from_millis(200));
-    assert_eq!(
-        b.lead("b", "http://b", ttl).unwrap(),
-        Leadership::Leading { epoch: 2 }
-    );
+    // It says whom it took the lead from, and how long that one had been silent.
+    match b.lead("b", "http://b", ttl).unwrap() {
+        Leadership::Leading {
+            epoch: 2,
+            after: Some((before, silent)),
+        } => assert!(
+            before == "a" && (0.3..5.0).contains(&silent),
+            "{before} {silent}"
+        ),
+        other => panic!("b should lead at epoch 2: {other:?}"),
+    }
     // a comes back: every write it tries is refused by its epoch, and says so.
     let refused = a
         .set_state(job, JobState::Failed, Some("stale"))
