@@ -27,7 +27,15 @@ fn standby_leader(resp: &reqwest::Response) -> Option<String> {
 fn bases(list: &str) -> Arc<Vec<String>> {
     let mut all: Vec<String> = list
         .split(',')
-        .map(|b| b.trim().trim_end_matches('/').to_string())
+        .map(|b| {
+            // As reqwest writes it (a host in lower case, a default port dropped), so that a
+            // request's URL starts with its coordinator's.
+            let b = b.trim();
+            reqwest::Url::parse(b)
+                .map_or_else(|_| b.to_string(), |u| u.as_str().to_string())
+                .trim_end_matches('/')
+                .to_string()
+        })
         .filter(|b| !b.is_empty())
         .collect();
     if all.is_empty() {
@@ -167,7 +175,7 @@ impl Client {
             self.find_leader().await;
             let used = self.current.load(Ordering::Relaxed) % self.bases.len();
             let url = req.url().as_str().to_string();
-            if let Some(rest) = self.bases.iter().find_map(|b| url.strip_prefix(b.as_str()))
+            if let Some((_, rest)) = self.base_of(&url)
                 && let Ok(u) = reqwest::Url::parse(&format!("{}{rest}", self.bases[used]))
             {
                 *req.url_mut() = u;
@@ -178,7 +186,12 @@ impl Client {
         // there). A standby's answer names the leader, which is tried next if listed.
         for _ in 1..self.bases.len() {
             let spare = req.try_clone();
-            let used = self.current.load(Ordering::Relaxed) % self.bases.len();
+            // The coordinator this request is for (another task may have moved the client
+            // on since it was built).
+            let used = self
+                .base_of(req.url().as_str())
+                .map(|(i, _)| i)
+                .unwrap_or_else(|| self.current.load(Ordering::Relaxed) % self.bases.len());
             let why = match self.http.execute(req).await {
                 Ok(resp) => match standby_leader(&resp) {
                     Some(leader) => {
@@ -215,7 +228,7 @@ impl Client {
                 };
             };
             let url = again.url().as_str().to_string();
-            let rest = url.strip_prefix(self.bases[used].as_str()).unwrap_or(&url);
+            let rest = self.base_of(&url).map_or("", |(_, rest)| rest);
             match reqwest::Url::parse(&format!("{}{rest}", self.bases[next])) {
                 Ok(u) => *again.url_mut() = u,
                 Err(_) => {
@@ -229,6 +242,15 @@ impl Client {
         }
         let resp = self.http.execute(req).await?;
         self.check(resp).await
+    }
+
+    /// Which of the coordinators `url` is addressed to, and the rest of it (its path and
+    /// query, from the `/` on).
+    fn base_of<'u>(&self, url: &'u str) -> Option<(usize, &'u str)> {
+        self.bases.iter().enumerate().find_map(|(i, b)| {
+            let rest = url.strip_prefix(b.as_str())?;
+            (rest.is_empty() || rest.starts_with('/') || rest.starts_with('?')).then_some((i, rest))
+        })
     }
 
     /// Moves to the first coordinator, from the one in use on, that answers its health
