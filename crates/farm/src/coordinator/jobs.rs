@@ -15,7 +15,7 @@ impl Coordinator {
     pub async fn save_scene(&self, bundle: axum::body::Bytes) -> Result<String, Error> {
         self.off_runtime(move |c| {
             let digest = c.files().save_bundle(&bundle)?;
-            c.keep_object(&super::objects::keys::bundle(&digest), bundle.to_vec())?;
+            c.keep_object(&super::objects::keys::bundle(&digest), bundle)?;
             Ok(digest)
         })
         .await
@@ -46,15 +46,12 @@ impl Coordinator {
         };
         let _ = tokio::fs::remove_file(&path).await;
         let digest = saved?;
-        if self.shared.objects.is_some() {
-            let d = digest.clone();
-            self.off_runtime(move |c| {
-                let kept = c.files().scenes().join(&d).join(crate::bundle::BUNDLE_FILE);
-                let bytes = std::fs::read(&kept).map_err(|e| Error::io(&kept, e))?;
-                c.keep_object(&super::objects::keys::bundle(&d), bytes)
-            })
+        let kept = files
+            .scenes()
+            .join(&digest)
+            .join(crate::bundle::BUNDLE_FILE);
+        self.keep_file(kept, super::objects::keys::bundle(&digest))
             .await?;
-        }
         Ok(digest)
     }
 
@@ -230,11 +227,8 @@ impl Coordinator {
             return Err(Error::NotDone { id, state });
         }
         let path = self.files().result_path(id, frame);
-        if self.shared.objects.is_some() {
-            // A frame merged by another coordinator of the farm is in the object store.
-            let (p, key) = (path.clone(), super::objects::keys::frame(id, frame));
-            self.off_runtime(move |c| c.fetch_missing(&p, &key)).await?;
-        }
+        // A frame merged by another coordinator of the farm is in the object store.
+        self.fetch_frame_if_missing(id, frame, &path).await?;
         match Stored::open(&path).await {
             Ok(stored) => Ok(stored),
             // An ended job that never merged a pass has none (one that did and lost the
@@ -244,6 +238,19 @@ impl Coordinator {
             }
             Err(e) => Err(Error::io(path, e)),
         }
+    }
+
+    /// Fetches job `id`'s frame `frame` into `path` from the object store unless the data
+    /// directory has it.
+    async fn fetch_frame_if_missing(
+        &self,
+        id: u64,
+        frame: u32,
+        path: &std::path::Path,
+    ) -> Result<(), Error> {
+        let key = super::objects::keys::frame(id, frame);
+        let limit = super::objects::frame_limit(self.config().max_frame_pixels);
+        self.fetch_if_missing(path.to_path_buf(), key, limit).await
     }
 
     /// The frame so far as an sRGB PNG, `exposure` stops brighter; of a shot, its first
@@ -272,10 +279,7 @@ impl Coordinator {
             Some(p) => p,
             None => {
                 let path = self.files().result_path(id, frame);
-                if self.shared.objects.is_some() {
-                    let (p, key) = (path.clone(), super::objects::keys::frame(id, frame));
-                    self.off_runtime(move |c| c.fetch_missing(&p, &key)).await?;
-                }
+                self.fetch_frame_if_missing(id, frame, &path).await?;
                 let bytes = tokio::fs::read(&path)
                     .await
                     .map_err(|e| Error::io(&path, e))?;

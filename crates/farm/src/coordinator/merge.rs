@@ -53,7 +53,7 @@ impl Coordinator {
                 // Kept in the object store before it is the result: an outage of the store
                 // is a write that fails, tried again later as a full disk's is.
                 let key = super::objects::keys::frame(id, index);
-                self.keep_object(&key, bytes).map_err(|e| {
+                self.keep_object(&key, bytes.into()).map_err(|e| {
                     let _ = std::fs::remove_file(&staged);
                     Error::Io {
                         path: std::path::PathBuf::from(key),

@@ -13,15 +13,24 @@
 //! The client (Apache Arrow's `object_store`) is async; it runs on a runtime of its own,
 //! and the methods here block their caller, from any thread, as the job store's do.
 
+use axum::body::Bytes;
 use object_store::aws::AmazonS3Builder;
 use object_store::path::Path as Key;
 use object_store::{ObjectStore, ObjectStoreExt, PutPayload, WriteMultipart};
 use sha2::{Digest, Sha256};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
 /// Objects larger than this are uploaded in parts of this size.
 const PART_BYTES: usize = 16 << 20;
+
+/// The most bytes a merged frame's object may hold for a frame of `pixels`: four float
+/// channels a pixel and room for the EXR's header and offsets, which no frame Kiln writes
+/// reaches.
+pub(super) fn frame_limit(pixels: u64) -> u64 {
+    pixels.saturating_mul(16).saturating_add(64 << 20)
+}
 
 /// A bucket (and prefix) of an S3-compatible server.
 pub(super) struct Objects {
@@ -138,7 +147,7 @@ impl Objects {
     }
 
     /// Writes `bytes` as `key`, then its SHA-256 beside it.
-    pub fn put(&self, key: &str, bytes: Vec<u8>) -> Result<(), ObjectsError> {
+    pub fn put(&self, key: &str, bytes: Bytes) -> Result<(), ObjectsError> {
         let store = self.store.clone();
         let path = Key::from(key);
         let sum = Key::from(format!("{key}.sha256"));
@@ -165,22 +174,43 @@ impl Objects {
     }
 
     /// The bytes of `key`, checked against its SHA-256; None when there is no such object.
-    pub fn get(&self, key: &str) -> Result<Option<Vec<u8>>, ObjectsError> {
+    /// An object of more than `limit` bytes is refused before it is read.
+    pub fn get(&self, key: &str, limit: u64) -> Result<Option<Vec<u8>>, ObjectsError> {
+        /// What a read found.
+        enum Found {
+            Missing,
+            TooLarge(u64),
+            Whole(Vec<u8>, Vec<u8>),
+        }
         let store = self.store.clone();
         let path = Key::from(key);
         let sum = Key::from(format!("{key}.sha256"));
         let got = self.block(async move {
             let digest = match store.get(&sum).await {
+                // A SHA-256 in hex is 64 bytes: a larger sidecar is not one.
+                Ok(r) if r.meta.size > 256 => return Ok(Found::TooLarge(r.meta.size)),
                 Ok(r) => r.bytes().await?,
-                Err(object_store::Error::NotFound { .. }) => return Ok(None),
+                Err(object_store::Error::NotFound { .. }) => return Ok(Found::Missing),
                 Err(e) => return Err(e),
             };
-            let bytes = store.get(&path).await?.bytes().await?;
-            Ok(Some((bytes.to_vec(), digest.to_vec())))
+            let object = store.get(&path).await?;
+            if object.meta.size > limit {
+                return Ok(Found::TooLarge(object.meta.size));
+            }
+            Ok(Found::Whole(
+                object.bytes().await?.to_vec(),
+                digest.to_vec(),
+            ))
         });
         let (bytes, digest) = match got {
-            Some(Ok(Some(found))) => found,
-            Some(Ok(None)) => return Ok(None),
+            Some(Ok(Found::Whole(bytes, digest))) => (bytes, digest),
+            Some(Ok(Found::Missing)) => return Ok(None),
+            Some(Ok(Found::TooLarge(size))) => {
+                return Err(self.error(
+                    key,
+                    format!("it holds {size} bytes, more than the {limit} such an object may"),
+                ));
+            }
             Some(Err(e)) => return Err(self.error(key, e)),
             None => return Err(self.error(key, "the object store's runtime stopped")),
         };
@@ -248,13 +278,42 @@ impl Drop for Objects {
 /// What the coordinator keeps in and fetches from the object store, when it has one.
 impl super::Coordinator {
     /// Writes `bytes` as `key` in the object store, if there is one. Blocking.
-    pub(super) fn keep_object(&self, key: &str, bytes: Vec<u8>) -> Result<(), super::Error> {
+    pub(super) fn keep_object(&self, key: &str, bytes: Bytes) -> Result<(), super::Error> {
         match &self.shared.objects {
             Some(objects) => objects
                 .put(key, bytes)
                 .map_err(|e| super::Error::Objects(e.to_string())),
             None => Ok(()),
         }
+    }
+
+    /// Writes the file at `path` as `key` in the object store, if there is one, off the
+    /// runtime's threads.
+    pub(super) async fn keep_file(&self, path: PathBuf, key: String) -> Result<(), super::Error> {
+        if self.shared.objects.is_none() {
+            return Ok(());
+        }
+        self.off_runtime(move |c| {
+            let bytes = std::fs::read(&path).map_err(|e| super::Error::io(&path, e))?;
+            c.keep_object(&key, bytes.into())
+        })
+        .await
+    }
+
+    /// Fetches `key` from the object store into `path` when the data directory lacks it
+    /// (the work of another coordinator of the farm), off the runtime's threads; nothing
+    /// without an object store, or when neither has it.
+    pub(super) async fn fetch_if_missing(
+        &self,
+        path: PathBuf,
+        key: String,
+        limit: u64,
+    ) -> Result<(), super::Error> {
+        if self.shared.objects.is_none() {
+            return Ok(());
+        }
+        self.off_runtime(move |c| c.fetch_missing(&path, &key, limit))
+            .await
     }
 
     /// Makes sure the bundle of `digest` is unpacked in the data directory, fetching it
@@ -268,8 +327,9 @@ impl super::Coordinator {
             return Ok(());
         }
         let key = keys::bundle(digest);
+        let limit = self.config().max_scene_bytes as u64;
         let Some(bytes) = objects
-            .get(&key)
+            .get(&key, limit)
             .map_err(|e| super::Error::Objects(e.to_string()))?
         else {
             return Ok(());
@@ -285,24 +345,25 @@ impl super::Coordinator {
             .save_bundle_from(crate::bundle::Source::Bytes(&bytes), digest)
     }
 
-    /// Whether `path` is in the data directory, fetching it as `key` from the object store
-    /// if it is not; false when neither has it. Blocking.
-    pub(super) fn fetch_missing(
+    /// Fetches `key` (at most `limit` bytes) from the object store into `path` unless the
+    /// data directory has it. Blocking.
+    fn fetch_missing(
         &self,
         path: &std::path::Path,
         key: &str,
-    ) -> Result<bool, super::Error> {
-        if path.exists() {
-            return Ok(true);
-        }
+        limit: u64,
+    ) -> Result<(), super::Error> {
         let Some(objects) = &self.shared.objects else {
-            return Ok(false);
+            return Ok(());
         };
+        if path.exists() {
+            return Ok(());
+        }
         let Some(bytes) = objects
-            .get(key)
+            .get(key, limit)
             .map_err(|e| super::Error::Objects(e.to_string()))?
         else {
-            return Ok(false);
+            return Ok(());
         };
         let dir = path.parent().expect("a kept file has a folder");
         std::fs::create_dir_all(dir).map_err(|e| super::Error::io(dir, e))?;
@@ -311,6 +372,6 @@ impl super::Coordinator {
             .and_then(|()| std::fs::rename(&tmp, path))
             .map_err(|e| super::Error::io(path, e))?;
         tracing::info!("fetched {key} from the object store");
-        Ok(true)
+        Ok(())
     }
 }

@@ -78,11 +78,10 @@ impl Coordinator {
     /// to hash them: a pre-pass may be hundreds of megabytes, and is never held whole.
     pub async fn prepass(&self, scene: &str, name: &str) -> Result<(Stored, String), Error> {
         let path = self.prepass_path(scene, name)?;
-        if self.shared.objects.is_some() {
-            // Computed for another coordinator of the farm: in the object store.
-            let (p, key) = (path.clone(), super::objects::keys::prepass(scene, name));
-            self.off_runtime(move |c| c.fetch_missing(&p, &key)).await?;
-        }
+        // Computed for another coordinator of the farm: in the object store.
+        let key = super::objects::keys::prepass(scene, name);
+        let limit = self.config().max_prepass_bytes as u64;
+        self.fetch_if_missing(path.clone(), key, limit).await?;
         let mut stored = Stored::open(&path)
             .await
             .map_err(|_| Error::UnknownPrepass(name.to_string()))?;
@@ -123,15 +122,9 @@ impl Coordinator {
             if digest != sha.to_ascii_lowercase() {
                 return Err(Error::PrepassDigest);
             }
-            if self.shared.objects.is_some() {
-                // In the object store before it is ready here.
-                let (t, key) = (tmp.clone(), super::objects::keys::prepass(scene, name));
-                self.off_runtime(move |c| {
-                    let bytes = std::fs::read(&t).map_err(|e| Error::io(&t, e))?;
-                    c.keep_object(&key, bytes)
-                })
+            // In the object store before it is ready here.
+            self.keep_file(tmp.clone(), super::objects::keys::prepass(scene, name))
                 .await?;
-            }
             let dir = path.parent().expect("a pre-pass has a folder");
             tokio::fs::create_dir_all(dir)
                 .await
