@@ -304,6 +304,11 @@ pub fn decode_exr(bytes: &[u8]) -> Result<RgbBuffer, ImageError> {
 /// 16384 x 16384 frame, 3 GiB of float RGB. [`decode_exr_limited`] takes another limit.
 pub const MAX_PIXELS: u64 = 1 << 28;
 
+/// The most bytes the samples of an image's data window may take, all its channels
+/// together, whatever its pixel count: 3 GiB. A header claiming more (many channels over
+/// a large window) is refused before anything of that size is allocated.
+pub const MAX_SAMPLE_BYTES: u64 = 3 << 30;
+
 /// Where an image's pixels sit: the frame's size (the display window) and the data window
 /// inside it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -318,25 +323,33 @@ pub struct Windows {
 
 /// Reads an EXR's windows (of its first layer) from its header alone, decoding no pixels.
 pub fn read_exr_windows(bytes: &[u8]) -> Result<Windows, ImageError> {
+    read_exr_header(bytes).map(|(w, _)| w)
+}
+
+/// An EXR's windows (of its first layer) and the bytes a pixel's samples take, all its
+/// channels together, from its header alone.
+fn read_exr_header(bytes: &[u8]) -> Result<(Windows, u64), ImageError> {
     let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
         .map_err(|e| ImageError::Exr(e.to_string()))?;
     let header = meta
         .headers
         .first()
         .ok_or_else(|| ImageError::Exr("no layer".into()))?;
+    let bytes_per_pixel = header.channels.bytes_per_pixel as u64;
     let display = header.shared_attributes.display_window;
     let pos = header.own_attributes.layer_position;
     let to_u32 = |v: usize, what: &str| {
         u32::try_from(v).map_err(|_| ImageError::Invalid(format!("EXR {what} {v} is too large")))
     };
-    Ok(Windows {
+    let windows = Windows {
         frame_width: to_u32(display.size.0, "width")?,
         frame_height: to_u32(display.size.1, "height")?,
         x0: (pos.0 as i64 - display.position.0 as i64).clamp(0, u32::MAX as i64) as u32,
         y0: (pos.1 as i64 - display.position.1 as i64).clamp(0, u32::MAX as i64) as u32,
         width: to_u32(header.layer_size.0, "width")?,
         height: to_u32(header.layer_size.1, "height")?,
-    })
+    };
+    Ok((windows, bytes_per_pixel))
 }
 
 /// Decodes an EXR whose data window holds at most `max_pixels` pixels (and whose display
@@ -345,7 +358,14 @@ pub fn read_exr_windows(bytes: &[u8]) -> Result<Windows, ImageError> {
 /// is an error, not an allocation failure.
 pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, ImageError> {
     use exr::prelude::{ReadChannels, ReadLayers};
-    let w = read_exr_windows(bytes)?;
+    let (w, bytes_per_pixel) = read_exr_header(bytes)?;
+    let sample_bytes = u64::from(w.width) * u64::from(w.height) * bytes_per_pixel;
+    if sample_bytes > MAX_SAMPLE_BYTES {
+        return Err(ImageError::Invalid(format!(
+            "EXR data window of {}x{} pixels at {bytes_per_pixel} bytes each ({sample_bytes} bytes) is larger than the {MAX_SAMPLE_BYTES} bytes allowed",
+            w.width, w.height
+        )));
+    }
     let checks = [
         ("data window", w.width, w.height, max_pixels),
         ("display window", w.frame_width, w.frame_height, MAX_PIXELS),
@@ -612,6 +632,25 @@ mod tests {
         let tile = encode_exr(&RgbBuffer::new(8, 8, 0, 0, 4, 4)).unwrap();
         assert!(decode_exr_limited(&tile, 16).is_ok());
         assert!(decode_exr_limited(&tile, 15).is_err());
+    }
+
+    /// A header within the pixel limits whose many channels would still take tens of
+    /// gigabytes (a tile of 35 channels whose window a flipped bit made 16384 x 16384: an
+    /// allocation failure that aborted, found by the farm's damaged-upload test) is refused
+    /// by its bytes.
+    #[test]
+    fn an_exr_whose_channels_would_take_too_many_bytes_is_refused() {
+        let names: Vec<String> = (0..32).map(|i| format!("aov.{i:02}")).collect();
+        let bytes = encode_exr(&RgbBuffer::new(1, 1, 0, 0, 1, 1).with_aovs(names)).unwrap();
+        let mut evil = bytes.clone();
+        for name in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+            let at = evil.windows(name.len()).position(|w| w == name).unwrap() + name.len() + 4;
+            evil[at + 8..at + 12].copy_from_slice(&16_383i32.to_le_bytes());
+            evil[at + 12..at + 16].copy_from_slice(&16_383i32.to_le_bytes());
+        }
+        let err = decode_exr(&evil).unwrap_err().to_string();
+        assert!(err.contains("bytes"), "{err}");
+        assert!(decode_exr(&bytes).is_ok());
     }
 
     #[test]
