@@ -24,9 +24,11 @@ const RENDER_LAYERS: &[&[&str]] = &[
     &[
         "math", "work", "rect", "motion", "sampling", "shared", "spectral", "simd",
     ],
-    &["textures", "phase", "filter", "sensor", "gbuffer"],
+    &[
+        "textures", "phase", "filter", "sensor", "gbuffer", "features",
+    ],
     &["shapes", "bsdfs", "sums"],
-    &["nesting", "materials", "media", "lens", "adaptive"],
+    &["nesting", "materials", "media", "lens", "adaptive", "film"],
     &["lights", "camera"],
     &["scene"],
     &["integrators"],

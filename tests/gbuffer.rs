@@ -82,7 +82,11 @@ fn gbuffer_against_pbrt_v4(args: &[&str], albedo: f64) {
     let dir = tempfile::tempdir().unwrap();
     let path = write_scene(dir.path(), "gb.pbrt", SCENE);
     let image = render(&path, dir.path(), "gb", args).image;
-    assert_eq!(image.aovs.names.len(), 22);
+    // pbrt-v4's 22 channels, and beside them the denoiser's features every render keeps.
+    assert_eq!(
+        image.aovs.names.len(),
+        22 + kiln_render::features::FEATURE_CHANNELS.len()
+    );
     // (channel, pbrt-v4's mean, relative tolerance, absolute tolerance)
     let pbrt = [
         ("R", 0.331383f64, 0.02, 0.0),
@@ -174,7 +178,10 @@ fn gbuffer_is_the_same_bytes_through_the_farm() {
     let path = write_scene(dir.path(), "gb.pbrt", SCENE);
     let args = ["--spp", "4", "--tile", "16", "--threads", "1"];
     let direct = render(&path, dir.path(), "direct", &args);
-    assert_eq!(direct.image.aovs.names.len(), 22);
+    assert_eq!(
+        direct.image.aovs.names.len(),
+        22 + kiln_render::features::FEATURE_CHANNELS.len()
+    );
     assert!(channel_mean(&direct.image, "P.Z") > 1.0);
     let other = render(&path, dir.path(), "other", &["--spp", "4", "--tile", "7"]);
     assert!(other.bytes == direct.bytes, "tiling changed the G-buffer");

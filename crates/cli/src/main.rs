@@ -3,6 +3,7 @@
 //! This binary only parses flags, wires the crates together and maps errors to
 //! exit codes; the work lives in the library crates.
 
+mod denoise;
 mod farm;
 mod listing;
 mod output;
@@ -28,6 +29,8 @@ struct Cli {
 enum Command {
     /// Render a pbrt-v4 scene to an EXR on this machine.
     Render(render::RenderArgs),
+    /// Denoise a Kiln render's EXR with its feature buffers.
+    Denoise(denoise::DenoiseArgs),
     /// Render a scene through a farm on this machine: a coordinator and N worker processes.
     Farm(farm::FarmArgs),
     /// Run a coordinator: the HTTP API, the job store and the tile leases.
@@ -61,6 +64,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render::run(args),
+        Command::Denoise(args) => denoise::run(args),
         Command::Farm(args) => farm::farm(args),
         Command::Coordinator(args) => farm::coordinator(args),
         Command::Worker(args) => farm::worker(args),

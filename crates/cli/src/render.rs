@@ -54,6 +54,13 @@ pub struct RenderArgs {
     /// Exposure of the preview in stops.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     exposure: f32,
+    /// Denoise the image with its feature buffers: the denoised beauty as the EXR's R, G
+    /// and B (and the preview), the raw beauty as raw.R, raw.G and raw.B.
+    #[arg(long)]
+    denoise: bool,
+    /// Which denoiser --denoise uses.
+    #[arg(long, value_enum, default_value_t = crate::denoise::Choice::Kiln, requires = "denoise")]
+    denoiser: crate::denoise::Choice,
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
@@ -132,6 +139,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     if let Some(why) = stats.cut_off_error() {
         bail!("{}: {why}; no image was written", args.scene.display());
+    }
+    if args.denoise {
+        // The raw render is kept if denoising fails: nothing rendered is lost.
+        match crate::denoise::denoise_frame(&frame, args.denoiser, args.quiet) {
+            Ok(denoised) => frame = denoised,
+            Err(e) => {
+                kiln_image::write_exr(&output, &frame)
+                    .with_context(|| format!("cannot write {}", output.display()))?;
+                return Err(e.context(format!(
+                    "the raw render was written to {}, not denoised",
+                    output.display()
+                )));
+            }
+        }
     }
     kiln_image::write_exr(&output, &frame)
         .with_context(|| format!("cannot write {}", output.display()))?;

@@ -32,6 +32,8 @@
 pub mod adaptive;
 pub mod bsdfs;
 pub mod camera;
+pub mod features;
+pub mod film;
 pub mod filter;
 pub mod gbuffer;
 pub mod integrators;

@@ -7,9 +7,11 @@
 //! sums after N samples are the same bits whether they were reached in one pass or in many,
 //! and so is the pixel made from them. Between passes the sums travel as 32-bit words
 //! (an f64 as its low and high halves), which any image format with integer channels holds
-//! exactly. With adaptive sampling each pixel also keeps how many samples it took and the
-//! sums of their squares, which decide when it stops ([`crate::adaptive`]).
+//! exactly. Each pixel also keeps the sums of its samples' squares (its variance, which
+//! the denoiser reads and adaptive sampling's stopping goes by, [`crate::adaptive`]) and
+//! its feature sums ([`crate::features`]); with adaptive sampling, how many samples it took.
 
+use crate::features::FeatureSums;
 use crate::gbuffer::GBufferPixel;
 use crate::rect::TileRect;
 
@@ -24,13 +26,14 @@ pub struct PixelSums {
     /// The samples the pixel took: its tile's count, or fewer if adaptive sampling
     /// stopped it.
     pub taken: u32,
-    /// With adaptive sampling, the sums of the squares of the samples' filter-weighted
-    /// radiance, by channel; unused otherwise.
+    /// The sums of the squares of the samples' filter-weighted radiance, by channel.
     pub squares: [f64; 3],
+    /// The denoiser's features.
+    pub features: FeatureSums,
 }
 
-/// What a tile's running sums hold besides radiance and weight: a G-buffer's sums, and
-/// adaptive sampling's.
+/// What a tile's running sums hold besides radiance, weight, squares and features: a
+/// G-buffer's sums, and adaptive sampling's counts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct SumsLayout {
     pub gbuffer: bool,
@@ -38,6 +41,20 @@ pub struct SumsLayout {
 }
 
 impl PixelSums {
+    /// The variance of the pixel's value (its weighted mean) by channel: with n samples of
+    /// weighted radiance v (sum S, sum of squares Q) and weights summing to W, the samples'
+    /// variance (Q - S^2/n)/(n - 1), times n over W^2 (zero under two samples).
+    pub fn value_variance(&self) -> [f32; 3] {
+        let n = self.taken as f64;
+        if n < 2.0 || self.weight == 0.0 {
+            return [0.0; 3];
+        }
+        std::array::from_fn(|c| {
+            let spread = ((self.squares[c] - self.sum[c] * self.sum[c] / n) / (n - 1.0)).max(0.0);
+            (spread * n / (self.weight * self.weight)) as f32
+        })
+    }
+
     /// The pixel's value: the weighted mean (black where no sample had weight).
     pub fn value(&self) -> [f32; 3] {
         if self.weight == 0.0 {
@@ -81,25 +98,30 @@ pub enum SumsError {
 }
 
 /// The name of the channel holding the sample count, of the one holding the samples each
-/// pixel took (with adaptive sampling), and the prefix of the others.
+/// pixel took (with adaptive sampling), the prefix of the feature sums' and of the others.
 const SAMPLES_WORD: &str = "kiln.sums.samples";
+const FEATURE_PREFIX: &str = "kiln.sums.features.";
 const TAKEN_WORD: &str = "kiln.sums.taken";
 const WORD_PREFIX: &str = "kiln.sums.";
 
-/// 64-bit values per pixel: R, G, B and weight, then the G-buffer's, then adaptive
-/// sampling's sums of squares.
+/// 64-bit values per pixel: R, G, B and weight, the sums of squares, then the G-buffer's.
 fn value_count(layout: SumsLayout) -> usize {
-    4 + if layout.gbuffer {
+    7 + if layout.gbuffer {
         GBufferPixel::BITS
     } else {
         0
-    } + if layout.adaptive { 3 } else { 0 }
+    }
 }
 
-/// 32-bit words per pixel: two per value, the sample count, and with adaptive sampling the
-/// samples the pixel took.
+/// 32-bit words per pixel: two per value, the feature sums, the sample count, and with
+/// adaptive sampling the samples the pixel took.
 fn words_per_pixel(layout: SumsLayout) -> usize {
-    2 * value_count(layout) + 1 + usize::from(layout.adaptive)
+    2 * value_count(layout) + FeatureSums::WORDS + 1 + usize::from(layout.adaptive)
+}
+
+/// Where a pixel's sample count sits among its words.
+fn samples_word(layout: SumsLayout) -> usize {
+    2 * value_count(layout) + FeatureSums::WORDS
 }
 
 impl TileSums {
@@ -114,11 +136,13 @@ impl TileSums {
     }
 
     /// The channel names [`TileSums::to_words`] fills, sorted: two 32-bit words per 64-bit
-    /// value (`kiln.sums.000` its low half, `kiln.sums.001` its high half, ...), then the
-    /// sample count, then (with adaptive sampling) the samples each pixel took.
+    /// value (`kiln.sums.000` its low half, `kiln.sums.001` its high half, ...), the feature
+    /// sums (`kiln.sums.features.0`, ...), then the sample count, then (with adaptive
+    /// sampling) the samples each pixel took.
     pub fn word_names(layout: SumsLayout) -> Vec<String> {
         let mut names: Vec<String> = (0..2 * value_count(layout))
             .map(|i| format!("{WORD_PREFIX}{i:03}"))
+            .chain((0..FeatureSums::WORDS).map(|i| format!("{FEATURE_PREFIX}{i}")))
             .chain([SAMPLES_WORD.to_string()])
             .chain(layout.adaptive.then(|| TAKEN_WORD.to_string()))
             .collect();
@@ -162,7 +186,7 @@ impl TileSums {
                 height: rect.height,
             });
         }
-        let at = 2 * value_count(layout);
+        let at = samples_word(layout);
         let mut counts = values.iter().skip(at).step_by(per);
         if let Some(&found) = counts.clone().find(|&&n| n != samples) {
             return Err(if counts.all(|&n| n == found) {
@@ -191,21 +215,17 @@ impl TileSums {
         let layout = self.layout;
         let mut out = Vec::with_capacity(self.pixels.len() * words_per_pixel(layout));
         for p in &self.pixels {
-            let rgbw = p.sum.into_iter().chain([p.weight]).map(f64::to_bits);
+            let rgbw = p.sum.into_iter().chain([p.weight]).chain(p.squares);
             let g = if layout.gbuffer {
                 p.gbuffer.to_bits().to_vec()
             } else {
                 Vec::new()
             };
-            let a = if layout.adaptive {
-                p.squares.map(f64::to_bits).to_vec()
-            } else {
-                Vec::new()
-            };
-            for v in rgbw.chain(g).chain(a) {
+            for v in rgbw.map(f64::to_bits).chain(g) {
                 out.push(v as u32);
                 out.push((v >> 32) as u32);
             }
+            out.extend(p.features.to_words());
             out.push(self.samples);
             if layout.adaptive {
                 out.push(p.taken);
@@ -239,7 +259,7 @@ impl TileSums {
                 height: rect.height,
             });
         }
-        let at = 2 * value_count(layout);
+        let at = samples_word(layout);
         let samples = values_in.get(at).copied().unwrap_or(0);
         let mut out = Vec::with_capacity(pixels);
         for words in values_in.chunks_exact(per) {
@@ -249,28 +269,28 @@ impl TileSums {
             let v = |i: usize| u64::from(words[2 * i]) | (u64::from(words[2 * i + 1]) << 32);
             let f = |i: usize| f64::from_bits(v(i));
             let gbuffer = if layout.gbuffer {
-                let bits: [u64; GBufferPixel::BITS] = std::array::from_fn(|i| v(4 + i));
+                let bits: [u64; GBufferPixel::BITS] = std::array::from_fn(|i| v(7 + i));
                 GBufferPixel::from_bits(&bits)
             } else {
                 GBufferPixel::default()
             };
-            let (taken, squares) = if layout.adaptive {
-                // The sums of squares are the last three values.
-                let first = value_count(layout) - 3;
+            let taken = if layout.adaptive {
                 let taken = words[at + 1];
                 if taken > samples {
                     return Err(SumsError::Taken { taken, samples });
                 }
-                (taken, [f(first), f(first + 1), f(first + 2)])
+                taken
             } else {
-                (samples, [0.0; 3])
+                samples
             };
+            let features = &words[2 * value_count(layout)..at];
             out.push(PixelSums {
                 sum: [f(0), f(1), f(2)],
                 weight: f(3),
                 gbuffer,
                 taken,
-                squares,
+                squares: [f(4), f(5), f(6)],
+                features: FeatureSums::from_words(features),
             });
         }
         Ok(TileSums {
@@ -315,13 +335,16 @@ mod tests {
                     p.gbuffer = g;
                 }
                 p.taken = if adaptive { 64 + i as u32 } else { 77 };
-                if adaptive {
-                    p.squares = [
-                        0.25 + i as f64,
-                        f64::from_bits(0x3ff0_0000_0000_0001 + i as u64),
-                        -0.0,
-                    ];
-                }
+                p.squares = [
+                    0.25 + i as f64,
+                    f64::from_bits(0x3ff0_0000_0000_0001 + i as u64),
+                    -0.0,
+                ];
+                p.features = FeatureSums {
+                    albedo: [0.5, f32::from_bits(0x3f80_0001 + i as u32), -0.0],
+                    normal: [1.0 / 3.0, -2.0, f32::MIN_POSITIVE],
+                    depth: 1e30 + i as f32,
+                };
             }
             let names = TileSums::word_names(layout);
             let words = t.to_words();
@@ -333,6 +356,7 @@ mod tests {
                 assert_eq!(a.gbuffer.to_bits(), b.gbuffer.to_bits());
                 assert_eq!(a.taken, b.taken);
                 assert_eq!(a.squares.map(f64::to_bits), b.squares.map(f64::to_bits));
+                assert_eq!(a.features.to_words(), b.features.to_words());
             }
             // Damaged or foreign words are refused, not misread.
             assert!(TileSums::from_words(rect, other, &names, &words).is_err());
@@ -343,7 +367,7 @@ mod tests {
             assert!(TileSums::from_words(rect, flipped, &names, &words).is_err());
             assert!(TileSums::from_words(rect, layout, &names, &words[1..]).is_err());
             let per = names.len();
-            let at = 2 * value_count(layout);
+            let at = samples_word(layout);
             let mut mixed = words.clone();
             mixed[per + at] = 76;
             assert_eq!(

@@ -33,6 +33,8 @@ pub enum Error {
     BadDigest,
     #[error("exposure is a number of stops from -20 to 20")]
     BadExposure,
+    #[error("denoise is 1 (or true) or 0 (or false)")]
+    BadDenoise,
     #[error("no scene with digest '{0}'")]
     UnknownScene(String),
     #[error("no job {0}")]
@@ -114,6 +116,9 @@ pub enum Error {
     Unpack(BundleError),
     #[error("{0}")]
     Image(ImageError),
+    /// A frame that cannot be denoised (it holds no features, or no variance).
+    #[error("the frame cannot be denoised: {0}")]
+    Denoise(kiln_denoise::Error),
     #[error("a blocking task failed: {0}")]
     Task(tokio::task::JoinError),
     /// The data directory holds what its store has lost: starting would hide those jobs.
@@ -196,6 +201,13 @@ pub enum TileRejected {
         frame.0, frame.1, window.width, window.height, window.x0, window.y0
     )]
     Windows { frame: (u32, u32), window: Rect },
+    #[error(
+        "the tile's further channels are {found:?}, not the {expected:?} its frame keeps (a worker of another Kiln version?)"
+    )]
+    Channels {
+        found: Vec<String>,
+        expected: Vec<String>,
+    },
     #[error("the tile has NaN or infinite pixels")]
     NonFinite,
     #[error("the tile's bytes do not have the SHA-256 its upload gives (damaged on the way)")]

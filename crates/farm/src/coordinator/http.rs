@@ -136,6 +136,7 @@ impl Error {
             | Error::BadBundle(_)
             | Error::BadDigest
             | Error::BadExposure
+            | Error::BadDenoise
             | Error::NoTileDigest
             | Error::BadPrepassName
             | Error::UnwantedPrepass(_)
@@ -151,7 +152,8 @@ impl Error {
             | Error::Passes { .. }
             | Error::UnknownLease(_)
             | Error::StaleTile(_)
-            | Error::Relent(_) => StatusCode::CONFLICT,
+            | Error::Relent(_)
+            | Error::Denoise(_) => StatusCode::CONFLICT,
             Error::SetAside { .. } | Error::Forbidden(_) => StatusCode::FORBIDDEN,
             Error::JobEnded(_) => StatusCode::GONE,
             // The store is away (a server restarting, a full disk) or this coordinator no
@@ -555,11 +557,23 @@ fn send_file(
     response
 }
 
-/// `?exposure=` for a preview: stops, -20 to 20 (0 by default).
+/// `?exposure=` for a preview: stops, -20 to 20 (0 by default); `?denoise=1` (or true)
+/// for the frame denoised by Kiln's built-in denoiser.
 #[derive(Debug, serde::Deserialize)]
 struct PreviewQuery {
     #[serde(default)]
     exposure: f32,
+    #[serde(default)]
+    denoise: Option<String>,
+}
+
+/// Whether `?denoise=` asks for the denoised frame: 1 or true, 0 or false.
+fn denoise_of(value: Option<&str>) -> Result<bool, Error> {
+    match value {
+        None | Some("0" | "false") => Ok(false),
+        Some("1" | "true") => Ok(true),
+        Some(_) => Err(Error::BadDenoise),
+    }
 }
 
 async fn job_preview(
@@ -569,16 +583,20 @@ async fn job_preview(
     query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Response, Error> {
     let id = own_job(&c, &who, parse_id(&id)?)?;
-    let png = c.preview(id, exposure_of(query)?).await?;
+    let (exposure, denoise) = exposure_of(query)?;
+    let png = c.frame_preview(id, 0, exposure, denoise).await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
 
-/// The exposure a preview asks for: a number of stops from -20 to 20.
+/// The exposure a preview asks for (a number of stops from -20 to 20), and whether
+/// denoised.
 fn exposure_of(
     query: Result<axum::extract::Query<PreviewQuery>, axum::extract::rejection::QueryRejection>,
-) -> Result<f32, Error> {
+) -> Result<(f32, bool), Error> {
     match query {
-        Ok(q) if q.exposure.is_finite() && q.exposure.abs() <= 20.0 => Ok(q.exposure),
+        Ok(q) if q.exposure.is_finite() && q.exposure.abs() <= 20.0 => {
+            Ok((q.exposure, denoise_of(q.denoise.as_deref())?))
+        }
         _ => Err(Error::BadExposure),
     }
 }
@@ -619,7 +637,8 @@ async fn frame_preview(
 ) -> Result<Response, Error> {
     let (id, frame) = parse_frame(&id, &frame)?;
     own_job(&c, &who, id)?;
-    let png = c.frame_preview(id, frame, exposure_of(query)?).await?;
+    let (exposure, denoise) = exposure_of(query)?;
+    let png = c.frame_preview(id, frame, exposure, denoise).await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
 }
 

@@ -256,16 +256,17 @@ impl Coordinator {
     /// The frame so far as an sRGB PNG, `exposure` stops brighter; of a shot, its first
     /// frame.
     pub async fn preview(&self, id: u64, exposure: f32) -> Result<Vec<u8>, Error> {
-        self.frame_preview(id, 0, exposure).await
+        self.frame_preview(id, 0, exposure, false).await
     }
 
-    /// Frame `frame` so far as an sRGB PNG, `exposure` stops brighter: from memory while it
-    /// renders, from its result file once it is finished.
+    /// Frame `frame` so far as an sRGB PNG, `exposure` stops brighter, and with `denoise`
+    /// denoised: from memory while it renders, from its result file once it is finished.
     pub async fn frame_preview(
         &self,
         id: u64,
         frame: u32,
         exposure: f32,
+        denoise: bool,
     ) -> Result<Vec<u8>, Error> {
         let so_far = {
             let state = self.lock();
@@ -273,8 +274,13 @@ impl Coordinator {
             if frame as usize >= job.frame_count() {
                 return Err(Error::UnknownFrame { id, frame });
             }
-            job.frame_so_far(frame as usize)
+            (
+                job.frame_so_far(frame as usize),
+                job.frame_passes_written(frame as usize),
+            )
         };
+        let (so_far, written) = so_far;
+        let rendering = so_far.is_some();
         let picture = match so_far {
             Some(p) => p,
             None => {
@@ -288,6 +294,16 @@ impl Coordinator {
                     .map_err(Error::Image)?;
                 std::sync::Arc::new(decoded)
             }
+        };
+        let picture = if denoise {
+            let source = if rendering {
+                super::denoised::Source::Rendering(picture)
+            } else {
+                super::denoised::Source::Finished { written, picture }
+            };
+            self.denoised((id, frame), source).await?
+        } else {
+            picture
         };
         tokio::task::spawn_blocking(move || kiln_image::encode_png(&picture, exposure))
             .await?

@@ -19,6 +19,7 @@
 
 mod credentials;
 mod data_dir;
+mod denoised;
 mod error;
 mod http;
 mod job;
@@ -161,6 +162,8 @@ struct Shared {
     prepass_claims: Mutex<prepass::Claims>,
     /// Turns to plan a job (load its scene): [`Config::max_plannings`] at once.
     plannings: tokio::sync::Semaphore,
+    /// The frames denoised last, and the turn to denoise one (`denoised.rs`).
+    denoised: tokio::sync::Mutex<denoised::Denoised>,
     /// Tests hold a merge here to watch what other requests do meanwhile.
     #[cfg(test)]
     merge_hook: Mutex<Option<Box<dyn FnOnce() + Send>>>,
@@ -285,6 +288,7 @@ impl Coordinator {
                 events,
                 prepass_claims: Mutex::new(prepass::Claims::default()),
                 plannings,
+                denoised: tokio::sync::Mutex::new(denoised::Denoised::default()),
                 #[cfg(test)]
                 merge_hook: Mutex::new(None),
                 #[cfg(test)]

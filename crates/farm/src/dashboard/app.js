@@ -356,11 +356,17 @@ async function drawJob(j) {
   $("download-exr").setAttribute("aria-disabled", String(merged === 0));
   if (shot) await drawStrip(j);
   // A new frame when tiles or passes land, the frame shown changed, or the exposure moved.
-  const key = [j.id, state.frame, j.samples_done, j.passes_done, j.state, $("exposure").value].join(":");
+  const key = [j.id, state.frame, j.samples_done, j.passes_done, j.state, previewQuery()].join(":");
   if (key !== state.shown) {
     state.shown = key;
     await drawFrame(j.id, shot);
   }
+}
+
+/// The query of the shown frame's preview: its exposure, and whether denoised (the
+/// coordinator denoises each merged pass with Kiln's built-in denoiser when asked).
+function previewQuery() {
+  return `exposure=${$("exposure").value}` + ($("denoise").checked ? "&denoise=1" : "");
 }
 
 /// The path of the shown frame's `file` (result.exr or preview.png): a shot's frame's, or
@@ -406,12 +412,12 @@ async function drawStrip(j) {
     b.title = `${f.scene}: ${Math.floor(f.progress * 100)}%, ${f.passes_done} passes merged`;
     const bar = b.querySelector("progress");
     bar.value = f.progress;
-    const key = [f.tiles_done, f.passes_done, f.progress, $("exposure").value].join(":");
+    const key = [f.tiles_done, f.passes_done, f.progress, previewQuery()].join(":");
     const had = state.thumbs[f.index];
     if ((had && had.key === key) || fetched >= THUMBS_PER_POLL) continue;
     fetched++;
     try {
-      const path = `/v1/jobs/${j.id}/frames/${f.index}/preview.png?exposure=${$("exposure").value}`;
+      const path = `/v1/jobs/${j.id}/frames/${f.index}/preview.png?${previewQuery()}`;
       const blob = await (await api("GET", path)).blob();
       if (state.selected !== j.id) return;
       if (had && had.url) URL.revokeObjectURL(had.url);
@@ -425,9 +431,8 @@ async function drawStrip(j) {
 }
 
 async function drawFrame(id, shot) {
-  const exposure = $("exposure").value;
   try {
-    const r = await api("GET", framePath(id, shot, `preview.png?exposure=${exposure}`));
+    const r = await api("GET", framePath(id, shot, `preview.png?${previewQuery()}`));
     const blob = await r.blob();
     if (state.selected !== id) return;
     const url = URL.createObjectURL(blob);
@@ -456,7 +461,7 @@ async function download(kind) {
   const id = state.selected;
   if (id === null) return;
   const shot = state.frames !== null;
-  const file = kind === "exr" ? "result.exr" : `preview.png?exposure=${$("exposure").value}`;
+  const file = kind === "exr" ? "result.exr" : `preview.png?${previewQuery()}`;
   const path = framePath(id, shot, file);
   const name = shot ? `job ${id} frame ${state.frame + 1}` : `job ${id}`;
   try {
@@ -497,6 +502,12 @@ $("token-form").addEventListener("submit", async (e) => {
 });
 $("exposure").addEventListener("input", () => {
   $("exposure-value").textContent = $("exposure").value;
+  if (state.selected !== null) {
+    state.shown = null;
+    poll();
+  }
+});
+$("denoise").addEventListener("change", () => {
   if (state.selected !== null) {
     state.shown = null;
     poll();

@@ -14,7 +14,7 @@ mod path;
 pub mod photons;
 pub mod sppm;
 
-pub(crate) use path::{Path, PathTracer};
+pub(crate) use path::{Outcome, Path, PathTracer};
 pub use photons::{Gather, PhotonMaps, PhotonSettings, Roulette};
 pub use sppm::SppmSettings;
 

@@ -6,7 +6,7 @@ mod sample;
 mod wave;
 
 use crate::adaptive::Adaptive;
-use crate::gbuffer::GBufferLayout;
+use crate::film::FilmChannels;
 use crate::integrators::photons::Gather;
 use crate::integrators::sppm::PassCache;
 use crate::integrators::{Integrator, PathTracer, Prepass};
@@ -249,16 +249,16 @@ pub struct TileResult {
     pub rect: TileRect,
     /// Row-major, `rect.width * rect.height` linear RGB pixels.
     pub pixels: Vec<[f32; 3]>,
-    /// With a G-buffer film, each pixel's channels in turn (named by
-    /// [`GBufferLayout::names`]); empty otherwise.
+    /// Each pixel's further channels in turn, named by [`aov_names`]: the denoiser's
+    /// features ([`crate::features`]) and with a G-buffer film its channels.
     pub aovs: Vec<f32>,
     pub stats: TileStats,
 }
 
 /// The names of the further channels a film writes beside R, G and B (sorted, as images
-/// hold them): a G-buffer's, or none.
+/// hold them): the denoiser's features, and a G-buffer's if it has one.
 pub fn aov_names(gbuffer: Option<kiln_scene::GBufferSpace>) -> Vec<String> {
-    gbuffer.map_or_else(Vec::new, |space| GBufferLayout::new(space).names())
+    FilmChannels::new(gbuffer).names().to_vec()
 }
 
 /// Renders one tile. The result depends only on the scene, the settings and the
@@ -344,9 +344,9 @@ fn continue_tile_in_waves(
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<(TileResult, TileSums)> {
     let rect = from.rect;
-    let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
-    let channels = layout.as_ref().map_or(0, |l| l.channels());
-    let want = layout.as_ref().map(|l| l.space);
+    let film = FilmChannels::new(renderer.settings.gbuffer);
+    let channels = film.channels();
+    let want = film.gbuffer_space();
     let width = rect.width as usize;
     type Row = (Vec<[f32; 3]>, Vec<f32>, Vec<PixelSums>, TileStats);
     let rows: Option<Vec<Row>> = (0..rect.height as usize)
@@ -364,10 +364,7 @@ fn continue_tile_in_waves(
                 wave::add_row_samples(renderer, room, at, sums_, samples, want, stats_, stop)?;
                 let mut pixels = Vec::with_capacity(width);
                 for (i, p) in sums.iter().enumerate() {
-                    if let Some(l) = &layout {
-                        p.gbuffer
-                            .finish(l, &mut aovs[i * channels..(i + 1) * channels]);
-                    }
+                    film.finish(p, &mut aovs[i * channels..(i + 1) * channels]);
                     pixels.push(p.value());
                 }
                 Some((pixels, aovs, sums, stats))
@@ -416,9 +413,9 @@ pub fn render_tile_reference(
             .expect("never stopped")
             .0;
     }
-    let layout = renderer.settings.gbuffer.map(GBufferLayout::new);
-    let channels = layout.as_ref().map_or(0, |l| l.channels());
-    let want = layout.as_ref().map(|l| l.space);
+    let film = FilmChannels::new(renderer.settings.gbuffer);
+    let channels = film.channels();
+    let want = film.gbuffer_space();
     let adaptive = renderer.settings.adaptive;
     let mut result = TileResult {
         rect,
@@ -436,12 +433,9 @@ pub fn render_tile_reference(
                 break;
             }
             let sample = sample::render_sample_seeing(renderer, x, y, s, &mut result.stats, want);
-            sample::accumulate(&mut p, s, sample, adaptive, want.is_some());
+            sample::accumulate(&mut p, s, sample, want.is_some());
         }
-        if let Some(l) = &layout {
-            p.gbuffer
-                .finish(l, &mut result.aovs[i * channels..(i + 1) * channels]);
-        }
+        film.finish(&p, &mut result.aovs[i * channels..(i + 1) * channels]);
         result.pixels.push(p.value());
     }
     result
@@ -558,6 +552,18 @@ fn render_sppm(
             .for_each(|(vp, (state, _))| gather(&scene.sensor, &map, vp.as_ref(), state));
         progress();
     }
+    // SPPM's pixels are no means of samples: they keep no variance, and no features yet
+    // (every pixel's are those of a path that saw nothing), so they are not denoised.
+    let film = FilmChannels::new(None);
+    let mut nothing = PixelSums {
+        weight: 1.0,
+        ..PixelSums::default()
+    };
+    nothing
+        .features
+        .add(&crate::features::Feature::NOTHING, 1.0);
+    let mut aov = vec![0.0; film.channels()];
+    film.finish(&nothing, &mut aov);
     let mut results = Vec::with_capacity(rects.len());
     let mut start = 0;
     for &rect in rects {
@@ -583,7 +589,7 @@ fn render_sppm(
         results.push(TileResult {
             rect,
             pixels,
-            aovs: Vec::new(),
+            aovs: aov.repeat(n),
             stats,
         });
         start += n;

@@ -4,8 +4,9 @@
 //! added to its pixel's running sums ([`accumulate`], the one way every pixel is summed).
 
 use super::{Renderer, SampleId, TileStats};
-use crate::adaptive::Adaptive;
+use crate::features::Feature;
 use crate::gbuffer::VisibleSurface;
+use crate::integrators::Outcome;
 use crate::math::{Color, Ray};
 use crate::sampling::PixelSampler;
 use crate::spectral::Wavelengths;
@@ -73,24 +74,33 @@ pub(super) fn camera_sample(renderer: &Renderer, x: u32, y: u32, sample: u32) ->
     }
 }
 
-/// A camera sample's shot, and what its path gave: radiance, cost and the first surface it
-/// saw (None where the lens stopped the ray).
+/// A camera sample's shot, and what its path gave: radiance, cost, the first surface it
+/// saw and the denoiser's feature (None where the lens stopped the ray).
 pub(super) struct Taken {
     pub id: SampleId,
     pub shot: Shot,
-    pub path: Option<(Color, Work, Option<VisibleSurface>)>,
+    pub path: Option<Outcome>,
+}
+
+/// A sample as the film takes it: its radiance, filter weight, the first surface it saw
+/// (with a G-buffer) and the denoiser's feature.
+pub(super) struct FilmSample {
+    pub l: Color,
+    pub weight: f32,
+    pub seen: Option<VisibleSurface>,
+    pub feature: Feature,
 }
 
 impl Taken {
     /// The sample as the film takes it: its radiance (zeroed if not finite, clamped, through
-    /// the sensor), its filter weight, and with `gbuffer` the first surface it saw in that
-    /// space; counted in `stats`.
+    /// the sensor), its filter weight, with `gbuffer` the first surface it saw in that
+    /// space, and its feature; counted in `stats`.
     pub fn take(
         &self,
         renderer: &Renderer,
         gbuffer: Option<GBufferSpace>,
         stats: &mut TileStats,
-    ) -> (Color, f32, Option<VisibleSurface>) {
+    ) -> FilmSample {
         let (scene, settings) = (&renderer.scene, &renderer.settings);
         let SampleId { x, y, sample } = self.id;
         let Shot {
@@ -101,18 +111,18 @@ impl Taken {
             ray,
             waves,
         } = self.shot;
-        let (mut l, work, seen) = match (ray, self.path) {
-            (Some((ray, camera_weight)), Some((l, work, seen))) => {
-                let seen = match (gbuffer, seen) {
+        let (mut l, work, seen, feature) = match (ray, self.path) {
+            (Some((ray, camera_weight)), Some(o)) => {
+                let seen = match (gbuffer, o.visible) {
                     (Some(space), Some(s)) => Some(seen_from_camera(
                         renderer, &s, &ray, film, lens, time, space,
                     )),
                     (_, seen) => seen,
                 };
-                (l * camera_weight, work, seen)
+                (o.l * camera_weight, o.work, seen, o.feature)
             }
             // A realistic camera's lens may stop the ray: the sample counts, black.
-            _ => (Color::ZERO, Work::default(), None),
+            _ => (Color::ZERO, Work::default(), None, Feature::NOTHING),
         };
         // The film records a spectral sample as linear sRGB, or as a named camera's raw RGB.
         if let Some(w) = &waves {
@@ -139,31 +149,34 @@ impl Taken {
                 l *= settings.max_radiance / m;
             }
         }
-        (scene.sensor.respond(l, waves.is_some()), weight, seen)
+        FilmSample {
+            l: scene.sensor.respond(l, waves.is_some()),
+            weight,
+            seen,
+            feature,
+        }
     }
 }
 
-/// Adds sample `s` of a pixel (radiance `l`, filter weight `w`, the surface it saw) to the
-/// pixel's running sums: the one way every pixel is summed, in sample order, in one go or
-/// in passes, whatever order its paths ended in.
-pub(super) fn accumulate(
-    p: &mut PixelSums,
-    s: u32,
-    (l, w, seen): (Color, f32, Option<VisibleSurface>),
-    adaptive: Option<Adaptive>,
-    gbuffer: bool,
-) {
+/// Adds sample `s` of a pixel to the pixel's running sums: the one way every pixel is
+/// summed, in sample order, in one go or in passes, whatever order its paths ended in.
+pub(super) fn accumulate(p: &mut PixelSums, s: u32, sample: FilmSample, gbuffer: bool) {
+    let FilmSample {
+        l,
+        weight: w,
+        seen,
+        feature,
+    } = sample;
     for c in 0..3 {
         let v = (l[c] * w) as f64;
         p.sum[c] += v;
-        if adaptive.is_some() {
-            p.squares[c] += v * v;
-        }
+        p.squares[c] += v * v;
     }
     p.weight += w as f64;
     if gbuffer {
         p.gbuffer.add(l, w, seen.as_ref());
     }
+    p.features.add(&feature, w);
     p.taken = s + 1;
 }
 
@@ -177,20 +190,11 @@ pub(super) fn render_sample_seeing(
     sample: u32,
     stats: &mut TileStats,
     gbuffer: Option<GBufferSpace>,
-) -> (Color, f32, Option<VisibleSurface>) {
+) -> FilmSample {
     let CameraSample { mut sampler, shot } = camera_sample(renderer, x, y, sample);
     let path = shot.ray.map(|(ray, _)| {
         let tracer = renderer.path_tracer();
-        let mut work = Work::default();
-        let mut seen = None;
-        let l = tracer.li(
-            ray,
-            &mut sampler,
-            &mut work,
-            gbuffer.is_some().then_some(&mut seen),
-            shot.waves,
-        );
-        (l, work, seen)
+        tracer.trace(ray, &mut sampler, gbuffer.is_some(), shot.waves)
     });
     let taken = Taken {
         id: SampleId { x, y, sample },

@@ -112,7 +112,7 @@ pub(super) fn add_row_samples(
             for s in s0..s1 {
                 let taken = round.next().expect("one result a sample");
                 let sample = taken.take(renderer, gbuffer, &mut pixel_stats[i]);
-                accumulate(&mut sums[i], s, sample, adaptive, gbuffer.is_some());
+                accumulate(&mut sums[i], s, sample, gbuffer.is_some());
             }
         }
         s0 = s1;

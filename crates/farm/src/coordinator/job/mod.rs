@@ -389,6 +389,11 @@ impl Job {
         (!f.released).then(|| f.so_far())
     }
 
+    /// How many passes of frame `frame` its result file holds.
+    pub fn frame_passes_written(&self, frame: usize) -> u32 {
+        self.frames.get(frame).map_or(0, |f| f.written)
+    }
+
     /// Whether passes of frame `frame` are merged into its result file: it can be
     /// downloaded.
     pub fn has_result(&self, frame: usize) -> bool {
@@ -557,6 +562,7 @@ impl Job {
         TileSpot {
             frame: self.frames[0].size(),
             window: self.rect(idx).into(),
+            channels: self.frames[0].black().aovs.names.clone(),
             sums: self.schedule.sums.map(|g| (g, pass.to)),
         }
     }
@@ -808,12 +814,14 @@ pub(super) struct ToMerge {
     pub frame: Arc<RgbBuffer>,
 }
 
-/// A tile's place: its frame's size, its window in it, and the running sums it must carry
-/// (with a G-buffer's or not, and after how many samples).
-#[derive(Debug, Clone, Copy)]
+/// A tile's place: its frame's size, its window in it, the further channels it must hold
+/// (the features, a G-buffer's), and the running sums it must carry (with a G-buffer's or
+/// not, and after how many samples).
+#[derive(Debug, Clone)]
 pub(super) struct TileSpot {
     frame: (u32, u32),
     window: Rect,
+    channels: Vec<String>,
     sums: Option<(SumsLayout, u32)>,
 }
 
@@ -823,13 +831,19 @@ impl TileSpot {
         u64::from(self.window.width) * u64::from(self.window.height)
     }
 
-    /// Checks that an uploaded tile has this place's windows, finite pixels, and running
-    /// sums of its pass.
+    /// Checks that an uploaded tile has this place's windows, further channels, finite
+    /// pixels, and running sums of its pass.
     pub fn check(&self, tile: &RgbBuffer) -> Result<(), TileRejected> {
         let frame = (tile.frame_width, tile.frame_height);
         let window = data_window(&tile.windows());
         if (frame, window) != (self.frame, self.window) {
             return Err(TileRejected::Windows { frame, window });
+        }
+        if tile.aovs.names != self.channels {
+            return Err(TileRejected::Channels {
+                found: tile.aovs.names.clone(),
+                expected: self.channels.clone(),
+            });
         }
         if tile.pixels.iter().any(|p| p.iter().any(|v| !v.is_finite())) {
             return Err(TileRejected::NonFinite);

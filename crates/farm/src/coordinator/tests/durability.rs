@@ -99,7 +99,7 @@ async fn restart_keeps_tiles_and_merges(store: Option<&str>) {
     let path = format!("/v1/jobs/{job}/result.exr");
     let (status, body) = call(&app, "GET", &path, None, Body::empty()).await;
     assert_eq!(status, StatusCode::OK);
-    let mut expected = RgbBuffer::new(32, 16, 0, 0, 32, 16);
+    let mut expected = RgbBuffer::new(32, 16, 0, 0, 32, 16).with_aovs(kiln_render::aov_names(None));
     expected.paste(&tile_a).unwrap();
     expected.paste(&tile_b).unwrap();
     assert_eq!(body, exr(&expected));

@@ -261,7 +261,10 @@ async fn metrics(app: &Router) -> String {
 /// The tile a lease asks for, every pixel `value`, in a `frame` sized frame.
 fn tile_of(lease: &Lease, frame: (u32, u32), value: f32) -> RgbBuffer {
     let t = lease.tile;
-    let mut tile = RgbBuffer::new(frame.0, frame.1, t.x0, t.y0, t.width, t.height);
+    // The further channels every render keeps (the denoiser's features; their values are
+    // the worker's business too).
+    let mut tile = RgbBuffer::new(frame.0, frame.1, t.x0, t.y0, t.width, t.height)
+        .with_aovs(kiln_render::aov_names(None));
     tile.pixels.iter_mut().for_each(|p| *p = [value; 3]);
     // The running sums its pass must carry (their values are the worker's business).
     let mut sums = kiln_render::TileSums::empty(t.into(), kiln_render::SumsLayout::default());

@@ -5,6 +5,7 @@
 use super::super::direct::{Vertex, light_sample};
 use super::super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use super::{Next, PathContext, PathState};
+use crate::features::Feature;
 use crate::math::{Color, Ray};
 use crate::media::{Emitted, MediumEvent};
 use crate::sampling::{PixelSampler, TrackingRng};
@@ -115,6 +116,15 @@ fn scatter(
     state.vertices += 1;
     let med = state.travel.walk.medium(&scene.media, m);
     let p = ray.at(t);
+    if state.feature.is_none() {
+        // Scattering in a medium before any non-specular surface: what the path carries
+        // (the medium's albedo among it), facing where it came from.
+        state.feature = Some(Feature {
+            albedo: super::surface::reflectance_rgb(state.beta.min(Color::ONE), ctx.waves.as_ref()),
+            normal: -ray.dir.normalize_or_zero(),
+            depth: state.travelled + (p - ray.origin).length(),
+        });
+    }
     let phase = med.phase();
     let wo = -ray.dir;
     // (Not inside a subsurface material: its random walk goes on as a path.)

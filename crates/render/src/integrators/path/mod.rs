@@ -17,6 +17,7 @@ mod surface;
 
 use super::direct::{Direct, Shadow, emission_weight, survives_roulette};
 use super::{PathSettings, Prepass};
+use crate::features::Feature;
 use crate::gbuffer::VisibleSurface;
 use crate::math::{Color, Ray};
 use crate::media::subsurface::Walk;
@@ -76,6 +77,10 @@ struct PathState {
     /// For a G-buffer: whether to note the first surface with a BSDF, and what it was.
     want_visible: bool,
     visible: Option<VisibleSurface>,
+    /// The denoiser's feature, once the path met its first non-specular vertex, and how
+    /// far the path has come until then.
+    feature: Option<Feature>,
+    travelled: f32,
     /// The light sample of the last vertex waiting on its shadow ray, with the throughput
     /// it is seen through there.
     shadow: Option<(Color, Shadow)>,
@@ -231,6 +236,16 @@ impl PathState {
     }
 }
 
+/// What a path gave when it ended.
+#[derive(Debug, Clone, Copy)]
+pub struct Outcome {
+    pub l: Color,
+    pub work: Work,
+    /// The first surface it saw, for a G-buffer (when asked for).
+    pub visible: Option<VisibleSurface>,
+    pub feature: Feature,
+}
+
 /// What the path does after a step.
 enum Next {
     /// Trace the next segment.
@@ -274,10 +289,16 @@ impl Path {
         self.state.shadow.is_some()
     }
 
-    /// The radiance gathered, what it cost, and (if asked for) the first surface it saw.
-    pub fn outcome(&self) -> (Color, Work, Option<VisibleSurface>) {
+    /// The radiance gathered, what it cost, (if asked for) the first surface it saw, and
+    /// the denoiser's feature.
+    pub fn outcome(&self) -> Outcome {
         assert!(self.state.shadow.is_none(), "a shadow ray is still waiting");
-        (self.state.l, self.work, self.state.visible)
+        Outcome {
+            l: self.state.l,
+            work: self.work,
+            visible: self.state.visible,
+            feature: self.state.feature.unwrap_or(Feature::NOTHING),
+        }
     }
 }
 
@@ -321,6 +342,8 @@ impl PathTracer<'_> {
             hero_only: false,
             want_visible,
             visible: None,
+            feature: None,
+            travelled: 0.0,
             shadow: None,
         };
         Path {
@@ -372,17 +395,16 @@ impl PathTracer<'_> {
         }
     }
 
-    /// Radiance arriving along `ray`, one path traced on its own to its end; `work` counts
-    /// what it cost. With `visible`, the first surface it saw is written there.
-    pub fn li(
+    /// One path along `ray` traced on its own to its end, and what it gave; with
+    /// `want_visible`, the first surface it saw.
+    pub fn trace(
         &self,
         ray: Ray,
         sampler: &mut PixelSampler,
-        work: &mut Work,
-        visible: Option<&mut Option<VisibleSurface>>,
+        want_visible: bool,
         waves: Option<Wavelengths>,
-    ) -> Color {
-        let mut path = self.start(ray, sampler.clone(), waves, visible.is_some());
+    ) -> Outcome {
+        let mut path = self.start(ray, sampler.clone(), waves, want_visible);
         loop {
             let found = self.scene.geometry.intersect(path.ray(), f32::INFINITY);
             let goes_on = self.advance(&mut path, found);
@@ -392,13 +414,7 @@ impl PathTracer<'_> {
             }
         }
         *sampler = path.sampler.clone();
-        let (l, cost, seen) = path.outcome();
-        work.rays += cost.rays;
-        work.cut_walks += cost.cut_walks;
-        if let Some(out) = visible {
-            *out = seen;
-        }
-        l
+        path.outcome()
     }
 }
 

@@ -6,6 +6,7 @@ use super::super::direct::{Vertex, light_sample};
 use super::super::{CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use super::{Next, PathContext, PathState};
 use crate::bsdfs::Bsdf;
+use crate::features::Feature;
 use crate::gbuffer::{RHO_SAMPLES, VisibleSurface, rho_sample};
 use crate::math::{Color, Frame, Ray};
 use crate::sampling::PixelSampler;
@@ -26,6 +27,9 @@ pub(super) fn surface_step(
     work: &mut Work,
 ) -> Next {
     let (scene, settings) = (ctx.scene, ctx.settings);
+    if state.feature.is_none() {
+        state.travelled += (hit.p - ray.origin).length();
+    }
     // Shading may perturb the normal (bump and normal maps), in the path's own record.
     let Some(mut bsdf) = scene.bsdf_nested(
         hit,
@@ -50,6 +54,17 @@ pub(super) fn surface_step(
     }
     if state.depth == 0 && state.want_visible {
         state.visible = Some(visible_surface(hit, &bsdf, -ray.dir, ctx.waves.as_ref()));
+    }
+    if state.feature.is_none() && !bsdf.is_specular() {
+        let rotation = sampler.value(FEATURE_DIMENSION);
+        state.feature = Some(feature_at(
+            state,
+            hit,
+            &bsdf,
+            ray,
+            rotation,
+            ctx.waves.as_ref(),
+        ));
     }
     // Met from inside a subsurface walk, the surface is one of the walk's events.
     let in_walk = state.travel.in_walk(scene);
@@ -146,8 +161,24 @@ fn visible_surface(
     toward_camera: Vec3A,
     waves: Option<&Wavelengths>,
 ) -> VisibleSurface {
+    // Both normals face the camera, as pbrt-v4's VisibleSurface turns them.
+    let facing = |n: Vec3A| if n.dot(toward_camera) < 0.0 { -n } else { n };
+    VisibleSurface {
+        p: hit.p,
+        ng: facing(hit.ng),
+        ns: facing(hit.ns),
+        uv: hit.uv,
+        albedo: reflectance_rgb(rho(hit, bsdf, toward_camera), waves),
+        dpdx: Vec3A::ZERO,
+        dpdy: Vec3A::ZERO,
+    }
+}
+
+/// The BSDF's directional reflectance toward `wo_world`, estimated as pbrt-v4 does from
+/// fixed samples (exact for a Lambertian surface).
+fn rho(hit: &SurfaceHit, bsdf: &Bsdf, wo_world: Vec3A) -> Color {
     let frame = Frame::new(hit.ns, hit.dpdu);
-    let wo = frame.to_local(toward_camera);
+    let wo = frame.to_local(wo_world);
     let mut albedo = Color::ZERO;
     for i in 0..RHO_SAMPLES {
         let (uc, u) = rho_sample(i);
@@ -157,18 +188,77 @@ fn visible_surface(
             albedo += bs.f * bs.wi.z.abs() / bs.pdf;
         }
     }
-    // Both normals face the camera, as pbrt-v4's VisibleSurface turns them.
-    let facing = |n: Vec3A| if n.dot(toward_camera) < 0.0 { -n } else { n };
-    VisibleSurface {
-        p: hit.p,
-        ng: facing(hit.ng),
-        ns: facing(hit.ns),
-        uv: hit.uv,
-        albedo: match waves {
-            None => albedo / RHO_SAMPLES as f32,
-            Some(w) => w.to_rgb(albedo / RHO_SAMPLES as f32 * w.d65()),
-        },
-        dpdx: Vec3A::ZERO,
-        dpdy: Vec3A::ZERO,
+    albedo / RHO_SAMPLES as f32
+}
+
+/// A reflectance as RGB: a spectral path's as pbrt-v4's G-buffer records it, its colour
+/// under the colour space's white (D65), through the film.
+pub(super) fn reflectance_rgb(r: Color, waves: Option<&Wavelengths>) -> Color {
+    match waves {
+        None => r,
+        Some(w) => w.to_rgb(r * w.d65()),
+    }
+}
+
+/// The sampler dimension the feature's reflectance estimate is rotated by: far from the
+/// path's own and the camera's (time 0x4000_0000, wavelengths 0x4000_0001), so the path's
+/// numbers are the same with or without it.
+const FEATURE_DIMENSION: u32 = 0x4000_0002;
+
+/// The denoiser's feature reflectance of `bsdf` toward `wo`: exact for the diffuse kinds
+/// (their reflectance and transmittance), else two BSDF samples of a fixed pair rotated by
+/// `rotation` (a number of the camera sample's own, so a pixel's samples average over
+/// many directions while each costs two samples, not [`RHO_SAMPLES`]).
+fn feature_reflectance(hit: &SurfaceHit, bsdf: &Bsdf, wo_world: Vec3A, rotation: f32) -> Color {
+    match bsdf {
+        Bsdf::Diffuse(d) => d.r,
+        Bsdf::DiffuseTransmission(d) => d.r + d.t,
+        _ => {
+            let frame = Frame::new(hit.ns, hit.dpdu);
+            let wo = frame.to_local(wo_world);
+            let mut sum = Color::ZERO;
+            for i in 0..2 {
+                let shift = |v: f32| (v + rotation).fract();
+                let (uc, u) = rho_sample(i * (RHO_SAMPLES / 2));
+                let u = glam::Vec2::new(shift(u.x), (u.y + rotation * 0.618_034).fract());
+                if let Some(bs) = bsdf.sample(wo, shift(uc), u)
+                    && bs.pdf > 0.0
+                {
+                    sum += bs.f * bs.wi.z.abs() / bs.pdf;
+                }
+            }
+            sum * 0.5
+        }
+    }
+}
+
+/// The denoiser's feature at the path's first non-specular vertex: its reflectance (white
+/// on an emitter) seen through the specular bounces before it (their throughput, at most
+/// 1), its shading normal facing the path, and how far the path came.
+fn feature_at(
+    state: &PathState,
+    hit: &SurfaceHit,
+    bsdf: &Bsdf,
+    ray: &Ray,
+    rotation: f32,
+    waves: Option<&Wavelengths>,
+) -> Feature {
+    let through = state.beta.min(Color::ONE);
+    let n = if hit.ns.dot(ray.dir) > 0.0 {
+        -hit.ns
+    } else {
+        hit.ns
+    };
+    // An emitter's own light is no reflection of anything: dividing it by its reflectance
+    // (a lamp's is often black) would make its pixels noise, so it notes white.
+    let reflectance = if hit.light.is_some() {
+        Color::ONE
+    } else {
+        feature_reflectance(hit, bsdf, -ray.dir, rotation)
+    };
+    Feature {
+        albedo: reflectance_rgb(through * reflectance, waves),
+        normal: n,
+        depth: state.travelled,
     }
 }

@@ -1,0 +1,186 @@
+//! Kiln's denoiser: a clean picture from a render of a few samples per pixel, guided by the
+//! feature buffers every Kiln render keeps beside its beauty (`features.albedo`,
+//! `features.normal`, `features.depth` and `features.variance`, see
+//! `kiln_render::features`).
+//!
+//! Two denoisers: the built-in one ([`atrous`], a feature- and variance-guided à-trous
+//! wavelet filter written for Kiln), in every build and deterministic, the same bytes for
+//! the same input on any machine and thread count; and Intel Open Image Denoise behind the
+//! `oidn` cargo feature ([`Denoiser::Oidn`]), whose neural network runs in floating point
+//! that differs between CPUs, so its output is not bit-reproducible across machines.
+//! [`metrics`] holds the figures the denoisers are measured by.
+//!
+//! The crate knows nothing of scenes, files or the farm: it takes an image in memory, with
+//! its feature channels, and gives pixels back.
+
+pub mod atrous;
+pub mod metrics;
+#[cfg(feature = "oidn")]
+mod oidn;
+
+use kiln_image::RgbBuffer;
+
+pub use atrous::Settings;
+
+/// The feature channels a render keeps, as `kiln_render::features` names them.
+pub const ALBEDO: [&str; 3] = [
+    "features.albedo.R",
+    "features.albedo.G",
+    "features.albedo.B",
+];
+pub const NORMAL: [&str; 3] = [
+    "features.normal.X",
+    "features.normal.Y",
+    "features.normal.Z",
+];
+pub const DEPTH: &str = "features.depth";
+pub const VARIANCE: [&str; 3] = [
+    "features.variance.R",
+    "features.variance.G",
+    "features.variance.B",
+];
+
+/// The channel names a denoised image keeps its raw beauty under.
+pub const RAW: [&str; 3] = ["raw.R", "raw.G", "raw.B"];
+
+/// Why an image could not be denoised.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Error {
+    #[error(
+        "the image has no channel '{0}': it holds no feature buffers (a render by Kiln before they were kept, by SPPM, or by another renderer)"
+    )]
+    MissingChannel(String),
+    #[error(
+        "the image's feature buffers say nothing of its noise (every pixel's variance is zero: SPPM keeps none), so it cannot be denoised"
+    )]
+    NoVariance,
+    #[error("Open Image Denoise failed: {0}")]
+    Oidn(String),
+    #[error("this kiln was built without Open Image Denoise (cargo feature `oidn`)")]
+    NoOidn,
+}
+
+/// Which denoiser.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Denoiser {
+    /// The built-in filter: deterministic, in every build.
+    BuiltIn(Settings),
+    /// Intel Open Image Denoise (the `oidn` cargo feature): not bit-reproducible across
+    /// CPUs.
+    Oidn,
+}
+
+impl Denoiser {
+    /// Whether its output is the same bytes on every machine.
+    pub fn reproducible(&self) -> bool {
+        matches!(self, Denoiser::BuiltIn(_))
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Denoiser::BuiltIn(_) => "kiln",
+            Denoiser::Oidn => "oidn",
+        }
+    }
+
+    /// Whether this build has Open Image Denoise.
+    pub fn oidn_available() -> bool {
+        cfg!(feature = "oidn")
+    }
+}
+
+/// A noisy image and its features, pixel by pixel, row-major.
+#[derive(Debug, Clone)]
+pub struct Noisy<'a> {
+    pub width: usize,
+    pub height: usize,
+    pub color: &'a [[f32; 3]],
+    pub albedo: Vec<[f32; 3]>,
+    /// Unit shading normals (zero: no surface).
+    pub normal: Vec<[f32; 3]>,
+    pub depth: Vec<f32>,
+    /// The variance of each pixel's value, by channel.
+    pub variance: Vec<[f32; 3]>,
+}
+
+impl<'a> Noisy<'a> {
+    /// The beauty of `image` (its R, G and B) with its feature channels.
+    pub fn from_image(image: &'a RgbBuffer) -> Result<Noisy<'a>, Error> {
+        let names = &image.aovs.names;
+        let at = |name: &str| {
+            names
+                .iter()
+                .position(|n| n == name)
+                .ok_or_else(|| Error::MissingChannel(name.to_string()))
+        };
+        let at3 =
+            |n: [&str; 3]| -> Result<[usize; 3], Error> { Ok([at(n[0])?, at(n[1])?, at(n[2])?]) };
+        let (a, n, d, v) = (at3(ALBEDO)?, at3(NORMAL)?, at(DEPTH)?, at3(VARIANCE)?);
+        let per = names.len();
+        let pixel = |i: usize| &image.aovs.values[i * per..(i + 1) * per];
+        let count = image.pixels.len();
+        let three = |slots: [usize; 3]| -> Vec<[f32; 3]> {
+            (0..count).map(|i| slots.map(|s| pixel(i)[s])).collect()
+        };
+        let variance = three(v);
+        if variance.iter().all(|v| *v == [0.0; 3]) {
+            return Err(Error::NoVariance);
+        }
+        Ok(Noisy {
+            width: image.width as usize,
+            height: image.height as usize,
+            color: &image.pixels,
+            albedo: three(a),
+            normal: three(n),
+            depth: (0..count).map(|i| pixel(i)[d]).collect(),
+            variance,
+        })
+    }
+}
+
+/// Denoises `image`'s beauty with `denoiser`, calling `progress(done, of)` as it goes.
+pub fn denoise(
+    image: &RgbBuffer,
+    denoiser: Denoiser,
+    progress: &(dyn Fn(u32, u32) + Sync),
+) -> Result<Vec<[f32; 3]>, Error> {
+    let noisy = Noisy::from_image(image)?;
+    match denoiser {
+        Denoiser::BuiltIn(settings) => Ok(atrous::denoise(&noisy, &settings, progress)),
+        #[cfg(feature = "oidn")]
+        Denoiser::Oidn => oidn::denoise(&noisy),
+        #[cfg(not(feature = "oidn"))]
+        Denoiser::Oidn => Err(Error::NoOidn),
+    }
+}
+
+/// `image` with `denoised` as its beauty and its raw beauty kept beside it as the `raw.R`,
+/// `raw.G` and `raw.B` channels (its features and other channels kept as they were; raw
+/// channels it had already are replaced).
+pub fn with_denoised(image: &RgbBuffer, denoised: Vec<[f32; 3]>) -> RgbBuffer {
+    let mut out = image.clone();
+    let old = &image.aovs.names;
+    let mut names: Vec<String> = old.iter().cloned().chain(RAW.map(String::from)).collect();
+    names.sort();
+    names.dedup();
+    let per = names.len();
+    let slot_of_old: Vec<usize> = old
+        .iter()
+        .map(|n| names.iter().position(|s| s == n).expect("kept"))
+        .collect();
+    let raw = RAW.map(|n| names.iter().position(|s| s == n).expect("added"));
+    let mut values = vec![0.0f32; per * image.pixels.len()];
+    for (i, px) in image.pixels.iter().enumerate() {
+        let row = &mut values[i * per..(i + 1) * per];
+        for (k, &slot) in slot_of_old.iter().enumerate() {
+            row[slot] = image.aovs.values[i * old.len() + k];
+        }
+        for c in 0..3 {
+            row[raw[c]] = px[c];
+        }
+    }
+    out.aovs.names = names;
+    out.aovs.values = values;
+    out.pixels = denoised;
+    out
+}
