@@ -47,7 +47,16 @@ fn main() {
         depth: arg("--depth", d.depth),
         albedo: arg("--albedo", d.albedo),
     };
-    let mut denoisers = vec![Denoiser::BuiltIn(settings)];
+    let dr = kiln_denoise::Regression::default();
+    let regression = kiln_denoise::Regression {
+        radius: arg("--radius", dr.radius),
+        color: arg("--regression-color", dr.color),
+        ridge: arg("--ridge", dr.ridge),
+    };
+    let mut denoisers = vec![Denoiser::BuiltIn(settings, Some(regression))];
+    if std::env::args().any(|a| a == "--both-stages") {
+        denoisers.push(Denoiser::BuiltIn(settings, None));
+    }
     if Denoiser::oidn_available() {
         denoisers.push(Denoiser::Oidn);
     }
@@ -184,15 +193,19 @@ fn report(
         let start = Instant::now();
         let denoised = kiln_denoise::denoise(raw16, *d, &|_, _| {}).expect("it denoises");
         let secs = start.elapsed().as_secs_f64();
-        line(&format!("{} 16 spp", d.name()), &denoised, Some(secs));
+        let label = match d {
+            Denoiser::BuiltIn(_, None) => "kiln-atrous",
+            _ => d.name(),
+        };
+        line(&format!("{label} 16 spp"), &denoised, Some(secs));
         let kept = kiln_denoise::with_denoised(raw16, denoised.clone());
-        let path = out.join(format!("{name}-{}.exr", d.name()));
+        let path = out.join(format!("{name}-{label}.exr"));
         kiln_image::write_exr(&path, &kept).expect("the denoised image can be kept");
         side_by_side(
             &[&raw16.pixels, &denoised, r],
             w,
             h,
-            &out.join(format!("{name}-{}.png", d.name())),
+            &out.join(format!("{name}-{label}.png")),
         );
     }
 }

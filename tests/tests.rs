@@ -6,6 +6,7 @@ mod analytic;
 mod architecture;
 mod cli;
 mod dashboard;
+mod denoise;
 mod determinism;
 mod errors;
 mod estimators;

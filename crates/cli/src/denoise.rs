@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use kiln_denoise::{Denoiser, Settings};
+use kiln_denoise::Denoiser;
 use kiln_image::RgbBuffer;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -21,7 +21,7 @@ pub enum Choice {
 impl Choice {
     pub fn denoiser(self) -> Denoiser {
         match self {
-            Choice::Kiln => Denoiser::BuiltIn(Settings::default()),
+            Choice::Kiln => Denoiser::built_in(),
             Choice::Oidn => Denoiser::Oidn,
         }
     }

@@ -639,6 +639,14 @@ pub struct FarmArgs {
     /// Also write an sRGB PNG preview (of one frame; a shot's are on the dashboard).
     #[arg(long)]
     preview: Option<PathBuf>,
+    /// Denoise the merged frame with its feature buffers (as `kiln render --denoise`): the
+    /// denoised beauty as R, G and B and in the preview, the raw beauty as raw.R, raw.G
+    /// and raw.B.
+    #[arg(long)]
+    denoise: bool,
+    /// Which denoiser --denoise uses.
+    #[arg(long, value_enum, default_value_t = crate::denoise::Choice::Kiln, requires = "denoise")]
+    denoiser: crate::denoise::Choice,
     #[arg(long, short)]
     quiet: bool,
 }
@@ -656,8 +664,10 @@ pub fn farm(args: FarmArgs) -> Result<()> {
     }
     let frames = crate::shot::expand(&args.scenes)?;
     let shot = frames.len() > 1;
-    if shot && args.preview.is_some() {
-        bail!("--preview writes one frame's; a shot's frames are each an EXR in the -o folder");
+    if shot && (args.preview.is_some() || args.denoise) {
+        bail!(
+            "--preview and --denoise take one frame's; a shot's frames are each an EXR in the -o folder (`kiln denoise` takes each)"
+        );
     }
     let output = match &args.output {
         Some(o) => o.clone(),
@@ -741,9 +751,19 @@ pub fn farm(args: FarmArgs) -> Result<()> {
     });
     let _ = std::fs::remove_dir_all(&data);
     result?;
-    if let Some(preview) = &args.preview {
-        let frame = kiln_image::decode_exr(&std::fs::read(&output)?)?;
-        kiln_image::write_png(preview, &frame, 0.0)?;
+    if args.denoise || args.preview.is_some() {
+        let mut frame = kiln_image::decode_exr(&std::fs::read(&output)?)?;
+        if args.denoise {
+            // The merged raw frame is on disk already: a failure here loses nothing.
+            frame = crate::denoise::denoise_frame(&frame, args.denoiser, args.quiet).with_context(
+                || format!("the raw frame is in {}, not denoised", output.display()),
+            )?;
+            kiln_image::write_exr(&output, &frame)
+                .with_context(|| format!("cannot write {}", output.display()))?;
+        }
+        if let Some(preview) = &args.preview {
+            kiln_image::write_png(preview, &frame, 0.0)?;
+        }
     }
     let wrote = if shot {
         format!("{} frames into {}", outputs.len(), output.display())

@@ -37,7 +37,7 @@ impl Default for Settings {
     fn default() -> Settings {
         Settings {
             iterations: 5,
-            color: 1.0,
+            color: 6.0,
             normal_power: 64,
             depth: 1.0,
             albedo: 0.1,
@@ -92,12 +92,13 @@ impl Guide {
     }
 }
 
-/// Denoises `input` with `settings`, calling `progress(done, of)` after each iteration.
+/// Denoises `input` with `settings`, calling `progress(done, of)` after each iteration:
+/// each pixel's colour and that colour's variance.
 pub fn denoise(
     input: &Noisy,
     settings: &Settings,
     progress: &(dyn Fn(u32, u32) + Sync),
-) -> Vec<[f32; 3]> {
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     let n = input.width * input.height;
     let divisor: Vec<[f32; 3]> = input
         .albedo
@@ -117,11 +118,15 @@ pub fn denoise(
     let slope = depth_slopes(input);
     for it in 0..settings.iterations {
         level = iterate(input, &slope, &level, 1 << it, settings);
-        progress(it + 1, settings.iterations);
+        progress(it + 1, settings.iterations + 1);
     }
-    (0..n)
+    let color = (0..n)
         .map(|i| std::array::from_fn(|c| level.color[i][c] * divisor[i][c]))
-        .collect()
+        .collect();
+    let variance = (0..n)
+        .map(|i| std::array::from_fn(|c| level.variance[i][c] * divisor[i][c] * divisor[i][c]))
+        .collect();
+    (color, variance)
 }
 
 /// How fast each pixel's depth changes from one pixel to the next (the larger of its
@@ -253,7 +258,13 @@ fn cosine_power(cos: f32, power: u32) -> f32 {
 /// Rousselle et al.'s distance between two pixels' colours: their squared difference less
 /// what their noise alone would make it, over the noise, averaged over the channels (zero
 /// for colours as alike as their noise allows).
-fn color_distance(cp: [f32; 3], vp: [f32; 3], cq: [f32; 3], vq: [f32; 3], k: f32) -> f32 {
+pub(crate) fn color_distance(
+    cp: [f32; 3],
+    vp: [f32; 3],
+    cq: [f32; 3],
+    vq: [f32; 3],
+    k: f32,
+) -> f32 {
     let mut d = 0.0;
     for c in 0..3 {
         let diff = cp[c] - cq[c];

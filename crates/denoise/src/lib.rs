@@ -17,10 +17,12 @@ pub mod atrous;
 pub mod metrics;
 #[cfg(feature = "oidn")]
 mod oidn;
+pub mod regression;
 
 use kiln_image::RgbBuffer;
 
 pub use atrous::Settings;
+pub use regression::Regression;
 
 /// The feature channels a render keeps, as `kiln_render::features` names them.
 pub const ALBEDO: [&str; 3] = [
@@ -63,22 +65,28 @@ pub enum Error {
 /// Which denoiser.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Denoiser {
-    /// The built-in filter: deterministic, in every build.
-    BuiltIn(Settings),
+    /// The built-in filter: deterministic, in every build. Its à-trous stage, then (unless
+    /// None) its regression stage.
+    BuiltIn(Settings, Option<Regression>),
     /// Intel Open Image Denoise (the `oidn` cargo feature): not bit-reproducible across
     /// CPUs.
     Oidn,
 }
 
 impl Denoiser {
+    /// The built-in denoiser with its default settings.
+    pub fn built_in() -> Denoiser {
+        Denoiser::BuiltIn(Settings::default(), Some(Regression::default()))
+    }
+
     /// Whether its output is the same bytes on every machine.
     pub fn reproducible(&self) -> bool {
-        matches!(self, Denoiser::BuiltIn(_))
+        matches!(self, Denoiser::BuiltIn(..))
     }
 
     pub fn name(&self) -> &'static str {
         match self {
-            Denoiser::BuiltIn(_) => "kiln",
+            Denoiser::BuiltIn(..) => "kiln",
             Denoiser::Oidn => "oidn",
         }
     }
@@ -146,7 +154,19 @@ pub fn denoise(
 ) -> Result<Vec<[f32; 3]>, Error> {
     let noisy = Noisy::from_image(image)?;
     match denoiser {
-        Denoiser::BuiltIn(settings) => Ok(atrous::denoise(&noisy, &settings, progress)),
+        Denoiser::BuiltIn(settings, regression) => {
+            let (color, variance) = atrous::denoise(&noisy, &settings, progress);
+            let Some(r) = regression else {
+                return Ok(color);
+            };
+            let smooth = regression::Smooth {
+                color: &color,
+                variance: &variance,
+            };
+            let out = regression::refine(&noisy, &smooth, &r);
+            progress(settings.iterations + 1, settings.iterations + 1);
+            Ok(out)
+        }
         #[cfg(feature = "oidn")]
         Denoiser::Oidn => oidn::denoise(&noisy),
         #[cfg(not(feature = "oidn"))]
@@ -183,4 +203,135 @@ pub fn with_denoised(image: &RgbBuffer, denoised: Vec<[f32; 3]>) -> RgbBuffer {
     out.aovs.values = values;
     out.pixels = denoised;
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 48x32 flat grey wall with noise of a known variance, and a darker square of
+    /// another albedo in it: its features and its clean picture.
+    fn wall() -> (RgbBuffer, Vec<[f32; 3]>) {
+        let (w, h) = (48u32, 32u32);
+        let names = [ALBEDO, NORMAL, VARIANCE]
+            .concat()
+            .into_iter()
+            .chain([DEPTH])
+            .collect::<Vec<_>>();
+        let mut image = RgbBuffer::new(w, h, 0, 0, w, h).with_aovs(names);
+        let mut clean = Vec::new();
+        let per = image.aovs.names.len();
+        let mut state = 0x2545_f491_u32;
+        for i in 0..(w * h) as usize {
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            let albedo = if (16..32).contains(&x) && (8..24).contains(&y) {
+                0.2
+            } else {
+                0.6
+            };
+            let truth = albedo * 0.8;
+            // xorshift32: noise of variance 1/12 * 0.09, uniform.
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            let u = state as f32 / u32::MAX as f32 - 0.5;
+            image.pixels[i] = [truth + 0.3 * u; 3];
+            clean.push([truth; 3]);
+            for (k, name) in image.aovs.names.clone().iter().enumerate() {
+                image.aovs.values[i * per + k] = match name.as_str() {
+                    n if n.starts_with("features.albedo") => albedo,
+                    "features.normal.Z" | "features.depth" => 1.0,
+                    n if n.starts_with("features.variance") => 0.09 / 12.0,
+                    _ => 0.0,
+                };
+            }
+        }
+        (image, clean)
+    }
+
+    #[test]
+    fn the_built_in_denoiser_removes_noise_keeps_the_edge_and_is_the_same_on_any_thread_count() {
+        let (image, clean) = wall();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| denoise(&image, Denoiser::built_in(), &|_, _| {}).unwrap())
+        };
+        let one = run(1);
+        assert_eq!(
+            one.iter()
+                .flatten()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>(),
+            run(3)
+                .iter()
+                .flatten()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
+        );
+        let raw = metrics::rel_mse(&image.pixels, &clean, None);
+        let denoised = metrics::rel_mse(&one, &clean, None);
+        assert!(denoised < raw / 10.0, "{denoised} against {raw}");
+        // The square's edge stays: its pixels stay dark, the wall's light.
+        assert!(
+            (one[16 * 48 + 24][0] - 0.16).abs() < 0.03,
+            "{:?}",
+            one[16 * 48 + 24]
+        );
+        assert!(
+            (one[16 * 48 + 14][0] - 0.48).abs() < 0.03,
+            "{:?}",
+            one[16 * 48 + 14]
+        );
+    }
+
+    #[test]
+    fn an_image_without_features_or_variance_is_refused_by_name() {
+        let bare = RgbBuffer::new(4, 4, 0, 0, 4, 4);
+        assert_eq!(
+            denoise(&bare, Denoiser::built_in(), &|_, _| {}).unwrap_err(),
+            Error::MissingChannel("features.albedo.R".into())
+        );
+        let (mut image, _) = wall();
+        let per = image.aovs.names.len();
+        for (k, name) in image.aovs.names.clone().iter().enumerate() {
+            if name.starts_with("features.variance") {
+                image
+                    .aovs
+                    .values
+                    .iter_mut()
+                    .skip(k)
+                    .step_by(per)
+                    .for_each(|v| *v = 0.0);
+            }
+        }
+        assert_eq!(
+            denoise(&image, Denoiser::built_in(), &|_, _| {}).unwrap_err(),
+            Error::NoVariance
+        );
+    }
+
+    /// With the `oidn` feature (CI builds it against the PyPI wheel's library), Open Image
+    /// Denoise runs on the features and removes most of the noise.
+    #[cfg(feature = "oidn")]
+    #[test]
+    fn open_image_denoise_removes_noise() {
+        let (image, clean) = wall();
+        let out = denoise(&image, Denoiser::Oidn, &|_, _| {}).unwrap();
+        let raw = metrics::rel_mse(&image.pixels, &clean, None);
+        let denoised = metrics::rel_mse(&out, &clean, None);
+        assert!(denoised < raw / 4.0, "{denoised} against {raw}");
+    }
+
+    #[cfg(not(feature = "oidn"))]
+    #[test]
+    fn without_the_feature_open_image_denoise_says_so() {
+        let (image, _) = wall();
+        assert_eq!(
+            denoise(&image, Denoiser::Oidn, &|_, _| {}).unwrap_err(),
+            Error::NoOidn
+        );
+    }
 }

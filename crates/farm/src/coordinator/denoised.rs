@@ -86,13 +86,9 @@ impl Coordinator {
         };
         let from = picture.clone();
         let denoised = tokio::task::spawn_blocking(move || {
-            let settings = kiln_denoise::Settings::default();
             let started = std::time::Instant::now();
-            let pixels = kiln_denoise::denoise(
-                &from,
-                kiln_denoise::Denoiser::BuiltIn(settings),
-                &|_, _| {},
-            )?;
+            let pixels =
+                kiln_denoise::denoise(&from, kiln_denoise::Denoiser::built_in(), &|_, _| {})?;
             tracing::info!(
                 "denoised a {}x{} frame in {:.2} s",
                 from.width,

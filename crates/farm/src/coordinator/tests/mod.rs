@@ -18,6 +18,7 @@ use tower::ServiceExt;
 
 mod after;
 mod api;
+mod denoised;
 mod durability;
 mod leading;
 mod lending;
