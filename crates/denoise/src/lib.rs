@@ -102,7 +102,7 @@ impl Denoiser {
 pub struct Noisy<'a> {
     pub width: usize,
     pub height: usize,
-    pub color: &'a [[f32; 3]],
+    pub color: std::borrow::Cow<'a, [[f32; 3]]>,
     pub albedo: Vec<[f32; 3]>,
     /// Unit shading normals (zero: no surface).
     pub normal: Vec<[f32; 3]>,
@@ -112,7 +112,8 @@ pub struct Noisy<'a> {
 }
 
 impl<'a> Noisy<'a> {
-    /// The beauty of `image` (its R, G and B) with its feature channels.
+    /// The beauty of `image` with its feature channels: its raw beauty (`raw.*`) if it was
+    /// denoised already, so that denoising again gives the same image, else its R, G and B.
     pub fn from_image(image: &'a RgbBuffer) -> Result<Noisy<'a>, Error> {
         let names = &image.aovs.names;
         let at = |name: &str| {
@@ -134,10 +135,14 @@ impl<'a> Noisy<'a> {
         if variance.iter().all(|v| *v == [0.0; 3]) {
             return Err(Error::NoVariance);
         }
+        let color = match RAW.map(|n| names.iter().position(|s| s == n)) {
+            [Some(r), Some(g), Some(b)] => std::borrow::Cow::Owned(three([r, g, b])),
+            _ => std::borrow::Cow::Borrowed(&image.pixels[..]),
+        };
         Ok(Noisy {
             width: image.width as usize,
             height: image.height as usize,
-            color: &image.pixels,
+            color,
             albedo: three(a),
             normal: three(n),
             depth: (0..count).map(|i| pixel(i)[d]).collect(),
@@ -175,11 +180,12 @@ pub fn denoise(
 }
 
 /// `image` with `denoised` as its beauty and its raw beauty kept beside it as the `raw.R`,
-/// `raw.G` and `raw.B` channels (its features and other channels kept as they were; raw
-/// channels it had already are replaced).
+/// `raw.G` and `raw.B` channels (its features and other channels kept as they were; an
+/// image denoised before keeps the raw channels it has).
 pub fn with_denoised(image: &RgbBuffer, denoised: Vec<[f32; 3]>) -> RgbBuffer {
     let mut out = image.clone();
     let old = &image.aovs.names;
+    let had_raw = RAW.iter().all(|n| old.iter().any(|o| o == n));
     let mut names: Vec<String> = old.iter().cloned().chain(RAW.map(String::from)).collect();
     names.sort();
     names.dedup();
@@ -195,8 +201,10 @@ pub fn with_denoised(image: &RgbBuffer, denoised: Vec<[f32; 3]>) -> RgbBuffer {
         for (k, &slot) in slot_of_old.iter().enumerate() {
             row[slot] = image.aovs.values[i * old.len() + k];
         }
-        for c in 0..3 {
-            row[raw[c]] = px[c];
+        if !had_raw {
+            for c in 0..3 {
+                row[raw[c]] = px[c];
+            }
         }
     }
     out.aovs.names = names;
@@ -274,6 +282,19 @@ mod tests {
         let raw = metrics::rel_mse(&image.pixels, &clean, None);
         let denoised = metrics::rel_mse(&one, &clean, None);
         assert!(denoised < raw / 10.0, "{denoised} against {raw}");
+        // Denoising the denoised image again starts from its raw beauty: the same image.
+        let again = with_denoised(&with_denoised(&image, one.clone()), one.clone());
+        let twice = denoise(&again, Denoiser::built_in(), &|_, _| {}).unwrap();
+        assert_eq!(twice, one);
+        assert_eq!(
+            again
+                .aovs
+                .names
+                .iter()
+                .filter(|n| n.starts_with("raw."))
+                .count(),
+            3
+        );
         // The square's edge stays: its pixels stay dark, the wall's light.
         assert!(
             (one[16 * 48 + 24][0] - 0.16).abs() < 0.03,

@@ -7,7 +7,7 @@ use crate::{Error, Noisy};
 
 pub fn denoise(input: &Noisy) -> Result<Vec<[f32; 3]>, Error> {
     let flat = |v: &[[f32; 3]]| v.iter().flatten().copied().collect::<Vec<f32>>();
-    let color = flat(input.color);
+    let color = flat(&input.color);
     // OIDN wants albedo in [0, 1].
     let albedo: Vec<f32> = flat(&input.albedo)
         .into_iter()
