@@ -3,7 +3,8 @@
 //! against a coordinator with a token and a worker started once the browser has signed in:
 //! it stops a job after its first pass before it starts, watches another go through its
 //! passes to done while the frame's pixels change and its ETA and the worker's tile show,
-//! moves the exposure, downloads the EXR, extends the job, downloads the stopped job's
+//! moves the exposure, shows the denoised frame and the raw one again, downloads the EXR,
+//! extends the job, downloads the stopped job's
 //! PNG, cancels a third job, shows a shot's strip of frames and downloads its third frame,
 //! revokes a worker's credential (the worker stops, refused) and signs in as a submitter
 //! who sees only its own job, and checks a narrow screen, a frame and a screenshot that are

@@ -3,7 +3,7 @@
 chromedriver), as tests/dashboard.rs asks: signs in with the token from the keyboard (and
 prints "dashboard: signed in", the test's cue to start the worker), watches a job progress
 through its passes to done while its frame's pixels change, its ETA and the worker's
-current tile show, moves the exposure, downloads the EXR, extends the job by its form,
+current tile show, moves the exposure, toggles the denoised frame, downloads the EXR, extends the job by its form,
 stops a second job after its pass in progress and downloads its PNG, cancels a third,
 shows each job's thumbnail and the workers' pools by tag, a shot's strip of frame thumbnails with their progress, picks its third frame and
 downloads that frame's EXR, issues a token and revokes a worker's credential in the tokens
@@ -247,6 +247,22 @@ def run(driver, a):
     if not brighter[1] > before[1]:
         fail(f"one stop up, the frame's mean went from {before[1]:.1f} to {brighter[1]:.1f}")
     print(f"dashboard: exposure moved to 1 stop, mean {before[1]:.1f} -> {brighter[1]:.1f}", flush=True)
+
+    # The Denoised box, by keyboard: the coordinator's denoised frame, another picture as
+    # bright as the raw one; unticked, the raw frame again.
+    raw_frame = frame_pixels(driver)
+    driver.find_element(By.ID, "denoise").send_keys(Keys.SPACE)
+    denoised = wait_for(
+        "the denoised frame",
+        lambda: (f := frame_pixels(driver)) and f[0] != raw_frame[0] and f,
+    )
+    if abs(denoised[1] - raw_frame[1]) > 0.1 * raw_frame[1]:
+        fail(f"the denoised frame's mean is {denoised[1]:.1f}, the raw one's {raw_frame[1]:.1f}")
+    if "Cannot load" in driver.find_element(By.ID, "message").text:
+        fail(driver.find_element(By.ID, "message").text)
+    driver.find_element(By.ID, "denoise").send_keys(Keys.SPACE)
+    wait_for("the raw frame again", lambda: (f := frame_pixels(driver)) and f[0] == raw_frame[0])
+    print(f"dashboard: denoised, mean {raw_frame[1]:.1f} -> {denoised[1]:.1f}", flush=True)
 
     # Download the EXR: fetched with the token, handed to the browser.
     driver.find_element(By.ID, "download-exr").send_keys(Keys.ENTER)
