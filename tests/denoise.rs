@@ -16,8 +16,9 @@ fn plane(image: &kiln_image::RgbBuffer, names: [&str; 3]) -> Vec<[f32; 3]> {
         .collect()
 }
 
-/// `kiln render --denoise` gives the same bytes for other tile sizes and thread counts, and
-/// `kiln denoise` of the farm's merged frame (two workers, other tiles) gives them too:
+/// `kiln render --denoise` gives the same bytes for other tile sizes and thread counts,
+/// `kiln farm --denoise` (two workers, other tiles) gives them too, and so does `kiln
+/// denoise` of its frame on one thread or two:
 /// every feature of a pixel comes from its own samples, and the filter computes each pixel
 /// on its own in a fixed order.
 #[test]
@@ -44,26 +45,29 @@ fn the_denoised_frame_is_the_same_bytes_for_any_split_thread_count_and_farm() {
     // The raw beauty is kept beside the denoised one, and they differ.
     let raw = plane(&a.image, kiln_denoise::RAW);
     assert_ne!(raw, a.image.pixels);
+    // `kiln farm --denoise`: two workers, other tiles, the same bytes.
+    let farm = crate::farm::farm(
+        &path,
+        dir.path(),
+        "farm",
+        &[
+            "--resolution",
+            "96x64",
+            "--spp",
+            "8",
+            "--tile",
+            "11",
+            "--workers",
+            "2",
+            "--denoise",
+        ],
+    );
+    assert!(
+        farm == a.bytes,
+        "kiln farm --denoise differs from kiln render --denoise"
+    );
+    // `kiln denoise` of it (denoised again from its raw beauty) on one thread or two.
     let farm_exr = dir.path().join("farm.exr");
-    std::fs::write(
-        &farm_exr,
-        crate::farm::farm(
-            &path,
-            dir.path(),
-            "farm",
-            &[
-                "--resolution",
-                "96x64",
-                "--spp",
-                "8",
-                "--tile",
-                "11",
-                "--workers",
-                "2",
-            ],
-        ),
-    )
-    .unwrap();
     let out = dir.path().join("farm-denoised.exr");
     for threads in ["1", "2"] {
         let o = kiln()

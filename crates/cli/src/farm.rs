@@ -751,20 +751,7 @@ pub fn farm(args: FarmArgs) -> Result<()> {
     });
     let _ = std::fs::remove_dir_all(&data);
     result?;
-    if args.denoise || args.preview.is_some() {
-        let mut frame = kiln_image::decode_exr(&std::fs::read(&output)?)?;
-        if args.denoise {
-            // The merged raw frame is on disk already: a failure here loses nothing.
-            frame = crate::denoise::denoise_frame(&frame, args.denoiser, args.quiet).with_context(
-                || format!("the raw frame is in {}, not denoised", output.display()),
-            )?;
-            kiln_image::write_exr(&output, &frame)
-                .with_context(|| format!("cannot write {}", output.display()))?;
-        }
-        if let Some(preview) = &args.preview {
-            kiln_image::write_png(preview, &frame, 0.0)?;
-        }
-    }
+    finish_frame(&args, &output)?;
     let wrote = if shot {
         format!("{} frames into {}", outputs.len(), output.display())
     } else {
@@ -774,6 +761,25 @@ pub fn farm(args: FarmArgs) -> Result<()> {
         "kiln farm: wrote {wrote} in {:.2} s",
         start.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+/// The merged frame at `output` denoised (with --denoise) and its preview written (with
+/// --preview). The raw frame is on disk already: a failure here loses nothing.
+fn finish_frame(args: &FarmArgs, output: &std::path::Path) -> Result<()> {
+    if !args.denoise && args.preview.is_none() {
+        return Ok(());
+    }
+    let mut frame = kiln_image::decode_exr(&std::fs::read(output)?)?;
+    if args.denoise {
+        frame = crate::denoise::denoise_frame(&frame, args.denoiser, args.quiet)
+            .with_context(|| format!("the raw frame is in {}, not denoised", output.display()))?;
+        kiln_image::write_exr(output, &frame)
+            .with_context(|| format!("cannot write {}", output.display()))?;
+    }
+    if let Some(preview) = &args.preview {
+        kiln_image::write_png(preview, &frame, 0.0)?;
+    }
     Ok(())
 }
 

@@ -359,13 +359,6 @@ fn read_exr_header(bytes: &[u8]) -> Result<(Windows, u64), ImageError> {
 pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, ImageError> {
     use exr::prelude::{ReadChannels, ReadLayers};
     let (w, bytes_per_pixel) = read_exr_header(bytes)?;
-    let sample_bytes = u64::from(w.width) * u64::from(w.height) * bytes_per_pixel;
-    if sample_bytes > MAX_SAMPLE_BYTES {
-        return Err(ImageError::Invalid(format!(
-            "EXR data window of {}x{} pixels at {bytes_per_pixel} bytes each ({sample_bytes} bytes) is larger than the {MAX_SAMPLE_BYTES} bytes allowed",
-            w.width, w.height
-        )));
-    }
     let checks = [
         ("data window", w.width, w.height, max_pixels),
         ("display window", w.frame_width, w.frame_height, MAX_PIXELS),
@@ -376,6 +369,13 @@ pub fn decode_exr_limited(bytes: &[u8], max_pixels: u64) -> Result<RgbBuffer, Im
                 "EXR {what} of {width}x{height} pixels is larger than the {limit} pixels allowed here"
             )));
         }
+    }
+    let sample_bytes = u64::from(w.width) * u64::from(w.height) * bytes_per_pixel;
+    if sample_bytes > MAX_SAMPLE_BYTES {
+        return Err(ImageError::Invalid(format!(
+            "EXR data window of {}x{} pixels at {bytes_per_pixel} bytes each ({sample_bytes} bytes) is larger than the {MAX_SAMPLE_BYTES} bytes allowed",
+            w.width, w.height
+        )));
     }
     let reader = exr::prelude::read()
         .no_deep_data()
