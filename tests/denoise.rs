@@ -183,4 +183,18 @@ fn a_render_that_cannot_be_denoised_is_refused_and_its_raw_image_kept() {
         .unwrap();
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("features.albedo.R"));
+    // Open Image Denoise in a build without it is refused before anything renders.
+    if !kiln_denoise::Denoiser::oidn_available() {
+        let never = dir.path().join("never.exr");
+        let o = kiln()
+            .arg("render")
+            .arg(scene("textures/scene.pbrt"))
+            .args(["-q", "--denoise", "--denoiser", "oidn", "-o"])
+            .arg(&never)
+            .output()
+            .unwrap();
+        assert!(!o.status.success());
+        assert!(String::from_utf8_lossy(&o.stderr).contains("built without Open Image Denoise"));
+        assert!(!never.exists(), "nothing was rendered");
+    }
 }

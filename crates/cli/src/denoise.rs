@@ -19,6 +19,16 @@ pub enum Choice {
 }
 
 impl Choice {
+    /// Refuses, before any work, a denoiser this build does not have.
+    pub fn check_available(self) -> Result<()> {
+        if self == Choice::Oidn && !Denoiser::oidn_available() {
+            anyhow::bail!(
+                "--denoiser oidn: this kiln was built without Open Image Denoise (build with --features oidn and OIDN_DIR)"
+            );
+        }
+        Ok(())
+    }
+
     pub fn denoiser(self) -> Denoiser {
         match self {
             Choice::Kiln => Denoiser::built_in(),
@@ -50,6 +60,7 @@ pub struct DenoiseArgs {
 }
 
 pub fn run(args: DenoiseArgs) -> Result<()> {
+    args.denoiser.check_available()?;
     let bytes = std::fs::read(&args.input)
         .with_context(|| format!("cannot read {}", args.input.display()))?;
     let image = kiln_image::decode_exr(&bytes)

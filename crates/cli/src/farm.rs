@@ -655,6 +655,9 @@ pub fn farm(args: FarmArgs) -> Result<()> {
     if args.workers == 0 {
         bail!("--workers must be at least 1");
     }
+    if args.denoise {
+        args.denoiser.check_available()?;
+    }
     if !args.job.requires.is_empty() {
         // Its workers declare no tags, so the job would wait for ever.
         bail!(

@@ -90,6 +90,9 @@ pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
 pub fn run(args: RenderArgs) -> Result<()> {
     let start = Instant::now();
     let output = check_output(&args)?;
+    if args.denoise {
+        args.denoiser.check_available()?;
+    }
     let (desc, renderer) = load(&args)?;
     let load_time = start.elapsed();
     let pool = rayon::ThreadPoolBuilder::new()
