@@ -27,13 +27,13 @@ pub(super) struct Denoised {
 struct Kept {
     id: u64,
     frame: u32,
-    from: From,
+    from: Made,
     denoised: Arc<RgbBuffer>,
 }
 
 /// What a kept frame was made from: the frame so far (while anything holds it), or the
 /// result file after so many passes.
-enum From {
+enum Made {
     Rendering(Weak<RgbBuffer>),
     Finished(u32),
 }
@@ -60,17 +60,17 @@ impl Coordinator {
         let mut cache = self.shared.denoised.lock().await;
         // A frame that moved on since leaves its old picture behind.
         cache.kept.retain(|k| match &k.from {
-            From::Rendering(w) => w.strong_count() > 0,
-            From::Finished(_) => true,
+            Made::Rendering(w) => w.strong_count() > 0,
+            Made::Finished(_) => true,
         });
         let same = |k: &Kept| {
             k.id == id
                 && k.frame == frame
                 && match (&k.from, &source) {
-                    (From::Rendering(w), Source::Rendering(s)) => {
+                    (Made::Rendering(w), Source::Rendering(s)) => {
                         w.upgrade().is_some_and(|w| Arc::ptr_eq(&w, s))
                     }
-                    (From::Finished(a), Source::Finished { written, .. }) => a == written,
+                    (Made::Finished(a), Source::Finished { written, .. }) => a == written,
                     _ => false,
                 }
         };
@@ -80,9 +80,9 @@ impl Coordinator {
         let (picture, kept_from) = match source {
             Source::Rendering(p) => {
                 let weak = Arc::downgrade(&p);
-                (p, From::Rendering(weak))
+                (p, Made::Rendering(weak))
             }
-            Source::Finished { written, picture } => (picture, From::Finished(written)),
+            Source::Finished { written, picture } => (picture, Made::Finished(written)),
         };
         let from = picture.clone();
         let denoised = tokio::task::spawn_blocking(move || {

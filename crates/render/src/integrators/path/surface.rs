@@ -56,13 +56,12 @@ pub(super) fn surface_step(
         state.visible = Some(visible_surface(hit, &bsdf, -ray.dir, ctx.waves.as_ref()));
     }
     if state.feature.is_none() && !bsdf.is_specular() {
-        let rotation = sampler.value(FEATURE_DIMENSION);
         state.feature = Some(feature_at(
             state,
             hit,
             &bsdf,
             ray,
-            rotation,
+            sampler,
             ctx.waves.as_ref(),
         ));
     }
@@ -177,18 +176,29 @@ fn visible_surface(
 /// The BSDF's directional reflectance toward `wo_world`, estimated as pbrt-v4 does from
 /// fixed samples (exact for a Lambertian surface).
 fn rho(hit: &SurfaceHit, bsdf: &Bsdf, wo_world: Vec3A) -> Color {
+    reflectance_estimate(hit, bsdf, wo_world, (0..RHO_SAMPLES).map(rho_sample))
+}
+
+/// The mean of f cos / pdf over the BSDF samples `samples` (each a lobe choice and a
+/// direction's two numbers) toward `wo_world`.
+fn reflectance_estimate(
+    hit: &SurfaceHit,
+    bsdf: &Bsdf,
+    wo_world: Vec3A,
+    samples: impl ExactSizeIterator<Item = (f32, glam::Vec2)>,
+) -> Color {
     let frame = Frame::new(hit.ns, hit.dpdu);
     let wo = frame.to_local(wo_world);
+    let count = samples.len();
     let mut albedo = Color::ZERO;
-    for i in 0..RHO_SAMPLES {
-        let (uc, u) = rho_sample(i);
+    for (uc, u) in samples {
         if let Some(bs) = bsdf.sample(wo, uc, u)
             && bs.pdf > 0.0
         {
             albedo += bs.f * bs.wi.z.abs() / bs.pdf;
         }
     }
-    albedo / RHO_SAMPLES as f32
+    albedo / count as f32
 }
 
 /// A reflectance as RGB: a spectral path's as pbrt-v4's G-buffer records it, its colour
@@ -207,27 +217,26 @@ const FEATURE_DIMENSION: u32 = 0x4000_0002;
 
 /// The denoiser's feature reflectance of `bsdf` toward `wo`: exact for the diffuse kinds
 /// (their reflectance and transmittance), else two BSDF samples of a fixed pair rotated by
-/// `rotation` (a number of the camera sample's own, so a pixel's samples average over
-/// many directions while each costs two samples, not [`RHO_SAMPLES`]).
-fn feature_reflectance(hit: &SurfaceHit, bsdf: &Bsdf, wo_world: Vec3A, rotation: f32) -> Color {
+/// a number of the camera sample's own (so a pixel's samples average over many directions
+/// while each costs two samples, not [`RHO_SAMPLES`]; the number is drawn only then).
+fn feature_reflectance(
+    hit: &SurfaceHit,
+    bsdf: &Bsdf,
+    wo_world: Vec3A,
+    sampler: &PixelSampler,
+) -> Color {
     match bsdf {
         Bsdf::Diffuse(d) => d.r,
         Bsdf::DiffuseTransmission(d) => d.r + d.t,
         _ => {
-            let frame = Frame::new(hit.ns, hit.dpdu);
-            let wo = frame.to_local(wo_world);
-            let mut sum = Color::ZERO;
-            for i in 0..2 {
-                let shift = |v: f32| (v + rotation).fract();
+            let rotation = sampler.value(FEATURE_DIMENSION);
+            let shift = |v: f32| (v + rotation).fract();
+            let pair = (0..2).map(|i| {
                 let (uc, u) = rho_sample(i * (RHO_SAMPLES / 2));
                 let u = glam::Vec2::new(shift(u.x), (u.y + rotation * 0.618_034).fract());
-                if let Some(bs) = bsdf.sample(wo, shift(uc), u)
-                    && bs.pdf > 0.0
-                {
-                    sum += bs.f * bs.wi.z.abs() / bs.pdf;
-                }
-            }
-            sum * 0.5
+                (shift(uc), u)
+            });
+            reflectance_estimate(hit, bsdf, wo_world, pair)
         }
     }
 }
@@ -240,7 +249,7 @@ fn feature_at(
     hit: &SurfaceHit,
     bsdf: &Bsdf,
     ray: &Ray,
-    rotation: f32,
+    sampler: &PixelSampler,
     waves: Option<&Wavelengths>,
 ) -> Feature {
     let through = state.beta.min(Color::ONE);
@@ -254,7 +263,7 @@ fn feature_at(
     let reflectance = if hit.light.is_some() {
         Color::ONE
     } else {
-        feature_reflectance(hit, bsdf, -ray.dir, rotation)
+        feature_reflectance(hit, bsdf, -ray.dir, sampler)
     };
     Feature {
         albedo: reflectance_rgb(through * reflectance, waves),
