@@ -89,6 +89,10 @@ pub struct CoordinatorArgs {
     /// The most pixels a job's frame may hold (it is kept in memory while the job runs).
     #[arg(long, default_value_t = kiln_image::MAX_PIXELS)]
     max_frame_pixels: u64,
+    /// The most pixels a frame denoised for a preview (`preview.png?denoise=1`) may hold:
+    /// denoising holds about 300 bytes a pixel while it runs.
+    #[arg(long, default_value_t = 1 << 24)]
+    max_denoised_pixels: u64,
     /// Connections open at once; one more is answered 503 (fewer where the process may not
     /// open that many files).
     #[arg(long, default_value_t = 1024)]
@@ -131,6 +135,7 @@ pub fn coordinator(args: CoordinatorArgs) -> Result<()> {
         config.token = args.token;
         config.lease_ttl = Duration::from_secs_f64(args.lease_ttl.max(0.05));
         config.max_frame_pixels = args.max_frame_pixels;
+        config.max_denoised_pixels = args.max_denoised_pixels;
         config.max_connections = args.max_connections.max(1);
         anyhow::ensure!(
             args.header_timeout.is_finite() && args.header_timeout > 0.0,

@@ -2,8 +2,8 @@
 //! Kiln's built-in denoiser, for `preview.png?denoise=1`, the dashboard's toggle and
 //! `result.exr?denoise=1`.
 //!
-//! A frame is denoised when a client first asks after a merge moved it on, one frame at a
-//! time (a 2880x1920 frame takes seconds of the coordinator's CPU, so hostile or eager
+//! A frame is denoised when a client first asks after a merge moved it on (one larger than
+//! `Config::max_denoised_pixels` is refused), one frame at a time (a 2880x1920 frame takes seconds of the coordinator's CPU, so hostile or eager
 //! clients queue rather than pile up), and the last few are kept: every client asking for
 //! the same merged frame gets the same picture without denoising it again. The built-in
 //! denoiser is deterministic, so the picture is the same bytes whoever asks, whichever
@@ -56,6 +56,14 @@ impl Coordinator {
         (id, frame): (u64, u32),
         source: Source,
     ) -> Result<Arc<RgbBuffer>, Error> {
+        let (Source::Rendering(picture) | Source::Finished { picture, .. }) = &source;
+        let (pixels, limit) = (
+            picture.pixels.len() as u64,
+            self.config().max_denoised_pixels,
+        );
+        if pixels > limit {
+            return Err(Error::DenoiseTooLarge { pixels, limit });
+        }
         // One frame at a time: the lock is held while it is denoised.
         let mut cache = self.shared.denoised.lock().await;
         // A frame that moved on since leaves its old picture behind.

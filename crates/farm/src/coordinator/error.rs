@@ -116,6 +116,11 @@ pub enum Error {
     Unpack(BundleError),
     #[error("{0}")]
     Image(ImageError),
+    /// A frame larger than the coordinator denoises.
+    #[error(
+        "the frame of {pixels} pixels is larger than the {limit} this coordinator denoises: download result.exr and run `kiln denoise` on it"
+    )]
+    DenoiseTooLarge { pixels: u64, limit: u64 },
     /// A frame that cannot be denoised (it holds no features, or no variance).
     #[error("the frame cannot be denoised: {0}")]
     Denoise(kiln_denoise::Error),

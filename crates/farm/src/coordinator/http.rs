@@ -153,7 +153,8 @@ impl Error {
             | Error::UnknownLease(_)
             | Error::StaleTile(_)
             | Error::Relent(_)
-            | Error::Denoise(_) => StatusCode::CONFLICT,
+            | Error::Denoise(_)
+            | Error::DenoiseTooLarge { .. } => StatusCode::CONFLICT,
             Error::SetAside { .. } | Error::Forbidden(_) => StatusCode::FORBIDDEN,
             Error::JobEnded(_) => StatusCode::GONE,
             // The store is away (a server restarting, a full disk) or this coordinator no

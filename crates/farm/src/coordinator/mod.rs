@@ -92,6 +92,9 @@ pub struct Config {
     /// The most pixels a job's frame (its crop window) may hold: the frame is allocated
     /// when the job is created. 16384 x 16384 by default (3 GiB of float RGB).
     pub max_frame_pixels: u64,
+    /// The most pixels a frame denoised for a preview may hold (denoising holds about 300
+    /// bytes a pixel while it runs): 4096 x 4096 by default.
+    pub max_denoised_pixels: u64,
     /// The pause before a failed webhook call is retried; it doubles after each failure,
     /// up to a minute.
     pub webhook_backoff: Duration,
@@ -126,6 +129,7 @@ impl Config {
             max_plannings: 2,
             max_tile_bytes: 256 << 20,
             max_frame_pixels: kiln_image::MAX_PIXELS,
+            max_denoised_pixels: 1 << 24,
             webhook_backoff: Duration::from_secs(1),
             max_connections: 1024,
             header_timeout: Duration::from_secs(30),

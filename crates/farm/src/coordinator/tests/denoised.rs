@@ -68,3 +68,27 @@ async fn a_denoised_preview_is_the_frame_denoised_the_same_on_every_request() {
     assert_eq!(preview(&f.app, job, "?denoise=1").await.1, done);
     assert_ne!(preview(&f.app, job, "").await.1, done);
 }
+
+/// A frame larger than the coordinator denoises is refused with the limit and what to do
+/// instead, before anything of its size is allocated; the raw preview is still served.
+#[tokio::test]
+async fn a_frame_too_large_to_denoise_is_refused_with_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = Config::new(dir.path().join("data"));
+    config.max_denoised_pixels = 500;
+    let c = Coordinator::open(config).unwrap();
+    let f = Farm {
+        dir,
+        app: app(c.clone()),
+        c,
+    };
+    let job = submit(&f, 32, 16, 16).await;
+    let (status, body) = preview(&f.app, job, "?denoise=1").await;
+    assert_eq!(status, StatusCode::CONFLICT);
+    let error = error_of(&body);
+    assert!(
+        error.contains("512 pixels") && error.contains("500"),
+        "{error}"
+    );
+    assert_eq!(preview(&f.app, job, "").await.0, StatusCode::OK);
+}
